@@ -1,0 +1,80 @@
+"""Suite-wide fixtures: leak checks and opt-in hardware options.
+
+Every test must leave no thread, child process or socket behind: the
+``no_leaks`` fixture (autouse) fails a test that does.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import threading
+import time
+
+import pytest
+
+
+def pytest_addoption(parser):
+    parser.addoption("--robot-url", default=None, help="URL of a real robot controller")
+    parser.addoption("--tracker-url", default=None, help="URL of a real laser tracker")
+
+
+@pytest.fixture
+def robot_url(request):
+    url = request.config.getoption("--robot-url")
+    if not url:
+        pytest.skip("needs --robot-url (real hardware)")
+    return url
+
+
+@pytest.fixture
+def tracker_url(request):
+    url = request.config.getoption("--tracker-url")
+    if not url:
+        pytest.skip("needs --tracker-url (real hardware)")
+    return url
+
+
+def _sockets() -> set[str]:
+    out = set()
+    try:
+        for fd in os.listdir("/proc/self/fd"):
+            try:
+                target = os.readlink(f"/proc/self/fd/{fd}")
+            except OSError:
+                continue
+            if target.startswith("socket:"):
+                out.add(target)
+    except FileNotFoundError:  # not Linux
+        pass
+    return out
+
+
+def _live_threads() -> set[threading.Thread]:
+    return {t for t in threading.enumerate() if t.is_alive()}
+
+
+@pytest.fixture(autouse=True)
+def no_leaks():
+    """Fail a test that leaves threads, child processes or sockets behind."""
+    threads0, sockets0 = _live_threads(), _sockets()
+    yield
+    deadline = time.monotonic() + 3.0
+    while True:
+        threads = {t for t in _live_threads() - threads0 if not t.daemon or t.is_alive()}
+        children = multiprocessing.active_children()
+        sockets = _sockets() - sockets0
+        if not (threads or children or sockets) or time.monotonic() > deadline:
+            break
+        time.sleep(0.05)
+    problems = []
+    if threads:
+        problems.append(f"threads left running: {sorted(t.name for t in threads)}")
+    if children:
+        problems.append(f"child processes left running: {[p.pid for p in children]}")
+        for p in children:
+            p.kill()
+    if sockets:
+        problems.append(f"{len(sockets)} socket(s) left open")
+    if problems:
+        pytest.fail("leak: " + "; ".join(problems), pytrace=False)
