@@ -1,0 +1,376 @@
+"""Measured poses: :class:`Dataset` and the measurement CSV of FORMATS.md §1.
+
+The reader is strict: a missing required column, a non-numeric value, a NaN, a
+duplicated ``pose_id``, a bad ``set``/``dirJ`` value or a joint outside the
+model's limits is refused with a :class:`DataError` naming the file, the line
+and the column. Nothing is guessed.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .robot_model import RobotModel
+
+
+class DataError(ValueError):
+    """A data file that cannot be used; the message names file, line and column."""
+
+
+@dataclass
+class Dataset:
+    """Measured poses, vectorised. Angles in rad, lengths in mm.
+
+    Attributes
+    ----------
+    q : (n, N) joint positions reported by the controller, rad
+    xyz : (n, 3) measured target centre in the tracker frame, mm
+    pose_id : list of n labels
+    cmd : (n, 3) controller's nominal TCP position (base frame, mm), or None
+    temp_c, t_s, payload_kg, sigma_mm : (n,) or None
+    dirs : (n, N) approach direction per joint (-1, 0, +1), or None
+    is_valid : (n,) bool, True for validation rows (``set=valid``)
+    meta : ``# key: value`` metadata from the file's first comment lines
+    source : where the data came from (a path or a description)
+    lines : (n,) file line number of each row (0 when not from a file)
+    """
+
+    q: np.ndarray
+    xyz: np.ndarray
+    pose_id: list[str] = field(default_factory=list)
+    cmd: np.ndarray | None = None
+    temp_c: np.ndarray | None = None
+    t_s: np.ndarray | None = None
+    payload_kg: np.ndarray | None = None
+    sigma_mm: np.ndarray | None = None
+    dirs: np.ndarray | None = None
+    is_valid: np.ndarray | None = None
+    meta: dict[str, str] = field(default_factory=dict)
+    source: str = "<arrays>"
+    lines: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self.q = np.atleast_2d(np.asarray(self.q, float))
+        self.xyz = np.atleast_2d(np.asarray(self.xyz, float))
+        n = self.q.shape[0]
+        if self.xyz.shape != (n, 3):
+            raise DataError(f"{self.source}: xyz has shape {self.xyz.shape}, expected ({n}, 3)")
+        if not self.pose_id:
+            self.pose_id = [str(i + 1) for i in range(n)]
+        if self.is_valid is None:
+            self.is_valid = np.zeros(n, bool)
+        if self.lines is None:
+            self.lines = np.zeros(n, int)
+
+    # ---- views -----------------------------------------------------------
+    @property
+    def n(self) -> int:
+        return self.q.shape[0]
+
+    @property
+    def n_joints(self) -> int:
+        return self.q.shape[1]
+
+    def subset(self, mask_or_index) -> Dataset:
+        """Rows selected by a boolean mask or an index array (order kept)."""
+        idx = np.arange(self.n)[mask_or_index]
+
+        def pick(a):
+            return None if a is None else a[idx]
+
+        return replace(
+            self,
+            q=self.q[idx],
+            xyz=self.xyz[idx],
+            pose_id=[self.pose_id[i] for i in idx],
+            cmd=pick(self.cmd),
+            temp_c=pick(self.temp_c),
+            t_s=pick(self.t_s),
+            payload_kg=pick(self.payload_kg),
+            sigma_mm=pick(self.sigma_mm),
+            dirs=pick(self.dirs),
+            is_valid=pick(self.is_valid),
+            lines=pick(self.lines),
+        )
+
+    def calib(self) -> Dataset:
+        return self.subset(~self.is_valid)
+
+    def valid(self) -> Dataset:
+        return self.subset(self.is_valid)
+
+    def sigma(self) -> float | None:
+        """The tracker's standard uncertainty per axis (mm), if known."""
+        if self.sigma_mm is not None and self.n:
+            return float(np.sqrt(np.mean(self.sigma_mm**2)))
+        v = self.meta.get("tracker_sigma_mm")
+        return float(v) if v is not None else None
+
+    def noise_floor_mm(self) -> float | None:
+        """RMS of the 3-D measurement error the instrument alone causes: sqrt(3) sigma."""
+        s = self.sigma()
+        return None if s is None else math.sqrt(3.0) * s
+
+    def concat(self, other: Dataset) -> Dataset:
+        """This data set followed by ``other`` (columns missing in either become None)."""
+
+        def cat(a, b):
+            return None if a is None or b is None else np.concatenate([a, b])
+
+        return Dataset(
+            q=np.vstack([self.q, other.q]),
+            xyz=np.vstack([self.xyz, other.xyz]),
+            pose_id=self.pose_id + other.pose_id,
+            cmd=cat(self.cmd, other.cmd),
+            temp_c=cat(self.temp_c, other.temp_c),
+            t_s=cat(self.t_s, other.t_s),
+            payload_kg=cat(self.payload_kg, other.payload_kg),
+            sigma_mm=cat(self.sigma_mm, other.sigma_mm),
+            dirs=cat(self.dirs, other.dirs),
+            is_valid=np.concatenate([self.is_valid, other.is_valid]),
+            meta={**other.meta, **self.meta},
+            source=self.source,
+            lines=np.concatenate([self.lines, other.lines]),
+        )
+
+    # ---- writing -----------------------------------------------------------
+    def to_csv(self, path: str | Path | None = None) -> str:
+        """Write the measurement CSV (deg, mm); returns the text, writes it when a path is given."""
+        N = self.n_joints
+        cols: dict[str, np.ndarray | list] = {"pose_id": self.pose_id}
+        for j in range(N):
+            cols[f"q{j + 1}"] = np.degrees(self.q[:, j])
+        for k, c in enumerate("xyz"):
+            cols[c] = self.xyz[:, k]
+        if self.cmd is not None:
+            for k, c in enumerate("xyz"):
+                cols[f"cmd_{c}"] = self.cmd[:, k]
+        for name in ("temp_c", "t_s", "payload_kg", "sigma_mm"):
+            if getattr(self, name) is not None:
+                cols[name] = getattr(self, name)
+        if self.dirs is not None:
+            for j in range(N):
+                cols[f"dir{j + 1}"] = self.dirs[:, j].astype(int)
+        if self.is_valid.any():
+            cols["set"] = np.where(self.is_valid, "valid", "calib")
+        buf = io.StringIO()
+        for k, v in self.meta.items():
+            buf.write(f"# {k}: {v}\n")
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(cols.keys())
+        columns = list(cols.values())
+        for i in range(self.n):
+            row = []
+            for c in columns:
+                v = c[i]
+                if isinstance(v, (float, np.floating)):
+                    row.append(repr(float(v)))
+                elif isinstance(v, (np.integer,)):
+                    row.append(str(int(v)))
+                else:
+                    row.append(str(v))
+            w.writerow(row)
+        text = buf.getvalue()
+        if path is not None:
+            Path(path).write_text(text)
+        return text
+
+
+# ---- reading ----------------------------------------------------------------
+_OPTIONAL_FLOAT = ("temp_c", "t_s", "payload_kg", "sigma_mm")
+
+
+def _read_rows(path: Path, source: str):
+    """Yield (line_no, row) for data rows; collect metadata and the header."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise DataError(f"{source}: no such file") from None
+    except UnicodeDecodeError as e:
+        raise DataError(f"{source}: not a text file ({e})") from None
+    meta: dict[str, str] = {}
+    header = None
+    header_line = 0
+    rows = []
+    in_preamble = True
+    for line_no, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if stripped.startswith("#"):
+            body = stripped[1:].strip()
+            if in_preamble and ":" in body:
+                k, v = body.split(":", 1)
+                meta[k.strip()] = v.strip()
+            continue
+        in_preamble = False
+        fields = next(csv.reader([line]))
+        if header is None:
+            header = [f.strip() for f in fields]
+            header_line = line_no
+            continue
+        rows.append((line_no, [f.strip() for f in fields]))
+    if header is None:
+        raise DataError(f"{source}: no header row")
+    return meta, header, header_line, rows
+
+
+def _float(source, line_no, col, text) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise DataError(f"{source}: line {line_no}, column {col}: not a number: {text!r}") from None
+    if not math.isfinite(v):
+        raise DataError(f"{source}: line {line_no}, column {col}: {text!r} is not a finite number")
+    return v
+
+
+def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = True) -> Dataset:
+    """Read a measurement CSV (FORMATS.md §1).
+
+    Parameters
+    ----------
+    path : the CSV file
+    model : the robot model (its joint count and limits are checked), or a joint count
+    check_limits : refuse joints outside the model's limits (only with a model)
+    """
+    path = Path(path)
+    source = str(path)
+    meta, header, header_line, rows = _read_rows(path, source)
+    N = model if isinstance(model, int) else model.n_joints
+    dupes = {h for h in header if header.count(h) > 1}
+    if dupes:
+        raise DataError(f"{source}: line {header_line}: duplicated column(s) {sorted(dupes)}")
+    required = [f"q{j + 1}" for j in range(N)] + ["x", "y", "z"]
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise DataError(
+            f"{source}: line {header_line}: missing required column(s) {', '.join(missing)} "
+            f"(the model has {N} joints: q1..q{N}, and x, y, z are required)"
+        )
+    extra_q = [h for h in header if h.startswith("q") and h[1:].isdigit() and int(h[1:]) > N]
+    if extra_q:
+        raise DataError(
+            f"{source}: line {header_line}: column(s) {', '.join(extra_q)} but the model has "
+            f"{N} joints"
+        )
+    col = {h: i for i, h in enumerate(header)}
+    n = len(rows)
+    if n == 0:
+        raise DataError(f"{source}: no data rows")
+
+    def numeric(name: str) -> np.ndarray:
+        k = col[name]
+        out = np.empty(n)
+        for r, (line_no, f) in enumerate(rows):
+            if k >= len(f) or f[k] == "":
+                raise DataError(f"{source}: line {line_no}, column {name}: empty value")
+            out[r] = _float(source, line_no, name, f[k])
+        return out
+
+    for line_no, f in rows:
+        if len(f) != len(header):
+            raise DataError(
+                f"{source}: line {line_no}: {len(f)} fields, the header has {len(header)}"
+            )
+    q = np.column_stack([numeric(f"q{j + 1}") for j in range(N)])
+    xyz = np.column_stack([numeric(c) for c in "xyz"])
+    lines = np.array([ln for ln, _ in rows])
+
+    if not isinstance(model, int) and check_limits:
+        lim = np.array([[j.min, j.max] for j in model.joints])
+        bad = (q < lim[:, 0] - 1e-9) | (q > lim[:, 1] + 1e-9)
+        if bad.any():
+            r, j = map(int, np.argwhere(bad)[0])
+            raise DataError(
+                f"{source}: line {lines[r]}, column q{j + 1}: {q[r, j]:g} deg is outside the "
+                f"model's limits [{lim[j, 0]:g}, {lim[j, 1]:g}] of joint {j + 1} "
+                f"({int(bad.any(axis=1).sum())} row(s) affected)"
+            )
+
+    pose_id = [str(i + 1) for i in range(n)]
+    if "pose_id" in col:
+        k = col["pose_id"]
+        seen: dict[str, int] = {}
+        pose_id = []
+        for line_no, f in rows:
+            pid = f[k]
+            if pid == "":
+                raise DataError(f"{source}: line {line_no}, column pose_id: empty value")
+            if pid in seen:
+                raise DataError(
+                    f"{source}: line {line_no}, column pose_id: {pid!r} already used on line "
+                    f"{seen[pid]}"
+                )
+            seen[pid] = line_no
+            pose_id.append(pid)
+
+    cmd = None
+    present = [c for c in ("cmd_x", "cmd_y", "cmd_z") if c in col]
+    if present and len(present) != 3:
+        raise DataError(f"{source}: line {header_line}: cmd_x, cmd_y, cmd_z must come together")
+    if present:
+        cmd = np.column_stack([numeric(c) for c in ("cmd_x", "cmd_y", "cmd_z")])
+    opt = {name: numeric(name) if name in col else None for name in _OPTIONAL_FLOAT}
+    if opt["sigma_mm"] is not None and (opt["sigma_mm"] <= 0).any():
+        r = int(np.argmax(opt["sigma_mm"] <= 0))
+        raise DataError(f"{source}: line {lines[r]}, column sigma_mm: must be positive")
+
+    dirs = None
+    dir_cols = [f"dir{j + 1}" for j in range(N)]
+    if any(c in col for c in dir_cols):
+        missing = [c for c in dir_cols if c not in col]
+        if missing:
+            raise DataError(
+                f"{source}: line {header_line}: direction columns need all of dir1..dir{N}; "
+                f"missing {', '.join(missing)}"
+            )
+        dirs = np.column_stack([numeric(c) for c in dir_cols])
+        bad = ~np.isin(dirs, (-1.0, 0.0, 1.0))
+        if bad.any():
+            r, j = map(int, np.argwhere(bad)[0])
+            raise DataError(
+                f"{source}: line {lines[r]}, column dir{j + 1}: {dirs[r, j]:g} is not -1, 0 or +1"
+            )
+        dirs = dirs.astype(int)
+
+    is_valid = np.zeros(n, bool)
+    if "set" in col:
+        k = col["set"]
+        for r, (line_no, f) in enumerate(rows):
+            v = f[k]
+            if v not in ("calib", "valid", ""):
+                raise DataError(
+                    f"{source}: line {line_no}, column set: {v!r} is neither 'calib' nor 'valid'"
+                )
+            is_valid[r] = v == "valid"
+
+    if "tracker_sigma_mm" in meta:
+        try:
+            s = float(meta["tracker_sigma_mm"])
+            if not (s > 0 and math.isfinite(s)):
+                raise ValueError
+        except ValueError:
+            raise DataError(
+                f"{source}: metadata tracker_sigma_mm: {meta['tracker_sigma_mm']!r} is not a "
+                "positive number"
+            ) from None
+
+    return Dataset(
+        q=np.radians(q),
+        xyz=xyz,
+        pose_id=pose_id,
+        cmd=cmd,
+        dirs=dirs,
+        is_valid=is_valid,
+        meta=meta,
+        source=source,
+        lines=lines,
+        **opt,
+    )

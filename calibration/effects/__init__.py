@@ -1,0 +1,112 @@
+"""Effects: the physical causes of error a model can include (FORMATS.md §3).
+
+``parse_effects("geometric,base,tool,compliance:2", model)`` builds effect
+objects from their names. Families register in :data:`REGISTRY`; a user's file
+adds its own with :func:`load_effect_file`.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import inspect
+import re
+import sys
+from pathlib import Path
+
+from ..robot_model import RobotModel
+from .base import Effect, EffectError, JointEffect, display_unit
+from .geometric import BUILTIN, Base, Geometric, Tool
+
+REGISTRY: dict[str, type[Effect]] = dict(BUILTIN)
+
+DEFAULT_EFFECTS = "geometric,base,tool"
+
+_NAME = re.compile(r"^(?P<family>[a-z][a-z_]*?)(?P<order>\d*)(?::(?P<joint>\d+))?$")
+
+__all__ = [
+    "DEFAULT_EFFECTS",
+    "REGISTRY",
+    "Base",
+    "Effect",
+    "EffectError",
+    "Geometric",
+    "JointEffect",
+    "Tool",
+    "display_unit",
+    "load_effect_file",
+    "parse_effect",
+    "parse_effects",
+    "register",
+]
+
+
+def register(cls: type[Effect]) -> type[Effect]:
+    """Make a family available by name (usable as a class decorator)."""
+    if not cls.family or not re.fullmatch(r"[a-z][a-z_]*", cls.family):
+        raise EffectError(f"{cls.__name__}: family must be lower-case letters/underscores")
+    if cls.stage not in ("joint", "table", "length", "tool", "base", "measure"):
+        raise EffectError(f"{cls.__name__}: unknown stage {cls.stage!r}")
+    REGISTRY[cls.family] = cls
+    return cls
+
+
+def parse_effect(name: str, model: RobotModel) -> Effect:
+    """One effect from its command-line name (``compliance:3``, ``harmonic12:1``)."""
+    m = _NAME.match(name.strip())
+    if not m:
+        raise EffectError(f"bad effect name {name!r}: expected family or family:J")
+    family, order, joint = m["family"], m["order"], m["joint"]
+    cls = REGISTRY.get(family) or REGISTRY.get(family + order)
+    if cls is None:
+        raise EffectError(
+            f"unknown effect family {family!r} in {name!r}; known: {', '.join(sorted(REGISTRY))}"
+        )
+    if cls.family == family + order:  # a family whose name ends in digits
+        order = ""
+    return cls(model, int(joint) if joint else None, int(order) if order else None)
+
+
+def parse_effects(spec: str | list[str], model: RobotModel) -> list[Effect]:
+    """Effects from a comma-separated list or a list of names; duplicates refused."""
+    names = [s.strip() for s in spec.split(",")] if isinstance(spec, str) else list(spec)
+    names = [n for n in names if n]
+    if not names:
+        raise EffectError("no effects given")
+    effects = [parse_effect(n, model) for n in names]
+    labels = [e.label for e in effects]
+    dupes = sorted({x for x in labels if labels.count(x) > 1})
+    if dupes:
+        raise EffectError(f"effect(s) given twice: {', '.join(dupes)}")
+    stages = [e.stage for e in effects]
+    for stage in ("base", "tool", "table", "measure", "length"):
+        if stages.count(stage) > 1:
+            raise EffectError(f"only one effect may act at the {stage!r} stage")
+    return effects
+
+
+def load_effect_file(path: str | Path) -> list[type[Effect]]:
+    """Import a user's Python file and register every Effect subclass it defines."""
+    path = Path(path)
+    if not path.is_file():
+        raise EffectError(f"{path}: no such effect file")
+    mod_name = f"cellcal_user_effect_{path.stem}"
+    spec = importlib.util.spec_from_file_location(mod_name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[mod_name] = module
+    try:
+        spec.loader.exec_module(module)
+    except Exception as e:  # a user's file: report whatever it raised
+        raise EffectError(f"{path}: could not load: {type(e).__name__}: {e}") from e
+    found = [
+        obj
+        for obj in vars(module).values()
+        if inspect.isclass(obj)
+        and issubclass(obj, Effect)
+        and obj.__module__ == mod_name
+        and obj.family
+    ]
+    if not found:
+        raise EffectError(f"{path}: defines no Effect subclass with a family name")
+    for cls in found:
+        register(cls)
+    return found

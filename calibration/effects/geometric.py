@@ -1,0 +1,128 @@
+"""Geometric effects: the kinematic parameters, the base and the tool."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..dataset import Dataset
+from ..kinematics import ALPHA, BETA, THETA
+from ..robot_model import DH_COLUMNS, RobotModel
+from ..transforms import fit_rigid, matrix_to_rotvec, right_jacobian, rotvec_to_matrix
+from .base import Effect
+
+_LENGTH_SCALE = 0.1  # mm, typical size of a length error
+_ANGLE_SCALE = np.radians(0.01)  # rad, typical size of an angle error
+
+
+class Geometric(Effect):
+    """Errors of the kinematic parameters: Δθ_offset, Δd, Δa, Δα of every joint, and the
+    Hayati tilt Δβ on rows whose neighbouring axes are parallel. Units mm and rad; the
+    parameters are deltas to the nominal table (``geometric.j2.a`` = Δa₂)."""
+
+    family = "geometric"
+    stage = "table"
+    summary = "errors of the kinematic parameters (DH/MDH table, Hayati beta)"
+
+    def __init__(self, model: RobotModel, joint=None, order=None):
+        super().__init__(model, joint, order)
+        parallel = set(model.parallel_rows())
+        self.entries: list[tuple[int, int]] = []  # (row, column)
+        for j in range(model.n_joints):
+            for col, name in enumerate(DH_COLUMNS):
+                if col == BETA and j not in parallel:
+                    continue
+                self.entries.append((j, col))
+                short = "theta" if name == "theta_offset" else name
+                self.param_names.append(f"j{j + 1}.{short}")
+                angle = col in (THETA, ALPHA, BETA)
+                self.units.append("rad" if angle else "mm")
+        self.scales = np.array(
+            [_ANGLE_SCALE if u == "rad" else _LENGTH_SCALE for u in self.units]
+        )
+        N = model.n_joints
+        self._partials = np.zeros((N, 5, len(self.entries)))
+        for k, (j, col) in enumerate(self.entries):
+            self._partials[j, col, k] = 1.0
+
+    @property
+    def prefix(self) -> str:
+        return "geometric"
+
+    def table_delta(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Deltas to the (N, 5) table and their partials (N, 5, n_params)."""
+        return self._partials @ p, self._partials
+
+
+class Base(Effect):
+    """Pose of the robot base in the measurement (tracker) frame: position x, y, z (mm) and
+    orientation as a rotation vector rx, ry, rz (rad). Absolute values, estimated at the
+    start by a best-fit rigid transform of nominal points onto the measured ones."""
+
+    family = "base"
+    stage = "base"
+    summary = "pose of the robot base in the measurement frame"
+
+    def __init__(self, model, joint=None, order=None):
+        super().__init__(model, joint, order)
+        self.param_names = ["x", "y", "z", "rx", "ry", "rz"]
+        self.units = ["mm"] * 3 + ["rad"] * 3
+        self.scales = np.array([1.0, 1.0, 1.0, 1e-3, 1e-3, 1e-3])
+
+    def initial(self, data: Dataset, nominal: Any, state: Any) -> np.ndarray:
+        R, t = fit_rigid(nominal.point, data.xyz)
+        return np.concatenate([t, matrix_to_rotvec(R)])
+
+    def transform(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """tracker_T_base as (R (3, 3), t (3,))."""
+        return rotvec_to_matrix(p[3:]), p[:3]
+
+    def apply(self, p: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Map base-frame points (n, 3) to the tracker frame.
+
+        Returns the points, the rotation (to carry other Jacobian columns along) and
+        this effect's own columns, shape (n, 3, 6).
+        """
+        R, t = self.transform(p)
+        out = P @ R.T + t
+        n = P.shape[0]
+        J = np.empty((n, 3, 6))
+        J[:, :, :3] = np.eye(3)
+        # d(R(r) v)/dr = -R [v]x J_r(r)
+        Jr = right_jacobian(p[3:])
+        v = P
+        vx = np.zeros((n, 3, 3))
+        vx[:, 0, 1], vx[:, 0, 2] = -v[:, 2], v[:, 1]
+        vx[:, 1, 0], vx[:, 1, 2] = v[:, 2], -v[:, 0]
+        vx[:, 2, 0], vx[:, 2, 1] = -v[:, 1], v[:, 0]
+        J[:, :, 3:] = -np.einsum("ij,njk,kl->nil", R, vx, Jr, optimize=True)
+        return out, R, J
+
+
+class Tool(Effect):
+    """Target (SMR) centre in the flange frame, x, y, z (mm). Absolute values, starting from
+    the model's nominal tool."""
+
+    family = "tool"
+    stage = "tool"
+    summary = "target (SMR) position in the flange frame"
+
+    def __init__(self, model, joint=None, order=None):
+        super().__init__(model, joint, order)
+        self.param_names = ["x", "y", "z"]
+        self.units = ["mm"] * 3
+        self.scales = np.ones(3)
+
+    def initial(self, data, nominal, state) -> np.ndarray:
+        return self.model.tool_mm().copy()
+
+    def tool_point(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return p, np.eye(3)
+
+
+BUILTIN: dict[str, type[Effect]] = {
+    "geometric": Geometric,
+    "base": Base,
+    "tool": Tool,
+}

@@ -1,0 +1,117 @@
+"""Which parameters a data set can determine: QR with column pivoting of the scaled Jacobian.
+
+Columns are normalised to unit length (so units do not matter) and ranked by
+pivoted QR in tiers: first the frame parameters (base, tool, tracker scale),
+then the geometric ones, then every other effect, each tier after projecting
+out the columns already kept. A parameter whose pivot falls below ``rtol`` is
+unidentifiable (no effect on the measured points) or redundant (its effect is a
+combination of the others') and is fixed at its starting value. The tiers make
+the choice between exactly redundant parameters stable and readable: with
+position-only data joint 1's offset and d are fixed, not the base.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+
+#: tiers for breaking exact redundancies: a parameter is only fixed in favour of
+#: parameters of the same or an earlier tier
+_TIERS = ({"base", "tool", "tracker_scale"}, {"geometric"})
+
+
+def _tier(family: str) -> int:
+    for i, t in enumerate(_TIERS):
+        if family in t:
+            return i
+    return len(_TIERS)
+
+
+@dataclass
+class Identifiability:
+    """Result of the identifiability analysis.
+
+    Attributes
+    ----------
+    free : (p,) bool, True for the identifiable parameters
+    names : all parameter names
+    fixed : names of the fixed ones, each with a reason
+    condition_number : of the column-normalised Jacobian of the free parameters
+    observability_index : O1 = (s1 ... sm)^(1/m) / sqrt(n_poses) of the Jacobian scaled by
+        the parameters' typical magnitudes (mm per typical error; larger is better)
+    """
+
+    free: np.ndarray
+    names: list[str]
+    fixed: dict[str, str] = field(default_factory=dict)
+    condition_number: float = float("nan")
+    observability_index: float = float("nan")
+
+    @property
+    def unidentifiable(self) -> list[str]:
+        return list(self.fixed)
+
+    @property
+    def n_identifiable(self) -> int:
+        return int(self.free.sum())
+
+
+def analyse(
+    J: np.ndarray,
+    names: list[str],
+    scales: np.ndarray,
+    families: list[str] | None = None,
+    rtol: float = 1e-6,
+    always_free: np.ndarray | None = None,
+    n_poses: int | None = None,
+) -> Identifiability:
+    """Rank the columns of a Jacobian ``J`` (m, p) and decide which parameters are free.
+
+    ``always_free`` (bool mask) keeps parameters free whatever their pivot (rarely needed);
+    ``families`` (per parameter) sets the tie-breaking preference.
+    """
+    m, p = J.shape
+    norms = np.linalg.norm(J, axis=0)
+    fixed: dict[str, str] = {}
+    live = norms > 1e-12 * max(float(norms.max()), 1e-300)
+    for k in np.flatnonzero(~live):
+        fixed[names[k]] = "no effect on the measured points"
+    tiers = np.array([_tier(f) for f in (families or [""] * p)])
+    Jn = np.zeros_like(J, dtype=float)
+    Jn[:, live] = J[:, live] / norms[live]
+    free = np.zeros(p, bool)
+    basis = np.zeros((m, 0))
+    for tier in sorted(set(tiers[live])):
+        idx = np.flatnonzero(live & (tiers == tier))
+        cols = Jn[:, idx] - basis @ (basis.T @ Jn[:, idx])
+        _, R, piv = scipy.linalg.qr(cols, mode="economic", pivoting=True)
+        diag = np.abs(np.diag(R))
+        keep = idx[piv[: diag.size][diag > rtol]]
+        free[keep] = True
+        basis, _ = np.linalg.qr(Jn[:, free])
+    if always_free is not None:
+        free |= always_free & live
+    dropped = [k for k in np.flatnonzero(live) if not free[k]]
+    if dropped:
+        # explain each dropped column as a combination of the kept ones
+        Jf = J[:, free] / norms[free]
+        coef, *_ = np.linalg.lstsq(Jf, J[:, dropped] / norms[dropped], rcond=None)
+        free_names = [names[k] for k in np.flatnonzero(free)]
+        for c, k in enumerate(dropped):
+            order = np.argsort(-np.abs(coef[:, c]))[:3]
+            parts = [
+                f"{free_names[i]} ({coef[i, c]:+.2f})" for i in order if abs(coef[i, c]) > 0.05
+            ]
+            fixed[names[k]] = "redundant with " + (", ".join(parts) if parts else "the others")
+    cond = obs = float("nan")
+    if free.any():
+        s = np.linalg.svd(J[:, free] / norms[free], compute_uv=False)
+        cond = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+        ss = np.linalg.svd(J[:, free] * np.asarray(scales)[free], compute_uv=False)
+        npose = n_poses if n_poses else max(m // 3, 1)
+        obs = float(np.exp(np.mean(np.log(np.maximum(ss, 1e-300)))) / np.sqrt(npose))
+    order = {n: i for i, n in enumerate(names)}
+    fixed = dict(sorted(fixed.items(), key=lambda kv: order[kv[0]]))
+    return Identifiability(free, list(names), fixed, cond, obs)

@@ -1,0 +1,268 @@
+"""Identification: :func:`identify` fits an error model to measured poses and returns a
+:class:`Fit` — parameters with standard uncertainties, residuals per pose, statistics on
+calibration and validation rows, identifiability and the solver's history."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg
+
+from .dataset import Dataset
+from .effects import display_unit
+from .error_model import Bound, ErrorModel
+from .identifiability import Identifiability, analyse
+from .solvers import SOLVERS, Problem
+
+
+def error_stats(residuals: np.ndarray) -> dict:
+    """Statistics of 3-D error magnitudes: n, rms, mean, max, 95th percentile (mm)."""
+    e = np.linalg.norm(np.atleast_2d(residuals), axis=1) if len(residuals) else np.zeros(0)
+    if e.size == 0:
+        return {"n": 0, "rms_mm": None, "mean_mm": None, "max_mm": None, "p95_mm": None}
+    return {
+        "n": int(e.size),
+        "rms_mm": float(np.sqrt(np.mean(e**2))),
+        "mean_mm": float(e.mean()),
+        "max_mm": float(e.max()),
+        "p95_mm": float(np.percentile(e, 95)),
+    }
+
+
+@dataclass
+class Fit:
+    """The result of :func:`identify`.
+
+    Attributes
+    ----------
+    error_model : the model that was fitted
+    values : (p,) parameters, internal units (mm, rad, ...)
+    std : (p,) standard uncertainties (0 for fixed parameters)
+    covariance : (p, p) covariance (zero rows/columns for fixed parameters)
+    identifiability : which parameters were free, and why the others were fixed
+    residuals : (n, 3) measured minus predicted on the calibration rows, mm
+    calib, valid : error statistics (see :func:`error_stats`); ``valid`` None without rows
+    sigma_mm : residual standard deviation per axis after the fit
+    converged, reason, iterations, history, solver, solve_s : how the solver did
+    info : solver-specific extras (robust weights, ridge parameter...)
+    """
+
+    error_model: ErrorModel
+    values: np.ndarray
+    std: np.ndarray
+    covariance: np.ndarray
+    identifiability: Identifiability
+    data: Dataset
+    residuals: np.ndarray
+    calib: dict
+    valid_data: Dataset | None = None
+    valid_residuals: np.ndarray | None = None
+    valid: dict | None = None
+    sigma_mm: float = float("nan")
+    solver: str = "lm"
+    converged: bool = True
+    reason: str = ""
+    iterations: int = 0
+    history: list[dict] = field(default_factory=list)
+    solve_s: float = 0.0
+    info: dict = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    # ---- access --------------------------------------------------------------
+    @property
+    def names(self) -> list[str]:
+        return self.error_model.names
+
+    @property
+    def free(self) -> np.ndarray:
+        return self.identifiability.free
+
+    @property
+    def noise_floor_mm(self) -> float | None:
+        return self.data.noise_floor_mm()
+
+    def param(self, name: str) -> tuple[float, float]:
+        """(value, standard uncertainty) of one parameter, internal units."""
+        k = self.error_model.index(name)
+        return float(self.values[k]), float(self.std[k])
+
+    def predict(self, data: Dataset) -> np.ndarray:
+        """Predicted target centres (tracker frame, mm) for other poses, shape (n, 3)."""
+        return self.error_model.evaluate(self.values, self.error_model.bind(data), False)[0]
+
+    def correlation(self) -> np.ndarray:
+        """Correlation matrix of the free parameters, (m, m)."""
+        f = self.free
+        C = self.covariance[np.ix_(f, f)]
+        s = np.sqrt(np.diag(C))
+        s[s == 0] = 1.0
+        return C / np.outer(s, s)
+
+    def strongest_correlations(self, k: int = 5) -> list[tuple[str, str, float]]:
+        """The k most correlated pairs of free parameters."""
+        R = self.correlation()
+        names = [n for n, f in zip(self.names, self.free, strict=True) if f]
+        iu = np.triu_indices(len(names), 1)
+        vals = R[iu]
+        order = np.argsort(-np.abs(vals))[:k]
+        return [(names[iu[0][i]], names[iu[1][i]], float(vals[i])) for i in order]
+
+    def parameter_rows(self) -> list[dict]:
+        """One dict per parameter in display units (deg for angles), for files and tables."""
+        rows = []
+        for k, name in enumerate(self.names):
+            unit, f = display_unit(self.error_model.units[k])
+            rows.append(
+                {
+                    "name": name,
+                    "value": float(self.values[k] * f),
+                    "std": float(self.std[k] * f) if self.free[k] else None,
+                    "unit": unit,
+                    "identifiable": bool(self.free[k]),
+                }
+            )
+        return rows
+
+    def summary(self) -> dict:
+        """The ``calibrate --json`` object (FORMATS.md §4), without file names."""
+        out = {
+            "model": self.error_model.model.name,
+            "effects": self.error_model.labels,
+            "solver": self.solver,
+            "n_params": self.error_model.n_params,
+            "n_identifiable": self.identifiability.n_identifiable,
+            "unidentifiable": self.identifiability.unidentifiable,
+            "calib": {k: self.calib[k] for k in ("n", "rms_mm", "mean_mm", "max_mm", "p95_mm")},
+        }
+        if self.valid is not None:
+            out["valid"] = {
+                k: self.valid[k] for k in ("n", "rms_mm", "mean_mm", "max_mm", "p95_mm")
+            }
+        out.update(
+            {
+                "noise_floor_mm": self.noise_floor_mm,
+                "converged": self.converged,
+                "reason": self.reason,
+                "iterations": self.iterations,
+                "condition_number": self.identifiability.condition_number,
+                "observability_index": self.identifiability.observability_index,
+                "solve_s": self.solve_s,
+            }
+        )
+        return out
+
+
+def covariance(J: np.ndarray, r: np.ndarray, free: np.ndarray, sigma: float | None = None):
+    """Parameter covariance from the final Jacobian (n, 3, p) and residuals (n, 3).
+
+    Uses ``sigma`` (mm per axis) when given, else the residual variance
+    RSS / (3 n - m). Returns (covariance (p, p), sigma used).
+    """
+    p = J.shape[-1]
+    Jf = J[:, :, free].reshape(-1, int(free.sum()))
+    m = Jf.shape[1]
+    dof = max(Jf.shape[0] - m, 1)
+    s2 = sigma**2 if sigma is not None else float(np.sum(r**2)) / dof
+    cov = np.zeros((p, p))
+    if m:
+        d = np.linalg.norm(Jf, axis=0)
+        d[d == 0] = 1.0
+        A = (Jf / d).T @ (Jf / d)
+        try:
+            inv = scipy.linalg.cho_solve(scipy.linalg.cho_factor(A), np.eye(m))
+        except np.linalg.LinAlgError:
+            inv = np.linalg.pinv(A)
+        cov[np.ix_(free, free)] = s2 * inv / np.outer(d, d)
+    return cov, float(np.sqrt(s2))
+
+
+def identify(
+    error_model: ErrorModel,
+    data: Dataset,
+    solver: str = "lm",
+    *,
+    valid: Dataset | None = None,
+    x0: np.ndarray | None = None,
+    rtol: float = 1e-6,
+    fixed: list[str] | None = None,
+    solver_options: dict | None = None,
+) -> Fit:
+    """Identify the parameters of ``error_model`` from ``data``.
+
+    Parameters
+    ----------
+    data : measured poses; rows with ``set=valid`` are held out for validation
+    solver : a name in :data:`calibration.solvers.SOLVERS` (``lm`` by default)
+    valid : validation poses (in addition to the ``set=valid`` rows)
+    x0 : starting parameters (default: each effect's start, base by a rigid fit)
+    rtol : relative pivot below which a parameter is unidentifiable
+    fixed : parameter names to hold at their start value in any case
+    solver_options : keyword arguments for the solver
+
+    Non-convergence is reported in the result (``converged``, ``reason``), not raised.
+    """
+    if solver not in SOLVERS:
+        raise ValueError(f"unknown solver {solver!r}; available: {', '.join(SOLVERS)}")
+    t0 = time.perf_counter()
+    calib = data.calib() if data.is_valid.any() else data
+    held = data.valid() if data.is_valid.any() else None
+    if valid is not None:
+        held = valid if held is None else held.concat(valid)
+    if calib.n == 0:
+        raise ValueError(f"{data.source}: no calibration rows")
+    bound: Bound = error_model.bind(calib)
+    x_nominal = error_model.initial(bound)
+    x_start = x_nominal if x0 is None else np.asarray(x0, float).copy()
+    # identifiability is structural: judge it at the nominal geometry, where exact
+    # redundancies (parallel axes) are exact, not at a warm start that blurs them
+    _, J0 = error_model.evaluate(x_nominal, bound, jacobian=True)
+    families = [error_model.effect_of(k).family for k in range(error_model.n_params)]
+    ident = analyse(
+        J0.reshape(-1, error_model.n_params),
+        error_model.names,
+        np.asarray(error_model.scales),
+        families,
+        rtol=rtol,
+        n_poses=calib.n,
+    )
+    for name in fixed or []:
+        k = error_model.index(name)
+        if ident.free[k]:
+            ident.free[k] = False
+            ident.fixed[name] = "fixed by the user"
+    problem = Problem(error_model, bound, x_start, ident.free.copy())
+    result = SOLVERS[solver](problem, **(solver_options or {}))
+    x = problem.full(result.xf)
+    P, J = error_model.evaluate(x, bound, jacobian=True)
+    resid = calib.xyz - P
+    weights = result.info.get("weights")
+    r_w = resid if weights is None else resid * np.sqrt(weights)[:, None]
+    J_w = J if weights is None else J * np.sqrt(weights)[:, None, None]
+    cov, sigma = covariance(J_w, r_w, ident.free)
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    fit = Fit(
+        error_model=error_model,
+        values=x,
+        std=std,
+        covariance=cov,
+        identifiability=ident,
+        data=calib,
+        residuals=resid,
+        calib=error_stats(resid),
+        sigma_mm=sigma,
+        solver=solver,
+        converged=result.converged,
+        reason=result.reason,
+        iterations=result.iterations,
+        history=result.history,
+        info=result.info,
+    )
+    for e, st in zip(error_model.effects, bound.states, strict=True):
+        fit.notes.extend(e.describe(st))
+    if held is not None and held.n:
+        vres = held.xyz - error_model.evaluate(x, error_model.bind(held), False)[0]
+        fit.valid_data, fit.valid_residuals, fit.valid = held, vres, error_stats(vres)
+    fit.solve_s = time.perf_counter() - t0
+    return fit

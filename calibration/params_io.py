@@ -1,0 +1,100 @@
+"""params.json: every parameter of a fit with value, uncertainty and units, readable back.
+
+The file embeds the nominal model, so it is self-contained::
+
+    {"format": "cellcal-params", "version": 1,
+     "model": "ur10e", "model_definition": {...model YAML as a mapping...},
+     "effects": ["geometric", "base", "tool"], "effect_files": [],
+     "solver": "lm",
+     "parameters": [{"name": "geometric.j2.a", "value": 0.21, "std": 0.004,
+                     "unit": "mm", "identifiable": true}, ...],
+     "stats": {"calib": {...}, "valid": {...}}, "noise_floor_mm": 0.029}
+
+Angles are in degrees (``unit: "deg"``). Geometric parameters are deltas to the
+nominal table; base and tool parameters are absolute.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .effects import display_unit, load_effect_file
+from .error_model import ErrorModel
+from .identify import Fit
+from .robot_model import model_from_dict
+
+FORMAT = "cellcal-params"
+
+
+class ParamsError(ValueError):
+    """A params.json that cannot be used."""
+
+
+def fit_to_dict(fit: Fit, effect_files: list[str] | None = None) -> dict:
+    em = fit.error_model
+    out = {
+        "format": FORMAT,
+        "version": 1,
+        "model": em.model.name,
+        "model_definition": json.loads(em.model.model_dump_json(exclude_none=True)),
+        "effects": em.labels,
+        "effect_files": [str(Path(f).resolve()) for f in (effect_files or [])],
+        "solver": fit.solver,
+        "parameters": fit.parameter_rows(),
+        "unidentifiable": fit.identifiability.fixed,
+        "stats": {"calib": fit.calib, **({"valid": fit.valid} if fit.valid else {})},
+        "noise_floor_mm": fit.noise_floor_mm,
+        "sigma_mm": fit.sigma_mm,
+        "converged": fit.converged,
+        "reason": fit.reason,
+    }
+    return out
+
+
+def save_params(fit: Fit, path: str | Path, effect_files: list[str] | None = None) -> None:
+    Path(path).write_text(json.dumps(fit_to_dict(fit, effect_files), indent=1) + "\n")
+
+
+def params_from_dict(data: dict, source: str = "<params>") -> tuple[ErrorModel, np.ndarray, np.ndarray]:
+    """(error model, values, std) in internal units from a params mapping."""
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise ParamsError(f"{source}: not a cellcal params file (format {FORMAT!r} expected)")
+    for f in data.get("effect_files", []):
+        load_effect_file(f)
+    model = model_from_dict(data["model_definition"], f"{source}: model_definition")
+    em = ErrorModel(model, ",".join(data["effects"]))
+    x = np.zeros(em.n_params)
+    std = np.zeros(em.n_params)
+    seen = set()
+    for row in data["parameters"]:
+        try:
+            k = em.index(row["name"])
+        except KeyError:
+            raise ParamsError(f"{source}: unknown parameter {row['name']!r}") from None
+        unit, factor = display_unit(em.units[k])
+        if row.get("unit") != unit:
+            raise ParamsError(
+                f"{source}: parameter {row['name']}: unit {row.get('unit')!r}, expected {unit!r}"
+            )
+        x[k] = float(row["value"]) / factor
+        std[k] = float(row["std"] or 0.0) / factor
+        seen.add(row["name"])
+    missing = [n for n in em.names if n not in seen]
+    if missing:
+        raise ParamsError(f"{source}: parameters missing: {', '.join(missing)}")
+    return em, x, std
+
+
+def load_params(path: str | Path) -> tuple[ErrorModel, np.ndarray, np.ndarray]:
+    """Read a params.json written by :func:`save_params`."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ParamsError(f"{path}: no such file") from None
+    except json.JSONDecodeError as e:
+        raise ParamsError(f"{path}: not valid JSON: {e}") from None
+    return params_from_dict(data, str(path))

@@ -1,0 +1,172 @@
+"""The nominal robot: :class:`RobotModel`, loaded from the model YAML (FORMATS.md §2).
+
+Files hold millimetres and degrees; the model keeps them as written and offers
+radian views (``dh_table()``, ``limits_rad()``) for the numerical code.
+"""
+
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+#: columns of the per-joint parameter table, in this order
+DH_COLUMNS = ("theta_offset", "d", "a", "alpha", "beta")
+#: whether each column is a length (mm) or an angle (rad inside, deg in files)
+DH_IS_ANGLE = (True, False, False, True, True)
+
+
+class ModelError(ValueError):
+    """A model file or name that cannot be used; the message names the file and field."""
+
+
+class JointRow(BaseModel):
+    """One row of the DH/MDH table (mm, deg). In an mdh row, a and alpha are a_{i-1}, alpha_{i-1}."""
+
+    model_config = ConfigDict(extra="forbid")
+    a: float
+    alpha: float
+    d: float
+    theta_offset: float = 0.0
+    beta: float = 0.0
+    min: float = Field(description="lower joint limit, deg")
+    max: float = Field(description="upper joint limit, deg")
+
+    @model_validator(mode="after")
+    def _limits(self) -> JointRow:
+        if self.min > self.max:
+            raise ValueError(f"min ({self.min}) > max ({self.max})")
+        return self
+
+
+class MassPoint(BaseModel):
+    """A mass (kg) with its centre (mm) in some frame."""
+
+    model_config = ConfigDict(extra="forbid")
+    mass_kg: float = Field(ge=0.0)
+    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+class RobotModel(BaseModel):
+    """A robot's nominal kinematics and (optionally) its mass model, as in the model YAML."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    name: str
+    convention: Literal["dh", "mdh"]
+    joints: list[JointRow] = Field(min_length=1)
+    tool: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    payload: MassPoint | None = None
+    links: list[MassPoint] | None = None
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+
+    @field_validator("links")
+    @classmethod
+    def _links_len(cls, v, info):
+        joints = info.data.get("joints")
+        if v is not None and joints is not None and len(v) != len(joints):
+            raise ValueError(f"has {len(v)} entries but the model has {len(joints)} joints")
+        return v
+
+    # ---- numerical views -------------------------------------------------
+    @property
+    def n_joints(self) -> int:
+        return len(self.joints)
+
+    def dh_table(self) -> np.ndarray:
+        """Nominal parameters, shape (n_joints, 5): theta_offset, d, a, alpha, beta (rad, mm)."""
+        t = np.array([[getattr(j, c) for c in DH_COLUMNS] for j in self.joints], dtype=float)
+        t[:, np.array(DH_IS_ANGLE)] = np.radians(t[:, np.array(DH_IS_ANGLE)])
+        return t
+
+    def limits_rad(self) -> np.ndarray:
+        """Joint limits, shape (n_joints, 2), rad."""
+        return np.radians([[j.min, j.max] for j in self.joints])
+
+    def tool_mm(self) -> np.ndarray:
+        return np.array(self.tool, dtype=float)
+
+    def parallel_rows(self, tol_deg: float = 1e-6) -> list[int]:
+        """0-based rows whose two neighbouring joint axes are (nominally) parallel.
+
+        These rows carry the Hayati tilt beta: for dh row i (alpha_i between axes i and
+        i+1) every row but the last; for mdh row i (alpha_{i-1} between axes i-1 and i)
+        every row but the first.
+        """
+        rows = [i for i, j in enumerate(self.joints) if abs(np.sin(np.radians(j.alpha))) < tol_deg]
+        last = self.n_joints - 1
+        return [i for i in rows if i != (last if self.convention == "dh" else 0)]
+
+    def with_changes(self, **changes) -> RobotModel:
+        """A copy with some top-level fields replaced (validated)."""
+        data = self.model_dump()
+        data.update(changes)
+        return RobotModel.model_validate(data)
+
+    def to_yaml(self) -> str:
+        data = self.model_dump(exclude_none=True)
+        data["tool"] = list(data["tool"])
+        data["gravity"] = list(data["gravity"])
+        for key in ("payload",):
+            if key in data:
+                data[key]["com"] = list(data[key]["com"])
+        if "links" in data:
+            for link in data["links"]:
+                link["com"] = list(link["com"])
+        return yaml.safe_dump(data, sort_keys=False, default_flow_style=None)
+
+
+def builtin_models() -> list[str]:
+    """Names of the built-in models."""
+    folder = resources.files("calibration") / "models"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
+
+
+def _format_validation(err: ValidationError, source: str) -> str:
+    lines = []
+    for e in err.errors():
+        loc = ".".join(str(x) for x in e["loc"]) or "(top level)"
+        msg = e["msg"].removeprefix("Value error, ")
+        if e["type"] == "missing":
+            msg = "missing field"
+        elif e["type"] == "extra_forbidden":
+            msg = "unknown field"
+        lines.append(f"{source}: {loc}: {msg}")
+    return "\n".join(lines)
+
+
+def model_from_dict(data: dict, source: str = "<model>") -> RobotModel:
+    """Validate a model mapping; errors name ``source`` and the field."""
+    if not isinstance(data, dict):
+        raise ModelError(f"{source}: a model file must be a mapping, got {type(data).__name__}")
+    try:
+        return RobotModel.model_validate(data)
+    except ValidationError as e:
+        raise ModelError(_format_validation(e, source)) from None
+
+
+def load_model(name_or_path: str | Path) -> RobotModel:
+    """Load a built-in model by name (``"ur10e"``) or a model YAML by path."""
+    text_source = str(name_or_path)
+    path = Path(text_source)
+    if path.suffix in (".yaml", ".yml") or path.exists():
+        if not path.is_file():
+            raise ModelError(f"{path}: no such model file")
+        text = path.read_text()
+    else:
+        names = builtin_models()
+        if text_source not in names:
+            raise ModelError(
+                f"unknown model {text_source!r}: built-in models are {', '.join(names)}; "
+                "or give the path of a model YAML file"
+            )
+        text = (resources.files("calibration") / "models" / f"{text_source}.yaml").read_text()
+        text_source = f"built-in model {text_source}"
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        raise ModelError(f"{text_source}: not valid YAML: {e}") from None
+    return model_from_dict(data, text_source)

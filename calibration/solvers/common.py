@@ -1,0 +1,74 @@
+"""What every solver receives (:class:`Problem`) and returns (:class:`SolverResult`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..error_model import Bound, ErrorModel
+
+
+@dataclass
+class Problem:
+    """A least-squares problem over the free parameters of an error model.
+
+    Solvers work on the free parameters only (``xf``, internal units) and may use
+    ``scales`` (typical magnitudes) to scale them. Residuals are measured minus
+    predicted, flattened to (3 n,), optionally weighted by ``weights`` (n,).
+    """
+
+    error_model: ErrorModel
+    bound: Bound
+    x0: np.ndarray
+    free: np.ndarray
+    weights: np.ndarray | None = None
+
+    @property
+    def scales(self) -> np.ndarray:
+        return np.asarray(self.error_model.scales)[self.free]
+
+    @property
+    def xf0(self) -> np.ndarray:
+        return self.x0[self.free]
+
+    @property
+    def n_poses(self) -> int:
+        return self.bound.data.n
+
+    def full(self, xf: np.ndarray) -> np.ndarray:
+        x = self.x0.copy()
+        x[self.free] = xf
+        return self.error_model.normalize(x)
+
+    def residual(self, xf: np.ndarray) -> np.ndarray:
+        """Measured minus predicted, (3 n,)."""
+        r = self.error_model.residuals(self.full(xf), self.bound)
+        if self.weights is not None:
+            r = r * np.sqrt(self.weights)[:, None]
+        return r.ravel()
+
+    def residual_and_jacobian(self, xf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residual (3 n,) and its Jacobian d r / d xf, (3 n, n_free)."""
+        x = self.full(xf)
+        P, J = self.error_model.evaluate(x, self.bound, jacobian=True)
+        r = self.bound.data.xyz - P
+        Jr = -J[:, :, self.free]
+        if self.weights is not None:
+            w = np.sqrt(self.weights)[:, None]
+            r = r * w
+            Jr = Jr * w[:, :, None]
+        return r.ravel(), Jr.reshape(-1, Jr.shape[-1])
+
+
+@dataclass
+class SolverResult:
+    """What a solver found. Non-convergence is a result with a reason, not an exception."""
+
+    xf: np.ndarray
+    converged: bool
+    reason: str
+    iterations: int
+    history: list[dict] = field(default_factory=list)
+    #: solver-specific extras (weights, ridge parameter, rejected points...)
+    info: dict = field(default_factory=dict)

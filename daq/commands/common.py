@@ -1,0 +1,90 @@
+"""Helpers shared by the sub-commands: loading inputs with user-facing errors, printing."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+from calibration import DataError, ModelError, load_csv, load_model
+from calibration.effects import EffectError, load_effect_file
+from calibration.params_io import ParamsError
+
+from ..cli import UsageError
+
+
+def add_model_args(p, data: bool = True) -> None:
+    if data:
+        p.add_argument("data", metavar="DATA.csv", help="measurement CSV (FORMATS.md §1)")
+    p.add_argument("--model", required=True, metavar="NAME|PATH",
+                   help="built-in model name (see `cellcal models`) or a model YAML file")
+    p.add_argument("--effect-file", action="append", default=[], metavar="FILE.py",
+                   help="load user-defined effects from a Python file (repeatable)")
+    p.add_argument("--sigma", type=float, default=None, metavar="MM",
+                   help="tracker standard uncertainty per axis, mm (else from the CSV)")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
+
+
+def load_inputs(args):
+    """(model, dataset) from the common arguments; bad input becomes a UsageError."""
+    try:
+        for f in args.effect_file:
+            load_effect_file(f)
+        model = load_model(args.model)
+        data = load_csv(args.data, model) if getattr(args, "data", None) else None
+    except (ModelError, DataError, EffectError) as e:
+        raise UsageError(str(e)) from None
+    if data is not None and args.sigma is not None:
+        if not (args.sigma > 0 and math.isfinite(args.sigma)):
+            raise UsageError("--sigma must be a positive number of mm")
+        data.sigma_mm = None
+        data.meta["tracker_sigma_mm"] = repr(args.sigma)
+    return model, data
+
+
+def wrap_errors(fn, *exc):
+    """Run fn(); turn the given exception types into UsageError."""
+    try:
+        return fn()
+    except (ModelError, DataError, EffectError, ParamsError, *exc) as e:
+        raise UsageError(str(e)) from None
+
+
+def print_json(obj) -> None:
+    def default(o):
+        if hasattr(o, "tolist"):
+            return o.tolist()
+        if isinstance(o, Path):
+            return str(o)
+        raise TypeError(type(o).__name__)
+
+    def clean(o):
+        if isinstance(o, float) and not math.isfinite(o):
+            return None
+        if isinstance(o, dict):
+            return {k: clean(v) for k, v in o.items()}
+        if isinstance(o, (list, tuple)):
+            return [clean(v) for v in o]
+        return o
+
+    json.dump(clean(obj), sys.stdout, default=default)
+    sys.stdout.write("\n")
+
+
+def fmt(v, digits: int = 3) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "-"
+    return f"{v:.{digits}f}"
+
+
+def table(rows: list[list[str]], header: list[str]) -> str:
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
+    lines = ["  ".join(str(h).ljust(w) for h, w in zip(header, widths, strict=True))]
+    lines.append("  ".join("-" * w for w in widths))
+    for r in rows:
+        lines.append("  ".join(
+            str(c).rjust(w) if i else str(c).ljust(w)
+            for i, (c, w) in enumerate(zip(r, widths, strict=True))
+        ))
+    return "\n".join(lines)
