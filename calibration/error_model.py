@@ -56,7 +56,9 @@ class ErrorModel:
         self.units = [u for e in self.effects for u in e.units]
         self.scales = np.concatenate([e.scales for e in self.effects]) if self.effects else []
         self._table0 = model.dh_table()
-        self._by_stage = {s: [i for i, e in enumerate(self.effects) if e.stage == s] for s in _STAGES}
+        self._by_stage = {
+            s: [i for i, e in enumerate(self.effects) if e.stage == s] for s in _STAGES
+        }
 
     # ---- naming -------------------------------------------------------------
     @property

@@ -58,7 +58,9 @@ def save_params(fit: Fit, path: str | Path, effect_files: list[str] | None = Non
     Path(path).write_text(json.dumps(fit_to_dict(fit, effect_files), indent=1) + "\n")
 
 
-def params_from_dict(data: dict, source: str = "<params>") -> tuple[ErrorModel, np.ndarray, np.ndarray]:
+def params_from_dict(
+    data: dict, source: str = "<params>"
+) -> tuple[ErrorModel, np.ndarray, np.ndarray]:
     """(error model, values, std) in internal units from a params mapping."""
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise ParamsError(f"{source}: not a cellcal params file (format {FORMAT!r} expected)")

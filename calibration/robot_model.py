@@ -25,7 +25,7 @@ class ModelError(ValueError):
 
 
 class JointRow(BaseModel):
-    """One row of the DH/MDH table (mm, deg). In an mdh row, a and alpha are a_{i-1}, alpha_{i-1}."""
+    """One row of the DH/MDH table (mm, deg); in an mdh row a, alpha are a_{i-1}, alpha_{i-1}."""
 
     model_config = ConfigDict(extra="forbid")
     a: float

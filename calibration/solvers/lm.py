@@ -69,7 +69,8 @@ def solve_lm(
                 break
             if predicted <= ftol * cost or not np.isfinite(predicted):
                 history.append({"iter": it, "rms_mm": float(np.sqrt(cost / (len(r) // 3)))})
-                return SolverResult(x, True, "at the minimum: no step reduces the cost", it, history)
+                reason = "at the minimum: no step reduces the cost"
+                return SolverResult(x, True, reason, it, history)
             mu *= nu
             nu *= 2
             if mu > 1e30:
