@@ -1,0 +1,179 @@
+"""Laser tracker over TCP or serial, speaking the line protocol of docs/tracker-protocol.md.
+
+``HELLO`` → ``OK HELLO <model> <serial> <fw>``, ``STATUS?``, ``INIT``,
+``SET MODE STATIONARY time_ms=N``, ``MEAS`` → ``OK MEAS x=… y=… z=… sx=… sy=…
+sz=… n=… T=… P=… H=… t=…`` (mm, °C, hPa, %, epoch s). Errors
+``ERR <code> <NAME> [text]`` become typed errors; unsolicited ``EVT …`` lines
+are queued apart (:meth:`LineTracker.events`).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from drivers.errors import (
+    BeamBroken,
+    CommandRejected,
+    DriverError,
+    NotReady,
+    ProtocolError,
+)
+from drivers.protocols import Measurement, TrackerStatus
+from drivers.transport import LineSession, LineTransport, parse_kv
+
+#: ERR name → error class
+TRACKER_ERRORS: dict[str, type[DriverError]] = {
+    "BAD_COMMAND": CommandRejected,
+    "BAD_ARGUMENT": CommandRejected,
+    "BUSY": NotReady,
+    "NOT_INITIALISED": NotReady,
+    "NOT_WARMED_UP": NotReady,
+    "NOT_STABLE": NotReady,
+    "NO_STATIONARY_RESULT": NotReady,
+    "BEAM_BROKEN": BeamBroken,
+    "NO_TARGET": BeamBroken,
+    "OUT_OF_RANGE": CommandRejected,
+}
+
+
+class LineTracker:
+    """A laser tracker behind the line protocol.
+
+    Parameters
+    ----------
+    url : str
+        The driver URL, used in messages (``tracker+tcp://host:port``).
+    port_url : str
+        What pyserial opens: ``socket://host:port`` or a device path.
+    baudrate : int
+        Serial speed (ignored on sockets).
+    auto_init : bool
+        On :meth:`connect`, send ``INIT`` when the tracker reports it is not initialised.
+    """
+
+    def __init__(
+        self, url: str, port_url: str, *, baudrate: int = 115200, auto_init: bool = True
+    ) -> None:
+        self.url = url
+        self.auto_init = auto_init
+        self.model = self.serial = self.firmware = ""
+        self._mode_ms: int | None = None
+        self._transport = LineTransport(port_url, device=f"tracker {url}", baudrate=baudrate)
+        self._session = LineSession(self._transport, TRACKER_ERRORS, handshake=self._hello)
+
+    # ----------------------------------------------------------- connection
+    def _hello(self, deadline: float) -> None:
+        tok = self._session.exchange("HELLO", "HELLO", deadline)
+        if len(tok) < 3:
+            raise ProtocolError(self._transport.device, "HELLO", f"short reply {tok}")
+        self.model, self.serial, self.firmware = tok[:3]
+        self._mode_ms = None
+
+    def connect(self, timeout: float = 5.0) -> None:
+        """Open the link, greet the tracker and initialise it if needed (``auto_init``)."""
+        deadline = time.monotonic() + timeout
+        self._session.connect(timeout)
+        if self.auto_init:
+            st = self.status(timeout=max(deadline - time.monotonic(), 0.01))
+            if not st.initialised:
+                self.initialise(timeout=max(deadline - time.monotonic(), 0.01))
+
+    def close(self) -> None:
+        """Close the link (idempotent)."""
+        self._transport.close()
+
+    def __enter__(self) -> LineTracker:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def connected(self) -> bool:
+        """Whether the link is open."""
+        return self._transport.is_open
+
+    # ------------------------------------------------------------- commands
+    def status(self, timeout: float = 1.0) -> TrackerStatus:
+        """``STATUS?``: initialised, warmed up, beam and target (retried once after a reconnect)."""
+        deadline = time.monotonic() + timeout
+        tok = self._session.exchange("STATUS?", "STATUS", deadline, retry=True)
+        kv = parse_kv(tok, self._transport.device, "STATUS?")
+        try:
+            return TrackerStatus(
+                connected=True,
+                initialised=kv["init"] == "1",
+                warmed_up=kv["warm"] == "1",
+                beam_ok=kv["beam"] == "1",
+                target_present=kv.get("target", "1") == "1",
+                message=" ".join(tok),
+                timestamp=time.time(),
+            )
+        except KeyError as e:
+            raise ProtocolError(self._transport.device, "STATUS?", f"missing {e}") from e
+
+    def initialise(self, timeout: float = 30.0) -> None:
+        """``INIT``: home the tracker and find the target."""
+        self._session.exchange("INIT", "INIT", time.monotonic() + timeout)
+
+    def set_stationary_time(self, time_ms: int, timeout: float = 1.0) -> None:
+        """``SET MODE STATIONARY time_ms=N``: averaging time of ``MEAS`` (ms)."""
+        time_ms = int(time_ms)
+        self._session.exchange(
+            f"SET MODE STATIONARY time_ms={time_ms}", "MODE", time.monotonic() + timeout, retry=True
+        )
+        self._mode_ms = time_ms
+
+    def measure(self, duration_s: float = 0.5, timeout: float = 10.0) -> Measurement:
+        """Measure the stationary target, averaging ``duration_s`` s.
+
+        Returns a :class:`~drivers.protocols.Measurement` (xyz, std in mm, tracker
+        frame; env with ``temp_c``, ``pressure_hpa``, ``humidity_pct``). Retried
+        once after a lost connection (the target is stationary, so it is safe).
+        """
+        deadline = time.monotonic() + timeout
+        time_ms = max(1, int(round(duration_s * 1000.0)))
+        for attempt in range(2):
+            if self._mode_ms != time_ms:
+                self._session.exchange(
+                    f"SET MODE STATIONARY time_ms={time_ms}", "MODE", deadline, retry=True
+                )
+                self._mode_ms = time_ms
+            mode_before = self._mode_ms
+            tok = self._session.exchange("MEAS", "MEAS", deadline, retry=True)
+            if self._mode_ms == mode_before or attempt:
+                break
+            # a reconnect reset the mode before MEAS: measure again with the right time
+        return self._parse_meas(tok)
+
+    def _parse_meas(self, tok: list[str]) -> Measurement:
+        dev = self._transport.device
+        kv = parse_kv(tok, dev, "MEAS")
+        try:
+            xyz = np.array([float(kv["x"]), float(kv["y"]), float(kv["z"])])
+            std = np.array([float(kv["sx"]), float(kv["sy"]), float(kv["sz"])])
+            n = int(kv["n"])
+            ts = float(kv["t"])
+            env = {}
+            for key, name in (("T", "temp_c"), ("P", "pressure_hpa"), ("H", "humidity_pct")):
+                if key in kv:
+                    env[name] = float(kv[key])
+        except (KeyError, ValueError) as e:
+            raise ProtocolError(dev, "MEAS", f"bad measurement reply: {e}") from e
+        if not (np.all(np.isfinite(xyz)) and np.all(np.isfinite(std))):
+            raise ProtocolError(dev, "MEAS", "non-finite values")
+        return Measurement(xyz=xyz, std=std, n=n, timestamp=ts, env=env)
+
+    # --------------------------------------------------------------- events
+    def events(self, poll_s: float = 0.0) -> list[tuple[float, str]]:
+        """Unsolicited events received so far, oldest first, as (epoch s, text); clears the queue.
+
+        ``poll_s`` > 0 first reads the link for that long to collect new ones.
+        """
+        if poll_s > 0 and self._transport.is_open:
+            self._transport.poll_events(poll_s)
+        out = list(self._transport.events)
+        self._transport.events.clear()
+        return out

@@ -1,0 +1,412 @@
+"""The simulated cell: one true robot, its controller, a laser tracker, a clock.
+
+:class:`SimCell` is the single source of truth behind every simulated server
+(line robot, Modbus, RTDE, tracker) and the in-process ``sim://`` drivers.
+Units: joints in rad, lengths in mm, times in s, temperatures in °C.
+
+Time
+    The cell keeps a *simulated* clock. A move lasts
+    ``max|Δq| / speed + settle_s`` simulated seconds, a measurement
+    ``duration_s``. Wall time = simulated time × ``time_scale``: with
+    ``time_scale=0`` (the test default) everything is instantaneous and the
+    simulated clock jumps; with ``time_scale>0`` the simulated clock follows the
+    wall clock (``sim = wall / time_scale``).
+
+Tracker
+    Noise per axis ``σ(L) = 0.5·(0.015 mm + 0.006 mm/m · L)``, L the distance
+    from the tracker origin (half the MPE ±(15 µm + 6 µm/m)). Range
+    ``tracker_range_mm`` (default 800 mm – 30 m): outside it the tracker finds
+    no target. Optional occlusions: spheres ``(centre_xyz_mm, radius_mm)`` in the
+    tracker frame that break the beam when the line of sight passes through
+    them.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim_drivers.truth import PoseContext, TrueRobot
+
+
+class CellRefused(Exception):  # noqa: N818 - a refusal, not a bug
+    """The simulated controller or tracker refuses a command.
+
+    ``name`` is the protocol's error name (``LIMIT``, ``PROTECTIVE_STOP``,
+    ``BEAM_BROKEN``...), which the servers put on the wire.
+    """
+
+    def __init__(self, name: str, detail: str = "") -> None:
+        self.name = name
+        self.detail = detail
+        super().__init__(f"{name}: {detail}" if detail else name)
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """The simulated controller's view of the robot at one instant.
+
+    ``q`` (rad, shape (n,)) are the reported joints, ``qd`` (rad/s) their
+    velocity, ``tcp`` (mm, shape (3,)) the controller's nominal TCP in the base
+    frame, ``timestamp`` epoch seconds (wall clock) and ``sim_time`` the
+    simulated clock (s).
+    """
+
+    q: np.ndarray
+    qd: np.ndarray
+    tcp: np.ndarray
+    moving: bool
+    in_position: bool
+    steady: bool
+    protective_stop: bool
+    emergency_stop: bool
+    fault: bool
+    error_code: int
+    timestamp: float
+    sim_time: float = 0.0
+
+
+@dataclass(frozen=True)
+class TrackerReading:
+    """One simulated stationary measurement (mm, °C, hPa, %, epoch s)."""
+
+    xyz: np.ndarray
+    std: np.ndarray
+    n: int
+    temp_c: float
+    pressure_hpa: float
+    humidity_pct: float
+    timestamp: float
+
+
+#: error codes the controller reports (shared by every robot protocol)
+ERROR_CODES = {
+    "NONE": 0,
+    "PROTECTIVE_STOP": 30,
+    "EMERGENCY_STOP": 31,
+    "FAULT": 32,
+}
+
+
+class SimCell:
+    """A simulated robotic cell around a :class:`~sim_drivers.truth.TrueRobot`.
+
+    Parameters
+    ----------
+    truth : TrueRobot
+        The robot as it really is.
+    seed : int
+        Seed of every random draw in the cell.
+    time_scale : float
+        Wall seconds per simulated second; 0 makes motion and measurement
+        instantaneous.
+    faults : FaultInjector or None
+        Shared with servers built on this cell (they consult it per command).
+    q0 : array-like, shape (n,), optional
+        Start joints (rad); default the middle of the limits.
+    settle_s : float
+        Settling time after each move (simulated s).
+    joint_noise_rad : float
+        σ of the per-joint arrival error (repeatability), rad.
+    temp0_c, temp_drift_c_per_h : float
+        Robot/air temperature at t=0 and its drift (°C per simulated hour).
+    pressure_hpa, humidity_pct : float
+        Environment reported by the tracker.
+    tracker_range_mm : (float, float)
+        Minimum and maximum tracker distance (mm).
+    occlusions : sequence of (centre, radius)
+        Spheres (mm, tracker frame) that block the line of sight.
+    warmup_s : float
+        Simulated seconds after start before the tracker is warmed up.
+    """
+
+    def __init__(
+        self,
+        truth: TrueRobot,
+        *,
+        seed: int = 0,
+        time_scale: float = 0.0,
+        faults=None,
+        q0: Sequence[float] | None = None,
+        settle_s: float = 0.5,
+        joint_noise_rad: float = 1e-5,
+        temp0_c: float = 20.0,
+        temp_drift_c_per_h: float = 0.0,
+        pressure_hpa: float = 1013.25,
+        humidity_pct: float = 45.0,
+        tracker_range_mm: tuple[float, float] = (800.0, 30000.0),
+        occlusions: Sequence[tuple[Sequence[float], float]] = (),
+        warmup_s: float = 0.0,
+        tracker_initialised: bool = False,
+    ) -> None:
+        if time_scale < 0:
+            raise ValueError(f"time_scale must be >= 0, got {time_scale}")
+        self.truth = truth
+        self.seed = seed
+        self.time_scale = float(time_scale)
+        self.faults = faults
+        self.settle_s = float(settle_s)
+        self.joint_noise_rad = float(joint_noise_rad)
+        self.temp0_c = float(temp0_c)
+        self.temp_drift_c_per_h = float(temp_drift_c_per_h)
+        self.pressure_hpa = float(pressure_hpa)
+        self.humidity_pct = float(humidity_pct)
+        self.tracker_range_mm = (float(tracker_range_mm[0]), float(tracker_range_mm[1]))
+        self.occlusions = [(np.asarray(c, float), float(r)) for c, r in occlusions]
+        self.warmup_s = float(warmup_s)
+        self._rng = np.random.default_rng(seed)
+        self._lock = threading.RLock()
+        n = truth.n_joints
+        limits = np.asarray(truth.limits, float)
+        self._q = np.asarray(q0, float).copy() if q0 is not None else limits.mean(axis=1)
+        if self._q.shape != (n,):
+            raise ValueError(f"q0 must have shape ({n},), got {self._q.shape}")
+        self._q_from = self._q.copy()
+        self._q_to = self._q.copy()
+        self._q_cmd = self._q.copy()
+        self._t_start = 0.0
+        self._t_move_end = 0.0
+        self._t_settled = 0.0
+        self._direction = np.zeros(n)
+        self._pstop = False
+        self._estop = False
+        self._fault = False
+        self._error_code = 0
+        self._sim_t = 0.0
+        self._wall0 = time.monotonic()
+        self.tracker_initialised = bool(tracker_initialised)
+        self.tracker_mode_ms = 500
+        self.beam_ok = True
+        self.n_moves = 0
+        self.n_measurements = 0
+
+    # ------------------------------------------------------------------ clock
+    @property
+    def n_joints(self) -> int:
+        """Number of joints of the simulated robot."""
+        return int(self.truth.n_joints)
+
+    def now(self) -> float:
+        """Simulated time (s)."""
+        with self._lock:
+            if self.time_scale > 0:
+                return self._sim_t + (time.monotonic() - self._wall0) / self.time_scale
+            return self._sim_t
+
+    def advance(self, dt_s: float) -> None:
+        """Let ``dt_s`` simulated seconds pass (sleeps ``dt_s × time_scale`` wall s)."""
+        if dt_s <= 0:
+            return
+        if self.time_scale > 0:
+            time.sleep(dt_s * self.time_scale)
+        else:
+            with self._lock:
+                self._sim_t += dt_s
+
+    def temperature(self, t_s: float | None = None) -> float:
+        """Cell temperature (°C) at simulated time ``t_s`` (default now)."""
+        t = self.now() if t_s is None else t_s
+        return self.temp0_c + self.temp_drift_c_per_h * t / 3600.0
+
+    # ------------------------------------------------------------------ robot
+    def _check_free(self) -> None:
+        if self._estop:
+            raise CellRefused("EMERGENCY_STOP", "emergency stop active")
+        if self._pstop:
+            raise CellRefused("PROTECTIVE_STOP", "protective stop active, clear it first")
+        if self._fault:
+            raise CellRefused("FAULT", f"controller fault {self._error_code}")
+
+    def _current_q(self, t: float) -> np.ndarray:
+        if t >= self._t_move_end or self._t_move_end <= self._t_start:
+            return self._q_to.copy()
+        f = (t - self._t_start) / (self._t_move_end - self._t_start)
+        return self._q_from + f * (self._q_to - self._q_from)
+
+    def command_move_joints(self, q: Sequence[float], speed: float) -> None:
+        """Start a joint move to ``q`` (rad, shape (n,)) at ``speed`` (rad/s, fastest joint).
+
+        Raises :class:`CellRefused` (``BAD_ARGUMENT``, ``LIMIT``, ``PROTECTIVE_STOP``...).
+        """
+        q = np.asarray(q, float)
+        n = self.n_joints
+        if q.shape != (n,) or not np.all(np.isfinite(q)):
+            raise CellRefused("BAD_ARGUMENT", f"expected {n} finite joint values, got {q.tolist()}")
+        if not (np.isfinite(speed) and speed > 0):
+            raise CellRefused("BAD_ARGUMENT", f"speed must be > 0, got {speed}")
+        lim = np.asarray(self.truth.limits, float)
+        bad = np.nonzero((q < lim[:, 0]) | (q > lim[:, 1]))[0]
+        if bad.size:
+            raise CellRefused("LIMIT", f"joint(s) {(bad + 1).tolist()} outside limits")
+        with self._lock:
+            self._check_free()
+            t = self.now()
+            q_now = self._current_q(t)
+            dq = q - q_now
+            duration = float(np.max(np.abs(dq))) / speed if dq.size else 0.0
+            arrive = q + self._rng.normal(0.0, self.joint_noise_rad, n)
+            # approach direction from the commanded path (not the arrival noise)
+            step = np.sign(np.where(np.abs(q - self._q_cmd) > 1e-9, q - self._q_cmd, 0.0))
+            self._q_cmd = q.copy()
+            self._direction = np.where(step != 0, step, self._direction)
+            self._q_from, self._q_to = q_now, arrive
+            self._t_start = t
+            self._t_move_end = t + duration
+            self._t_settled = self._t_move_end + self.settle_s
+            self.n_moves += 1
+            if self.time_scale == 0:
+                self._sim_t = self._t_settled
+
+    def command_move_linear(self, xyz: Sequence[float], speed: float) -> None:
+        """Move the nominal TCP to ``xyz`` (mm, base frame) at ``speed`` (mm/s).
+
+        Solved with ``truth.nominal_ik`` nearest the current joints; the joint
+        speed is chosen so the move takes ``|Δxyz| / speed``.
+        """
+        xyz = np.asarray(xyz, float)
+        if xyz.shape != (3,) or not np.all(np.isfinite(xyz)):
+            raise CellRefused("BAD_ARGUMENT", f"expected x y z, got {xyz.tolist()}")
+        if not (np.isfinite(speed) and speed > 0):
+            raise CellRefused("BAD_ARGUMENT", f"speed must be > 0, got {speed}")
+        with self._lock:
+            self._check_free()
+            q_now = self._current_q(self.now())
+            try:
+                q = np.asarray(self.truth.nominal_ik(xyz, q_now), float)
+            except ValueError as e:
+                raise CellRefused("UNREACHABLE", str(e)) from e
+            dist = float(np.linalg.norm(xyz - self.truth.nominal_tcp(q_now)))
+            dq = float(np.max(np.abs(q - q_now))) if q.size else 0.0
+            t_move = dist / speed
+            joint_speed = dq / t_move if t_move > 0 and dq > 0 else 1.0
+            self.command_move_joints(q, joint_speed)
+
+    def command_stop(self) -> None:
+        """Stop where the robot is now (the move ends immediately, then settles)."""
+        with self._lock:
+            t = self.now()
+            q = self._current_q(t)
+            self._q_from = self._q_to = q
+            self._t_start = self._t_move_end = min(t, self._t_move_end)
+            self._t_settled = self._t_move_end + (self.settle_s if t < self._t_settled else 0.0)
+
+    def trigger_protective_stop(self) -> None:
+        """Protective stop now (fault injection): motion halts, commands are refused."""
+        with self._lock:
+            self.command_stop()
+            self._pstop = True
+            self._error_code = ERROR_CODES["PROTECTIVE_STOP"]
+
+    def clear_protective_stop(self) -> None:
+        """Clear a protective stop or fault (as an operator would)."""
+        with self._lock:
+            self._pstop = False
+            self._fault = False
+            self._error_code = 0
+
+    def robot_state(self) -> RobotState:
+        """The controller's state now (see :class:`RobotState`)."""
+        with self._lock:
+            t = self.now()
+            q = self._current_q(t)
+            moving = t < self._t_move_end
+            qd = (
+                (self._q_to - self._q_from) / (self._t_move_end - self._t_start)
+                if moving
+                else np.zeros(self.n_joints)
+            )
+            steady = t >= self._t_settled
+            return RobotState(
+                q=q,
+                qd=qd,
+                tcp=np.asarray(self.truth.nominal_tcp(q), float),
+                moving=moving,
+                in_position=not moving and not self._pstop,
+                steady=steady and not moving,
+                protective_stop=self._pstop,
+                emergency_stop=self._estop,
+                fault=self._fault,
+                error_code=self._error_code,
+                timestamp=time.time(),
+                sim_time=t,
+            )
+
+    def pose_context(self) -> PoseContext:
+        """What the hidden physics sees now: approach directions, temperature, time."""
+        with self._lock:
+            t = self.now()
+            return PoseContext(direction=self._direction.copy(), temp_c=self.temperature(t), t_s=t)
+
+    # ---------------------------------------------------------------- tracker
+    def tracker_sigma(self, xyz: Sequence[float]) -> float:
+        """Per-axis noise σ (mm) of a measurement at ``xyz`` (mm, tracker frame)."""
+        dist_m = float(np.linalg.norm(np.asarray(xyz, float))) / 1000.0
+        return 0.5 * (0.015 + 0.006 * dist_m)
+
+    def true_point(self) -> np.ndarray:
+        """The target's true position now (mm, tracker frame), noise-free."""
+        with self._lock:
+            q = self._current_q(self.now())
+            return np.asarray(self.truth.true_point(q, self.pose_context()), float)
+
+    def tracker_warmed_up(self) -> bool:
+        """Whether the tracker's warm-up time has passed."""
+        return self.now() >= self.warmup_s
+
+    def _line_of_sight(self, p: np.ndarray) -> bool:
+        for c, r in self.occlusions:
+            denom = float(p @ p)
+            s = 0.0 if denom == 0 else float(np.clip((c @ p) / denom, 0.0, 1.0))
+            if np.linalg.norm(c - s * p) < r:
+                return False
+        return True
+
+    def tracker_init(self) -> None:
+        """Initialise the tracker (home, find the target)."""
+        with self._lock:
+            self.tracker_initialised = True
+
+    def tracker_measure(self, duration_s: float = 0.5) -> TrackerReading:
+        """Measure the stationary target for ``duration_s`` (simulated) seconds.
+
+        Raises :class:`CellRefused` with ``NOT_INITIALISED``, ``NOT_WARMED_UP``,
+        ``NOT_STABLE`` (robot moving), ``BEAM_BROKEN`` (occluded or beam fault),
+        ``NO_TARGET`` (out of range).
+        """
+        if not (np.isfinite(duration_s) and duration_s > 0):
+            raise CellRefused("BAD_ARGUMENT", f"duration must be > 0, got {duration_s}")
+        with self._lock:
+            if not self.tracker_initialised:
+                raise CellRefused("NOT_INITIALISED", "send INIT first")
+            if not self.tracker_warmed_up():
+                raise CellRefused("NOT_WARMED_UP", f"warm-up ends at t={self.warmup_s:.0f} s")
+            state = self.robot_state()
+            if state.moving:
+                raise CellRefused("NOT_STABLE", "target is moving")
+            p = self.true_point()
+            dist = float(np.linalg.norm(p))
+            lo, hi = self.tracker_range_mm
+            if not lo <= dist <= hi:
+                raise CellRefused("NO_TARGET", f"target at {dist:.0f} mm, range {lo:.0f}-{hi:.0f}")
+            if not self.beam_ok or not self._line_of_sight(p):
+                raise CellRefused("BEAM_BROKEN", "line of sight blocked")
+            sigma = self.tracker_sigma(p)
+            n = max(1, int(round(duration_s * 1000.0)))
+            xyz = p + self._rng.normal(0.0, sigma, 3)
+            std = sigma * (1.0 + 0.05 * self._rng.standard_normal(3)).clip(0.5)
+            temp = self.temperature() + 0.01 * float(self._rng.standard_normal())
+            self.n_measurements += 1
+        self.advance(duration_s)
+        return TrackerReading(
+            xyz=xyz,
+            std=std,
+            n=n,
+            temp_c=temp,
+            pressure_hpa=self.pressure_hpa,
+            humidity_pct=self.humidity_pct,
+            timestamp=time.time(),
+        )

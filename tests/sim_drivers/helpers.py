@@ -1,0 +1,102 @@
+"""Test helpers: a simulated cell factory and a scripted line-protocol peer (transcript tests)."""
+
+from __future__ import annotations
+
+import contextlib
+import select
+import socket
+import threading
+import time
+
+from sim_drivers.cell import SimCell
+from sim_drivers.faults import FaultInjector
+from sim_drivers.truth import ToyArm
+
+#: slack allowed on top of a timeout before a call counts as hanging (s)
+MARGIN = 0.5
+
+
+def make_cell(seed: int = 1, faults: str | None = None, **kw) -> SimCell:
+    """A ToyArm cell with a fault injector (no faults unless ``faults`` is a spec)."""
+    return SimCell(ToyArm(), seed=seed, faults=FaultInjector(faults, seed=seed), **kw)
+
+
+@contextlib.contextmanager
+def elapsed_below(limit: float):
+    """Assert the ``with`` body finishes (normally or by raising) within ``limit`` seconds."""
+    t0 = time.monotonic()
+    try:
+        yield
+    finally:
+        dt = time.monotonic() - t0
+        assert dt < limit, f"took {dt:.3f} s, limit {limit:.3f} s"
+
+
+class ScriptedPeer:
+    """A device stand-in on a real TCP socket that follows a transcript.
+
+    ``exchanges`` is a list of ``(expected_request, [reply lines])``. The peer
+    accepts one connection, and for each line received checks it against the
+    next expected request. :meth:`check` fails when a line arrived that was not
+    expected, or an expected exchange went unused (PyMeasure's
+    ``expected_protocol`` style).
+    """
+
+    def __init__(self, exchanges: list[tuple[str, list[str]]]) -> None:
+        self.exchanges = list(exchanges)
+        self.errors: list[str] = []
+        self.used = 0
+        self._ls = socket.create_server(("127.0.0.1", 0))
+        self.port = self._ls.getsockname()[1]
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="scripted-peer", daemon=True)
+
+    def __enter__(self) -> ScriptedPeer:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        self._thread.join(5.0)
+        self._ls.close()
+
+    def _run(self) -> None:
+        conn = None
+        try:
+            while not self._stop.is_set():
+                if select.select([self._ls], [], [], 0.05)[0]:
+                    conn, _ = self._ls.accept()
+                    break
+            if conn is None:
+                return
+            buf = b""
+            while not self._stop.is_set():
+                if not select.select([conn], [], [], 0.05)[0]:
+                    continue
+                data = conn.recv(4096)
+                if not data:
+                    return
+                buf += data
+                while b"\n" in buf:
+                    raw, buf = buf.split(b"\n", 1)
+                    line = raw.decode().strip()
+                    if self.used >= len(self.exchanges):
+                        self.errors.append(f"unexpected line {line!r} after the transcript")
+                        continue
+                    want, replies = self.exchanges[self.used]
+                    if line != want:
+                        self.errors.append(f"exchange {self.used}: expected {want!r}, got {line!r}")
+                    self.used += 1
+                    for r in replies:
+                        conn.sendall(r.encode() + b"\n")
+        finally:
+            if conn is not None:
+                conn.close()
+
+    def check(self) -> None:
+        """Fail on unexpected lines or unused exchanges."""
+        # give the peer a moment to read anything still in flight
+        time.sleep(0.05)
+        unused = self.exchanges[self.used :]
+        assert not self.errors, self.errors
+        assert not unused, f"expected exchanges never happened: {unused}"
