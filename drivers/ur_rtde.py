@@ -1,0 +1,540 @@
+"""Universal Robots over ur-rtde: :class:`UrRtdeRobot` (RobotDriver + CommandedPosition).
+
+ur-rtde speaks metres and radians and reports trouble by returning ``False``
+or by quietly serving stale values; this adapter converts units at the edge
+(mm and rad above it) and turns every quirk into a typed error:
+
+========================================  =============================================
+ur-rtde behaviour                         raised here
+========================================  =============================================
+``moveJ``/``moveL`` return ``False``,     :class:`ProtectiveStop` (protective, safeguard
+safety bits show a stop                   or emergency stop, fault, violation)
+``False``, safety normal, control         :class:`CommandRejected` (the script died on a
+script no longer running                  bad target; it is re-uploaded on the next move)
+``False`` otherwise                       :class:`CommandRejected`
+``isConnected()`` false on either side    :class:`ConnectionLost`
+``getTimestamp()`` stops advancing        :class:`ConnectionLost` (getters keep returning
+                                          the last values after the link dies)
+robot mode not RUNNING                    :class:`NotReady`
+``RuntimeError`` from the C++ layer       :class:`ConnectionLost` / :class:`CommandRejected`
+no arrival within ``timeout``             :class:`CommandTimeout` (after ``stopJ``)
+========================================  =============================================
+
+Moves are sent asynchronously (``asynchronous=True``) and then watched on the
+receive side, so every call honours its ``timeout`` (a blocking ``moveJ``
+cannot be interrupted from Python). Safety status bits, robot modes and
+runtime states follow UR's RTDE guide.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import socket
+import time
+from collections.abc import Callable
+from urllib.parse import parse_qs, urlsplit
+
+import numpy as np
+
+from drivers.errors import (
+    CommandRejected,
+    CommandTimeout,
+    ConnectionLost,
+    DriverError,
+    LimitError,
+    NotReady,
+    ProtectiveStop,
+    ProtocolError,
+)
+from drivers.protocols import JointReading, RobotStatus
+
+RTDE_PORT = 30004
+
+#: what the receive interface is asked to stream
+RECEIVE_VARIABLES = [
+    "timestamp", "actual_q", "actual_qd", "target_q", "actual_TCP_pose", "robot_mode",
+    "safety_mode", "safety_status_bits", "runtime_state", "robot_status_bits",
+]
+
+# safety_status_bits (RTDE guide)
+BIT_NORMAL, BIT_REDUCED, BIT_PROTECTIVE, BIT_RECOVERY = 0, 1, 2, 3
+BIT_SAFEGUARD, BIT_SYSTEM_ESTOP, BIT_ROBOT_ESTOP, BIT_ESTOP = 4, 5, 6, 7
+BIT_VIOLATION, BIT_FAULT, BIT_STOPPED_BY_SAFETY = 8, 9, 10
+ROBOT_MODES = {-1: "NO_CONTROLLER", 0: "DISCONNECTED", 1: "CONFIRM_SAFETY", 2: "BOOTING",
+               3: "POWER_OFF", 4: "POWER_ON", 5: "IDLE", 6: "BACKDRIVE", 7: "RUNNING",
+               8: "UPDATING_FIRMWARE"}
+ROBOT_MODE_RUNNING = 7
+RUNTIME_STATES = {0: "STOPPING", 1: "STOPPED", 2: "PLAYING", 3: "PAUSING", 4: "PAUSED",
+                  5: "RESUMING"}
+
+
+def _default_receive(host: str, frequency: float, variables: list[str]):
+    import rtde_receive
+
+    return rtde_receive.RTDEReceiveInterface(host, frequency, variables)
+
+
+def _default_control(host: str):
+    import rtde_control
+
+    return rtde_control.RTDEControlInterface(host)
+
+
+class _State:
+    """One fresh receive-side sample, in our units (rad, mm)."""
+
+    __slots__ = ("q", "qd", "target_q", "tcp_m", "bits", "safety_mode", "robot_mode",
+                 "runtime", "rtde_time")
+
+    def __init__(self, **kw) -> None:
+        for k, v in kw.items():
+            setattr(self, k, v)
+
+    @property
+    def tcp_mm(self) -> np.ndarray:
+        return np.asarray(self.tcp_m[:3], float) * 1000.0
+
+    def bit(self, i: int) -> bool:
+        return bool((self.bits >> i) & 1)
+
+    @property
+    def protective_stop(self) -> bool:
+        return self.bit(BIT_PROTECTIVE) or self.bit(BIT_SAFEGUARD)
+
+    @property
+    def emergency_stop(self) -> bool:
+        return self.bit(BIT_ESTOP) or self.bit(BIT_ROBOT_ESTOP) or self.bit(BIT_SYSTEM_ESTOP)
+
+    @property
+    def fault(self) -> bool:
+        return self.bit(BIT_FAULT) or self.bit(BIT_VIOLATION)
+
+    def stop_reason(self) -> str:
+        """Why the robot is stopped by its safety system, or ``""``."""
+        names = [n for i, n in ((BIT_PROTECTIVE, "protective stop"),
+                                (BIT_SAFEGUARD, "safeguard stop"),
+                                (BIT_SYSTEM_ESTOP, "system emergency stop"),
+                                (BIT_ROBOT_ESTOP, "robot emergency stop"),
+                                (BIT_ESTOP, "emergency stop"), (BIT_VIOLATION, "violation"),
+                                (BIT_FAULT, "fault")) if self.bit(i)]
+        if not names:
+            return ""
+        return (f"{', '.join(names)} (safety mode {self.safety_mode}, "
+                f"safety status bits 0x{self.bits:03x})")
+
+
+class UrRtdeRobot:
+    """A UR robot driven through ur-rtde; joints in rad, positions in mm.
+
+    Parameters
+    ----------
+    url : str
+        ``ur://host[?frequency=500&joints=6&read_only=1&stale=0.25]``; see :meth:`from_url`.
+    host : str
+        Controller address (the RTDE port is always 30004).
+    control_factory : callable, optional
+        ``control_factory(host)`` -> an ``RTDEControlInterface``-like object
+        (default ``rtde_control.RTDEControlInterface``; inject
+        ``sim_drivers.fake_rtde_control.FakeRTDEControl`` for the simulator).
+    receive_factory : callable, optional
+        ``receive_factory(host, frequency, variables)`` -> an
+        ``RTDEReceiveInterface``-like object (default ``rtde_receive.RTDEReceiveInterface``).
+    frequency : float
+        Receive streaming frequency, Hz; -1 lets ur-rtde choose (125 CB3, 500 e-Series).
+    n_joints : int
+        Joints exposed above the driver (a UR has 6; fewer drops the trailing ones and pads
+        commands with zeros, for simulated arms).
+    read_only : bool
+        Connect the receive side only; moves and stops raise :class:`NotReady`.
+    limits : array-like, shape (n_joints, 2), optional
+        Joint limits (rad) checked before any move (:class:`LimitError`).
+    acceleration : float
+        Joint acceleration for ``moveJ`` (rad/s²).
+    linear_acceleration : float
+        Tool acceleration for ``moveL`` (mm/s²).
+    joint_tol : float
+        In-position tolerance per joint (rad).
+    tcp_tol : float
+        In-position tolerance of the TCP after a linear move (mm).
+    velocity_tol : float
+        Largest joint speed (rad/s) that still counts as standing still.
+    stale_after : float
+        Seconds without a new controller timestamp after which the link counts as lost.
+    auto_reupload : bool
+        Re-upload the control script before a move when it is not running (it stops
+        after every protective stop) and the robot is otherwise ready.
+    """
+
+    def __init__(
+        self,
+        url: str,
+        host: str,
+        *,
+        control_factory: Callable | None = None,
+        receive_factory: Callable | None = None,
+        frequency: float = -1.0,
+        n_joints: int = 6,
+        read_only: bool = False,
+        limits=None,
+        acceleration: float = 1.4,
+        linear_acceleration: float = 1200.0,
+        joint_tol: float = 1e-3,
+        tcp_tol: float = 0.1,
+        velocity_tol: float = 1e-3,
+        stale_after: float = 0.25,
+        auto_reupload: bool = True,
+    ) -> None:
+        if not 1 <= n_joints <= 6:
+            raise ValueError(f"n_joints must be 1..6, got {n_joints}")
+        self.url = url
+        self.host = host
+        self.control_factory = control_factory or _default_control
+        self.receive_factory = receive_factory or _default_receive
+        self.frequency = float(frequency)
+        self.n_joints = int(n_joints)
+        self.read_only = bool(read_only)
+        self.limits = None if limits is None else np.asarray(limits, float)
+        if self.limits is not None and self.limits.shape != (self.n_joints, 2):
+            raise ValueError(f"limits must have shape ({self.n_joints}, 2)")
+        self.acceleration = float(acceleration)
+        self.linear_acceleration = float(linear_acceleration)
+        self.joint_tol = float(joint_tol)
+        self.tcp_tol = float(tcp_tol)
+        self.velocity_tol = float(velocity_tol)
+        self.stale_after = float(stale_after)
+        self.auto_reupload = bool(auto_reupload)
+        self.poll_s = 0.002
+        self.refusal_grace_s = 0.2
+        self._rx = None
+        self._ctrl = None
+        self._last_ts: float | None = None
+        self._last_ts_seen = 0.0
+        self._target_q: np.ndarray | None = None
+        self._target_tcp: np.ndarray | None = None
+
+    @classmethod
+    def from_url(cls, url: str, **kw) -> UrRtdeRobot:
+        """Build a driver from ``ur://host[?frequency=..&joints=..&read_only=1&stale=..]``.
+
+        Keyword arguments override the query (and pass factories through).
+        """
+        parts = urlsplit(url)
+        if parts.scheme != "ur" or not parts.hostname:
+            raise ValueError(f"bad UR URL {url!r}: expected ur://host")
+        if parts.port not in (None, RTDE_PORT):
+            raise ValueError(f"bad UR URL {url!r}: ur-rtde always uses port {RTDE_PORT}")
+        q = {k: v[-1] for k, v in parse_qs(parts.query).items()}
+        opts: dict = {}
+        try:
+            if "frequency" in q:
+                opts["frequency"] = float(q["frequency"])
+            if "joints" in q:
+                opts["n_joints"] = int(q["joints"])
+            if "stale" in q:
+                opts["stale_after"] = float(q["stale"])
+        except ValueError as e:
+            raise ValueError(f"bad UR URL {url!r}: {e}") from None
+        if "read_only" in q:
+            opts["read_only"] = q["read_only"].lower() in ("1", "true", "yes")
+        opts.update(kw)
+        return cls(url, parts.hostname, **opts)
+
+    # -- connection ------------------------------------------------------------------------
+
+    def connect(self, timeout: float = 5.0) -> None:
+        """Open the receive (and unless read-only, control) interfaces; wait for fresh data.
+
+        The port is probed first with ``timeout`` so a dead address fails fast; the
+        ur-rtde constructors themselves cannot be interrupted.
+        """
+        deadline = time.monotonic() + timeout
+        if self._rx is not None:
+            return
+        self._probe(timeout)
+        try:
+            self._rx = self.receive_factory(self.host, self.frequency, list(RECEIVE_VARIABLES))
+        except RuntimeError as e:
+            raise ConnectionLost(self.url, "connect", f"RTDE receive: {e}") from e
+        if not self.read_only:
+            try:
+                self._ctrl = self.control_factory(self.host)
+            except RuntimeError as e:
+                self.close()
+                raise ConnectionLost(self.url, "connect", f"RTDE control: {e}") from e
+        self._last_ts = None
+        try:
+            self._sample("connect", max(0.0, deadline - time.monotonic()))
+        except DriverError:
+            self.close()
+            raise
+
+    def _probe(self, timeout: float) -> None:
+        try:
+            with socket.create_connection((self.host, RTDE_PORT), timeout=max(timeout, 0.01)):
+                pass
+        except OSError as e:
+            raise ConnectionLost(self.url, "connect", f"no RTDE server at port {RTDE_PORT}: {e}") \
+                from e
+
+    def close(self) -> None:
+        """Disconnect both interfaces (idempotent)."""
+        ctrl, rx, self._ctrl, self._rx = self._ctrl, self._rx, None, None
+        for iface in (ctrl, rx):
+            if iface is not None:
+                with contextlib.suppress(RuntimeError):
+                    iface.disconnect()
+
+    def __enter__(self) -> UrRtdeRobot:
+        self.connect()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- reading ---------------------------------------------------------------------------
+
+    def read_joints(self, timeout: float = 1.0) -> JointReading:
+        """Actual joint positions (rad, shape (n_joints,)) from ``getActualQ()``."""
+        st = self._sample("getActualQ", timeout)
+        return JointReading(q=st.q, timestamp=time.time())
+
+    def read_tcp(self, timeout: float = 1.0) -> np.ndarray:
+        """The controller's TCP position (mm, base frame) from ``getActualTCPPose()``."""
+        return self._sample("getActualTCPPose", timeout).tcp_mm
+
+    def status(self, timeout: float = 1.0) -> RobotStatus:
+        """Controller state; ``error_code`` is the safety mode when it is not NORMAL (1)."""
+        st = self._sample("status", timeout)
+        moving = self._moving(st)
+        reason = st.stop_reason()
+        mode = ROBOT_MODES.get(st.robot_mode, str(st.robot_mode))
+        message = reason or (f"robot mode {mode}, program {RUNTIME_STATES.get(st.runtime, '?')}")
+        return RobotStatus(
+            connected=True,
+            moving=moving,
+            in_position=not moving and self._in_position(st),
+            fault=st.fault,
+            protective_stop=st.protective_stop,
+            emergency_stop=st.emergency_stop,
+            error_code=0 if st.safety_mode == 1 else int(st.safety_mode),
+            message=message,
+            timestamp=time.time(),
+        )
+
+    def _receive(self, command: str):
+        if self._rx is None:
+            raise NotReady(self.url, command, "not connected (call connect() first)")
+        return self._rx
+
+    def _sample(self, command: str, timeout: float) -> _State:
+        """A sample whose controller timestamp is fresh; ConnectionLost when the link is dead."""
+        rx = self._receive(command)
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                if not rx.isConnected():
+                    raise ConnectionLost(self.url, command, "RTDE receive link is down")
+                ts = float(rx.getTimestamp())
+            except RuntimeError as e:
+                raise ConnectionLost(self.url, command, f"RTDE receive: {e}") from e
+            now = time.monotonic()
+            if ts != self._last_ts:
+                self._last_ts, self._last_ts_seen = ts, now
+                break
+            if now - self._last_ts_seen <= self.stale_after:
+                break
+            if now >= deadline:
+                raise ConnectionLost(
+                    self.url, command,
+                    f"controller timestamp stuck at {ts:.3f} s for {now - self._last_ts_seen:.2f} s"
+                    " (stale data)")
+            time.sleep(self.poll_s)
+        try:
+            n = self.n_joints
+            return _State(
+                q=np.asarray(rx.getActualQ(), float)[:n],
+                qd=np.asarray(rx.getActualQd(), float)[:n],
+                target_q=np.asarray(rx.getTargetQ(), float)[:n],
+                tcp_m=np.asarray(rx.getActualTCPPose(), float),
+                bits=int(rx.getSafetyStatusBits()),
+                safety_mode=int(rx.getSafetyMode()),
+                robot_mode=int(rx.getRobotMode()),
+                runtime=int(rx.getRuntimeState()),
+                rtde_time=ts,
+            )
+        except RuntimeError as e:
+            raise ProtocolError(self.url, command, f"RTDE receive: {e}") from e
+
+    def _moving(self, st: _State) -> bool:
+        return bool(np.max(np.abs(st.qd), initial=0.0) > self.velocity_tol)
+
+    def _in_position(self, st: _State) -> bool:
+        if self._target_q is not None:
+            return bool(np.max(np.abs(st.q - self._target_q)) <= self.joint_tol)
+        if self._target_tcp is not None:
+            return bool(np.linalg.norm(st.tcp_mm - self._target_tcp) <= self.tcp_tol)
+        return bool(np.max(np.abs(st.q - st.target_q), initial=0.0) <= self.joint_tol)
+
+    def _raise_if_stopped(self, st: _State, command: str) -> None:
+        reason = st.stop_reason()
+        if reason:
+            raise ProtectiveStop(self.url, command, reason)
+
+    # -- motion ----------------------------------------------------------------------------
+
+    def move_joints(self, q, speed: float = 0.5, timeout: float = 60.0) -> None:
+        """Joint move to ``q`` (rad); returns on arrival. ``speed`` of the leading joint, rad/s."""
+        deadline = time.monotonic() + timeout
+        q = self._check_joints(q, "moveJ")
+        _check_speed(self.url, "moveJ", speed)
+        ctrl = self._ready("moveJ", deadline)
+        wire = np.zeros(6)  # a UR has 6 joints; a smaller simulated arm ignores the padding
+        wire[: self.n_joints] = q
+        ok = self._call("moveJ", ctrl.moveJ, wire.tolist(), float(speed), self.acceleration, True)
+        self._target_q, self._target_tcp = q, None
+        if not ok:
+            self._refused("moveJ", deadline)
+        self._await_arrival("moveJ", deadline, ctrl)
+
+    def move_linear(self, xyz, speed: float = 100.0, timeout: float = 60.0) -> None:
+        """Linear TCP move to ``xyz`` (mm, base frame), orientation kept; ``speed`` in mm/s."""
+        deadline = time.monotonic() + timeout
+        xyz = np.asarray(xyz, float)
+        if xyz.shape != (3,) or not np.all(np.isfinite(xyz)):
+            raise CommandRejected(self.url, "moveL", f"expected finite x y z (mm), got {xyz}")
+        _check_speed(self.url, "moveL", speed)
+        ctrl = self._ready("moveL", deadline)
+        pose = self._sample("moveL", max(0.0, deadline - time.monotonic())).tcp_m.copy()
+        pose[:3] = xyz / 1000.0
+        ok = self._call("moveL", ctrl.moveL, pose.tolist(), speed / 1000.0,
+                        self.linear_acceleration / 1000.0, True)
+        self._target_q, self._target_tcp = None, xyz
+        if not ok:
+            self._refused("moveL", deadline)
+        self._await_arrival("moveL", deadline, ctrl)
+
+    def wait_settled(self, timeout: float = 30.0) -> None:
+        """Return once in position, joint speeds ≈ 0 and (control side) ``isSteady()``."""
+        deadline = time.monotonic() + timeout
+        ctrl = self._ctrl
+        streak = 0
+        while True:
+            st = self._sample("wait_settled", max(0.0, deadline - time.monotonic()))
+            self._raise_if_stopped(st, "wait_settled")
+            steady = ctrl is None or self._call("isSteady", ctrl.isSteady)
+            if steady and not self._moving(st) and self._in_position(st):
+                streak += 1
+                if streak >= 2:
+                    return
+            else:
+                streak = 0
+            if time.monotonic() >= deadline:
+                raise CommandTimeout(self.url, "wait_settled",
+                                     f"not settled within {timeout} s (q={st.q.round(5).tolist()})")
+            time.sleep(self.poll_s)
+
+    def stop(self, timeout: float = 2.0) -> None:
+        """Decelerate to standstill (``stopJ``) and wait until the joints are still."""
+        deadline = time.monotonic() + timeout
+        ctrl = self._control("stopJ")
+        self._call("stopJ", ctrl.stopJ, 2.0, False)
+        self._target_q = self._target_tcp = None
+        while True:
+            st = self._sample("stopJ", max(0.0, deadline - time.monotonic()))
+            if not self._moving(st):
+                return
+            if time.monotonic() >= deadline:
+                raise CommandTimeout(self.url, "stopJ", f"still moving after {timeout} s")
+            time.sleep(self.poll_s)
+
+    # -- helpers ---------------------------------------------------------------------------
+
+    def _check_joints(self, q, command: str) -> np.ndarray:
+        q = np.asarray(q, float)
+        if q.shape != (self.n_joints,) or not np.all(np.isfinite(q)):
+            raise CommandRejected(self.url, command,
+                                  f"expected {self.n_joints} finite joint values (rad), got {q}")
+        if self.limits is not None:
+            bad = np.nonzero((q < self.limits[:, 0]) | (q > self.limits[:, 1]))[0]
+            if bad.size:
+                raise LimitError(self.url, command,
+                                 f"joint(s) {(bad + 1).tolist()} outside limits: {q.tolist()}")
+        return q
+
+    def _control(self, command: str):
+        if self.read_only:
+            raise NotReady(self.url, command, "opened read-only (no RTDE control interface)")
+        if self._ctrl is None:
+            raise NotReady(self.url, command, "not connected (call connect() first)")
+        if not self._call("isConnected", self._ctrl.isConnected):
+            raise ConnectionLost(self.url, command, "RTDE control link is down")
+        return self._ctrl
+
+    def _call(self, command: str, fn, *args):
+        try:
+            return fn(*args)
+        except RuntimeError as e:
+            links = [i for i in (self._ctrl, self._rx) if i is not None]
+            try:
+                down = any(not i.isConnected() for i in links)
+            except RuntimeError:
+                down = True
+            cls = ConnectionLost if down else CommandRejected
+            raise cls(self.url, command, f"ur-rtde: {e}") from e
+
+    def _ready(self, command: str, deadline: float):
+        """The control interface, once the robot can take a move (or a typed error)."""
+        ctrl = self._control(command)
+        st = self._sample(command, max(0.0, deadline - time.monotonic()))
+        self._raise_if_stopped(st, command)
+        if st.robot_mode != ROBOT_MODE_RUNNING:
+            mode = ROBOT_MODES.get(st.robot_mode, str(st.robot_mode))
+            raise NotReady(self.url, command, f"robot mode {mode}, not RUNNING")
+        if not self._call("isProgramRunning", ctrl.isProgramRunning):
+            if not self.auto_reupload:
+                raise NotReady(self.url, command, "RTDE control script is not running")
+            self._call("reuploadScript", ctrl.reuploadScript)
+            while not self._call("isProgramRunning", ctrl.isProgramRunning):
+                if time.monotonic() >= deadline:
+                    raise NotReady(self.url, command, "RTDE control script did not restart")
+                time.sleep(self.poll_s)
+        return ctrl
+
+    def _refused(self, command: str, deadline: float) -> None:
+        """``moveJ``/``moveL`` returned False: find out why and raise the matching error."""
+        end = min(deadline, time.monotonic() + self.refusal_grace_s)
+        while True:
+            if self._ctrl is not None and not self._call("isConnected", self._ctrl.isConnected):
+                raise ConnectionLost(self.url, command, "RTDE control link is down")
+            st = self._sample(command, max(0.0, deadline - time.monotonic()))
+            self._raise_if_stopped(st, command)  # the receive side may lag by a cycle
+            if time.monotonic() >= end:
+                break
+            time.sleep(self.poll_s)
+        if self._ctrl is not None and not self._call("isProgramRunning",
+                                                     self._ctrl.isProgramRunning):
+            raise CommandRejected(self.url, command,
+                                  "refused: the RTDE control script stopped (target unreachable "
+                                  "or outside limits?)")
+        raise CommandRejected(self.url, command, "refused by the controller (returned False)")
+
+    def _await_arrival(self, command: str, deadline: float, ctrl) -> None:
+        while True:
+            st = self._sample(command, max(0.0, deadline - time.monotonic()))
+            self._raise_if_stopped(st, command)
+            if not self._moving(st) and self._in_position(st):
+                return
+            if not self._call("isProgramRunning", ctrl.isProgramRunning):
+                self._refused(command, deadline)
+            if time.monotonic() >= deadline:
+                with contextlib.suppress(DriverError):
+                    self._call("stopJ", ctrl.stopJ, 2.0, False)
+                raise CommandTimeout(self.url, command,
+                                     "target not reached within timeout; robot stopped")
+            time.sleep(self.poll_s)
+
+
+def _check_speed(url: str, command: str, speed: float) -> None:
+    if not (math.isfinite(speed) and speed > 0):
+        raise CommandRejected(url, command, f"speed must be > 0, got {speed}")
