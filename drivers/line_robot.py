@@ -1,0 +1,192 @@
+"""A robot controller behind a simple ASCII line protocol (docs/line-robot-protocol.md).
+
+Over :func:`serial.serial_for_url`, so ``socket://host:port``, ``loop://``, a pty
+and real ports all work. Degrees and millimetres on the wire, radians and
+millimetres at the Python boundary.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from drivers.errors import (
+    CommandRejected,
+    CommandTimeout,
+    DriverError,
+    LimitError,
+    NotReady,
+    ProtectiveStop,
+    ProtocolError,
+)
+from drivers.protocols import JointReading, RobotStatus
+from drivers.transport import LineSession, LineTransport, parse_kv
+
+#: ERR name → error class
+ROBOT_ERRORS: dict[str, type[DriverError]] = {
+    "BAD_COMMAND": CommandRejected,
+    "BAD_ARGUMENT": CommandRejected,
+    "LIMIT": LimitError,
+    "UNREACHABLE": CommandRejected,
+    "PROTECTIVE_STOP": ProtectiveStop,
+    "EMERGENCY_STOP": ProtectiveStop,
+    "FAULT": CommandRejected,
+    "BUSY": NotReady,
+}
+
+
+class SerialRobot:
+    """RobotDriver (+ ``read_tcp``) for the line-protocol controller.
+
+    Parameters
+    ----------
+    url : str
+        Driver URL for messages (``socket://host:port``, ``serial:///dev/ttyUSB0``).
+    port_url : str
+        What pyserial opens.
+    baudrate : int
+        Serial speed (ignored on sockets).
+    poll_s : float
+        Status polling period of :meth:`wait_settled` (s).
+    """
+
+    def __init__(
+        self, url: str, port_url: str, *, baudrate: int = 115200, poll_s: float = 0.01
+    ) -> None:
+        self.url = url
+        self.poll_s = poll_s
+        self.model = self.serial = self.firmware = ""
+        self.n_joints = 0
+        self._transport = LineTransport(port_url, device=f"robot {url}", baudrate=baudrate)
+        self._session = LineSession(self._transport, ROBOT_ERRORS, handshake=self._hello)
+
+    @property
+    def _dev(self) -> str:
+        return self._transport.device
+
+    def _hello(self, deadline: float) -> None:
+        tok = self._session.exchange("HELLO", "HELLO", deadline)
+        if len(tok) < 4:
+            raise ProtocolError(self._dev, "HELLO", f"short reply {tok}")
+        self.model, self.serial, self.firmware = tok[:3]
+        kv = parse_kv(tok[3:], self._dev, "HELLO")
+        try:
+            self.n_joints = int(kv["joints"])
+        except (KeyError, ValueError) as e:
+            raise ProtocolError(self._dev, "HELLO", f"no joints=N in {tok}") from e
+
+    # ----------------------------------------------------------- connection
+    def connect(self, timeout: float = 5.0) -> None:
+        """Open the link and greet the controller (learns the number of joints)."""
+        self._session.connect(timeout)
+
+    def close(self) -> None:
+        """Close the link (idempotent)."""
+        self._transport.close()
+
+    def __enter__(self) -> SerialRobot:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # --------------------------------------------------------------- queries
+    def _floats(self, tok: list[str], n: int, command: str) -> np.ndarray:
+        try:
+            v = np.array([float(t) for t in tok])
+        except ValueError as e:
+            raise ProtocolError(self._dev, command, f"bad numbers {tok}") from e
+        if v.shape != (n,) or not np.all(np.isfinite(v)):
+            raise ProtocolError(self._dev, command, f"expected {n} numbers, got {tok}")
+        return v
+
+    def read_joints(self, timeout: float = 1.0) -> JointReading:
+        """``POS?``: joint positions (rad) with the time they were read (epoch s)."""
+        tok = self._session.exchange("POS?", "POS", time.monotonic() + timeout, retry=True)
+        q = np.deg2rad(self._floats(tok, self.n_joints, "POS?"))
+        return JointReading(q=q, timestamp=time.time())
+
+    def read_tcp(self, timeout: float = 1.0) -> np.ndarray:
+        """``TCP?``: the controller's nominal TCP position (mm, base frame), shape (3,)."""
+        tok = self._session.exchange("TCP?", "TCP", time.monotonic() + timeout, retry=True)
+        return self._floats(tok, 3, "TCP?")
+
+    def status(self, timeout: float = 1.0) -> RobotStatus:
+        """``STATUS?``: motion and safety state."""
+        tok = self._session.exchange("STATUS?", "STATUS", time.monotonic() + timeout, retry=True)
+        kv = parse_kv(tok, self._dev, "STATUS?")
+        try:
+            return RobotStatus(
+                connected=True,
+                moving=kv["moving"] == "1",
+                in_position=kv["inpos"] == "1" and kv.get("steady", "1") == "1",
+                fault=kv["fault"] == "1",
+                protective_stop=kv["pstop"] == "1",
+                emergency_stop=kv.get("estop", "0") == "1",
+                error_code=int(kv.get("err", "0")),
+                message=" ".join(tok),
+                timestamp=float(kv.get("t", time.time())),
+            )
+        except (KeyError, ValueError) as e:
+            raise ProtocolError(self._dev, "STATUS?", f"bad status reply {tok}: {e}") from e
+
+    # --------------------------------------------------------------- motion
+    def move_joints(
+        self, q: np.ndarray, speed: float = 0.5, timeout: float = 60.0, *, wait: bool = False
+    ) -> None:
+        """``MOVEJ``: start a joint move to ``q`` (rad, shape (n_joints,)) at ``speed`` rad/s.
+
+        Returns once the controller accepted the move; ``wait=True`` also waits
+        until it is settled (:meth:`wait_settled`) within ``timeout``.
+        """
+        deadline = time.monotonic() + timeout
+        q = np.asarray(q, float)
+        if q.shape != (self.n_joints,):
+            raise CommandRejected(self._dev, "MOVEJ", f"expected {self.n_joints} joints, got {q}")
+        args = " ".join(f"{v:.6f}" for v in np.rad2deg(q))
+        cmd = f"MOVEJ {args} {np.rad2deg(speed):.6f}"
+        self._session.exchange(cmd, "MOVEJ", min(deadline, time.monotonic() + 5.0))
+        if wait:
+            self.wait_settled(max(deadline - time.monotonic(), 0.0))
+
+    def move_linear(
+        self, xyz: np.ndarray, speed: float = 100.0, timeout: float = 60.0, *, wait: bool = False
+    ) -> None:
+        """``MOVEL``: start a linear TCP move to ``xyz`` (mm, base frame) at ``speed`` mm/s."""
+        deadline = time.monotonic() + timeout
+        xyz = np.asarray(xyz, float)
+        if xyz.shape != (3,):
+            raise CommandRejected(self._dev, "MOVEL", f"expected x y z, got {xyz}")
+        cmd = "MOVEL " + " ".join(f"{v:.4f}" for v in xyz) + f" {speed:.4f}"
+        self._session.exchange(cmd, "MOVEL", min(deadline, time.monotonic() + 5.0))
+        if wait:
+            self.wait_settled(max(deadline - time.monotonic(), 0.0))
+
+    def wait_settled(self, timeout: float = 30.0) -> None:
+        """Poll ``STATUS?`` until in position and steady.
+
+        Raises ProtectiveStop on a protective/emergency stop, CommandRejected on
+        a controller fault, CommandTimeout when ``timeout`` passes first.
+        """
+        deadline = time.monotonic() + timeout
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise CommandTimeout(self._dev, "wait_settled", f"not settled after {timeout} s")
+            st = self.status(timeout=left)
+            if st.protective_stop or st.emergency_stop:
+                raise ProtectiveStop(self._dev, "wait_settled", st.message)
+            if st.fault:
+                raise CommandRejected(self._dev, "wait_settled", f"fault: {st.message}")
+            if st.in_position and not st.moving:
+                return
+            time.sleep(min(self.poll_s, max(deadline - time.monotonic(), 0.0)))
+
+    def stop(self, timeout: float = 2.0) -> None:
+        """``STOP``: halt any motion."""
+        self._session.exchange("STOP", "STOP", time.monotonic() + timeout, retry=True)
+
+    def clear_protective_stop(self, timeout: float = 2.0) -> None:
+        """``RESET``: clear a protective stop or fault (after the cause is removed)."""
+        self._session.exchange("RESET", "RESET", time.monotonic() + timeout)
