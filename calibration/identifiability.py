@@ -7,7 +7,8 @@ out the columns already kept. A parameter whose pivot falls below ``rtol`` is
 unidentifiable (no effect on the measured points) or redundant (its effect is a
 combination of the others') and is fixed at its starting value. The tiers make
 the choice between exactly redundant parameters stable and readable: with
-position-only data joint 1's offset and d are fixed, not the base.
+position-only data joint 1's offset and d are fixed, not the base; within a
+tier, exact ties go to the parameter declared first.
 """
 
 from __future__ import annotations
@@ -85,7 +86,9 @@ def analyse(
     basis = np.zeros((m, 0))
     for tier in sorted(set(tiers[live])):
         idx = np.flatnonzero(live & (tiers == tier))
-        cols = Jn[:, idx] - basis @ (basis.T @ Jn[:, idx])
+        # exact ties go to the parameter declared first (joint order; theta, d, a, alpha)
+        order_weight = 1.0 - 0.01 * np.arange(idx.size) / max(idx.size, 1)
+        cols = (Jn[:, idx] - basis @ (basis.T @ Jn[:, idx])) * order_weight
         _, R, piv = scipy.linalg.qr(cols, mode="economic", pivoting=True)
         diag = np.abs(np.diag(R))
         keep = idx[piv[: diag.size][diag > rtol]]
