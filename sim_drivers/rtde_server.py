@@ -178,7 +178,9 @@ class RtdeSimServer:
         self.host: str | None = None
         self.program_running = True
         self.pump_error: BaseException | None = None
-        self._block = child.SharedBlock()
+        self._block: child.SharedBlock | None = None  # exists while running
+        self._fields: dict[str, object] = {}
+        self._flags = {child.FREEZE: 0.0, child.SILENT: 0.0}
         self._write_lock = threading.Lock()
         self._proc: subprocess.Popen | None = None
         self._pump: threading.Thread | None = None
@@ -201,6 +203,11 @@ class RtdeSimServer:
             return self
         if self.cell is not None:
             self.publish()
+        with self._write_lock:
+            self._block = child.SharedBlock()
+            self._block.write_state(self._fields)
+            for i, v in self._flags.items():
+                self._block.set_ctl(i, v)
         fd = self._block.fileno()
         cmd = [sys.executable, "-m", "sim_drivers.rtde_child", "--fd", str(fd),
                "--hosts", ",".join(self.hosts), "--port", str(self.port),
@@ -216,11 +223,13 @@ class RtdeSimServer:
             proc.kill()
             proc.wait()
             proc.stdout.close()
+            self._close_block()
             raise
         proc.stdout.close()
         status, _, detail = line.partition(" ")
         if status != "ok":
             proc.wait(self.start_timeout)
+            self._close_block()
             raise PortUnavailable(detail or f"RTDE simulator exited with {proc.returncode}")
         self._proc = proc
         self.host = detail
@@ -255,6 +264,13 @@ class RtdeSimServer:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait(timeout)
+        self._close_block()
+
+    def _close_block(self) -> None:
+        with self._write_lock:
+            block, self._block = self._block, None
+            if block is not None:
+                block.close()
 
     def __enter__(self) -> RtdeSimServer:
         return self.start()
@@ -284,7 +300,19 @@ class RtdeSimServer:
 
     def _write(self, fields: dict[str, object]) -> None:
         with self._write_lock:
-            self._block.write_state(fields)
+            self._fields.update(fields)
+            if self._block is not None:
+                self._block.write_state(fields)
+
+    def _set_flag(self, i: int, on: bool) -> None:
+        with self._write_lock:
+            self._flags[i] = 1.0 if on else 0.0
+            if self._block is not None:
+                self._block.set_ctl(i, self._flags[i])
+
+    def _ctl(self, i: int) -> float:
+        with self._write_lock:
+            return self._block.ctl(i) if self._block is not None else 0.0
 
     def _run_pump(self) -> None:
         period = 1.0 / self.pump_hz
@@ -298,11 +326,11 @@ class RtdeSimServer:
 
     def freeze(self, on: bool = True) -> None:
         """Keep streaming, but with a frozen timestamp and frozen values (a hung controller)."""
-        self._block.set_ctl(child.FREEZE, 1.0 if on else 0.0)
+        self._set_flag(child.FREEZE, on)
 
     def silence(self, on: bool = True) -> None:
         """Stop sending data packages while keeping connections open (a dead link)."""
-        self._block.set_ctl(child.SILENT, 1.0 if on else 0.0)
+        self._set_flag(child.SILENT, on)
 
     def kill(self) -> None:
         """Kill the server process abruptly (SIGKILL), as if the controller vanished."""
@@ -314,14 +342,14 @@ class RtdeSimServer:
     @property
     def clients(self) -> int:
         """Number of connected clients."""
-        return int(self._block.ctl(child.CLIENTS))
+        return int(self._ctl(child.CLIENTS))
 
     @property
     def packages_sent(self) -> int:
         """Data-package rounds sent so far."""
-        return int(self._block.ctl(child.PACKAGES))
+        return int(self._ctl(child.PACKAGES))
 
     @property
     def requested_frequency(self) -> float:
         """The frequency (Hz) the last client asked for in SETUP_OUTPUTS."""
-        return float(self._block.ctl(child.FREQUENCY))
+        return float(self._ctl(child.FREQUENCY))
