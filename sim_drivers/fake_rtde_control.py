@@ -1,4 +1,4 @@
-"""``FakeRTDEControl``: the part of ``rtde_control.RTDEControlInterface`` cellcal uses, on a SimCell.
+"""``FakeRTDEControl``: what cellcal uses of ur-rtde's ``RTDEControlInterface``, on a SimCell.
 
 Same method names, signatures and units as ur-rtde 1.6.5 (metres, radians,
 ``asynchronous`` flag) and the same quirks:
@@ -26,6 +26,7 @@ import threading
 import numpy as np
 
 from sim_drivers.cell import CellRefused
+
 
 class FakeRTDEControl:
     """An ``RTDEControlInterface`` stand-in backed by a simulated cell.

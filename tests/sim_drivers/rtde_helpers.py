@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import os
 import select
@@ -12,6 +13,18 @@ import time
 from sim_drivers import rtde_wire as w
 
 _counter = itertools.count(1)
+
+
+@contextlib.contextmanager
+def receive_client(host: str, *args):
+    """The real ``rtde_receive.RTDEReceiveInterface``, disconnected on exit."""
+    import rtde_receive
+
+    rx = rtde_receive.RTDEReceiveInterface(host, *args)
+    try:
+        yield rx
+    finally:
+        rx.disconnect()
 
 
 def loopback_host() -> str:

@@ -8,13 +8,17 @@ import time
 
 import numpy as np
 import pytest
-import rtde_receive
 
 from sim_drivers import rtde_wire as w
 from sim_drivers.cell import SimCell
 from sim_drivers.rtde_server import PortUnavailable, RtdeSimServer, controller_fields
 from sim_drivers.truth import ToyArm
-from tests.sim_drivers.rtde_helpers import RtdeTranscript, loopback_host, setup_outputs
+from tests.sim_drivers.rtde_helpers import (
+    RtdeTranscript,
+    loopback_host,
+    receive_client,
+    setup_outputs,
+)
 
 Q0 = np.array([0.3, 0.5, -0.7])
 
@@ -30,50 +34,42 @@ def _wait_for(pred, timeout: float = 1.0) -> bool:
 
 def test_real_receive_client_reads_every_variable_from_the_cell():
     cell = SimCell(ToyArm(), seed=1, time_scale=0.0, q0=Q0)
-    with RtdeSimServer(cell, host=loopback_host()) as server:
-        rx = rtde_receive.RTDEReceiveInterface(server.host)  # variables=[]: all of them
-        try:
-            assert server.requested_frequency == 500.0  # e-Series controller version
-            q = np.array(rx.getActualQ())
-            assert q.shape == (6,)
-            np.testing.assert_allclose(q[:3], Q0, atol=1e-9)
-            np.testing.assert_array_equal(q[3:], 0.0)  # ToyArm padded to 6 joints
-            pose = np.array(rx.getActualTCPPose())
-            np.testing.assert_allclose(pose[:3] * 1000.0, ToyArm().nominal_tcp(Q0), atol=1e-6)
-            assert rx.getSafetyStatusBits() == 1  # bit 0: normal mode
-            assert rx.getRobotMode() == 7 and rx.getSafetyMode() == 1
-            assert rx.getRuntimeState() == 2 and rx.getRobotStatus() == 3
-            assert not rx.isProtectiveStopped() and not rx.isEmergencyStopped()
-            assert rx.getJointMode() == [253] * 6
-            assert len(rx.getActualToolAccelerometer()) == 3
-            assert rx.getOutputIntRegister(12) == 0 and rx.getOutputDoubleRegister(19) == 0.0
-            t0 = rx.getTimestamp()
-            assert _wait_for(lambda: rx.getTimestamp() > t0 + 0.02)
+    server = RtdeSimServer(cell, host=loopback_host())
+    with server, receive_client(server.host) as rx:  # variables=[]: all of them
+        assert server.requested_frequency == 500.0  # e-Series controller version
+        q = np.array(rx.getActualQ())
+        assert q.shape == (6,)
+        np.testing.assert_allclose(q[:3], Q0, atol=1e-9)
+        np.testing.assert_array_equal(q[3:], 0.0)  # ToyArm padded to 6 joints
+        pose = np.array(rx.getActualTCPPose())
+        np.testing.assert_allclose(pose[:3] * 1000.0, ToyArm().nominal_tcp(Q0), atol=1e-6)
+        assert rx.getSafetyStatusBits() == 1  # bit 0: normal mode
+        assert rx.getRobotMode() == 7 and rx.getSafetyMode() == 1
+        assert rx.getRuntimeState() == 2 and rx.getRobotStatus() == 3
+        assert not rx.isProtectiveStopped() and not rx.isEmergencyStopped()
+        assert rx.getJointMode() == [253] * 6
+        assert len(rx.getActualToolAccelerometer()) == 3
+        assert rx.getOutputIntRegister(12) == 0 and rx.getOutputDoubleRegister(19) == 0.0
+        t0 = rx.getTimestamp()
+        assert _wait_for(lambda: rx.getTimestamp() > t0 + 0.02)
 
-            cell.trigger_protective_stop()  # the pump carries it to the stream
-            assert _wait_for(rx.isProtectiveStopped)
-            bits = rx.getSafetyStatusBits()
-            assert bits & (1 << 2) and not bits & 1
-            assert rx.getSafetyMode() == 3 and rx.getRuntimeState() == 4
-        finally:
-            rx.disconnect()
-            del rx
+        cell.trigger_protective_stop()  # the pump carries it to the stream
+        assert _wait_for(rx.isProtectiveStopped)
+        bits = rx.getSafetyStatusBits()
+        assert bits & (1 << 2) and not bits & 1
+        assert rx.getSafetyMode() == 3 and rx.getRuntimeState() == 4
     assert not server.running
 
 
 def test_requested_frequency_is_honoured():
-    with RtdeSimServer(host=loopback_host()) as server:
-        rx = rtde_receive.RTDEReceiveInterface(server.host, 125.0, ["timestamp", "actual_q"])
-        try:
-            assert server.requested_frequency == 125.0
-            n0, t0 = server.packages_sent, rx.getTimestamp()
-            time.sleep(0.4)
-            rate = (server.packages_sent - n0) / 0.4
-            assert 90 < rate < 140
-            assert rx.getTimestamp() - t0 == pytest.approx(0.4, abs=0.1)
-        finally:
-            rx.disconnect()
-            del rx
+    server = RtdeSimServer(host=loopback_host())
+    with server, receive_client(server.host, 125.0, ["timestamp", "actual_q"]) as rx:
+        assert server.requested_frequency == 125.0
+        n0, t0 = server.packages_sent, rx.getTimestamp()
+        time.sleep(0.4)
+        rate = (server.packages_sent - n0) / 0.4
+        assert 90 < rate < 140
+        assert rx.getTimestamp() - t0 == pytest.approx(0.4, abs=0.1)
 
 
 def _types(*names: str) -> bytes:
