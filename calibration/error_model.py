@@ -160,8 +160,10 @@ class ErrorModel:
             for i, j, part in joint_parts:
                 J[:, :, sls[i]] = dP[:, :, j, 0][:, :, None] * part[:, None, :]
             for i, part in table_parts:
+                # (k, N*5) @ (N*5, 3n) on the chain's own storage layout
                 N = part.shape[0]
-                J[:, :, sls[i]] = dP.reshape(n, 3, N * 5) @ part.reshape(N * 5, -1)
+                block = part.reshape(N * 5, -1).T @ r.dP_internal.reshape(N * 5, 3 * n)
+                J[:, :, sls[i]] = block.reshape(-1, 3, n).transpose(2, 1, 0)
             grow = None if scale is None else (1.0 + scale)[:, None, None]
             if tool_part is not None:
                 i, part = tool_part

@@ -80,10 +80,13 @@ def analyse(
     for k in np.flatnonzero(~live):
         fixed[names[k]] = "no effect on the measured points"
     tiers = np.array([_tier(f) for f in (families or [""] * p)])
-    Jn = np.zeros_like(J, dtype=float)
-    Jn[:, live] = J[:, live] / norms[live]
+    # all that follows depends only on the column geometry, which the p x p triangular
+    # factor of the normalised Jacobian keeps: work on it instead of the 3n x p matrix
+    scaled = np.zeros_like(J, dtype=float)
+    scaled[:, live] = J[:, live] / norms[live]
+    Jn = np.linalg.qr(scaled, mode="r") if m > p else scaled
     free = np.zeros(p, bool)
-    basis = np.zeros((m, 0))
+    basis = np.zeros((Jn.shape[0], 0))
     for tier in sorted(set(tiers[live])):
         idx = np.flatnonzero(live & (tiers == tier))
         # exact ties go to the parameter declared first (joint order; theta, d, a, alpha)
@@ -99,8 +102,7 @@ def analyse(
     dropped = [k for k in np.flatnonzero(live) if not free[k]]
     if dropped:
         # explain each dropped column as a combination of the kept ones
-        Jf = J[:, free] / norms[free]
-        coef, *_ = np.linalg.lstsq(Jf, J[:, dropped] / norms[dropped], rcond=None)
+        coef, *_ = np.linalg.lstsq(Jn[:, free], Jn[:, dropped], rcond=None)
         free_names = [names[k] for k in np.flatnonzero(free)]
         for c, k in enumerate(dropped):
             order = np.argsort(-np.abs(coef[:, c]))[:3]
@@ -110,9 +112,10 @@ def analyse(
             fixed[names[k]] = "redundant with " + (", ".join(parts) if parts else "the others")
     cond = obs = float("nan")
     if free.any():
-        s = np.linalg.svd(J[:, free] / norms[free], compute_uv=False)
+        s = np.linalg.svd(Jn[:, free], compute_uv=False)
         cond = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
-        ss = np.linalg.svd(J[:, free] * np.asarray(scales)[free], compute_uv=False)
+        phys = (norms * np.asarray(scales, float))[free]
+        ss = np.linalg.svd(Jn[:, free] * phys, compute_uv=False)
         npose = n_poses if n_poses else max(m // 3, 1)
         obs = float(np.exp(np.mean(np.log(np.maximum(ss, 1e-300)))) / np.sqrt(npose))
     order = {n: i for i, n in enumerate(names)}

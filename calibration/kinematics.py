@@ -72,6 +72,8 @@ class ChainResult:
     joint_origins: np.ndarray
     frames_R: np.ndarray
     frames_p: np.ndarray
+    #: ``dP_dtable`` in its storage layout (N, 5, 3, n), for fast contractions
+    dP_internal: np.ndarray | None = None
 
 
 def run_chain(
@@ -106,71 +108,92 @@ def run_chain(
     seq = _SEQUENCE[convention]
     grow = None if length_scale is None else 1.0 + np.asarray(length_scale, float)
 
-    cols = [np.zeros((n, 3)) for _ in range(3)]
+    # component-major layout inside: a vector field over poses is (3, n), so every
+    # operation and every store below touches contiguous memory
+    cols = [np.zeros((3, n)) for _ in range(3)]
     for k in range(3):
-        cols[k][:, k] = 1.0
-    p = np.zeros((n, 3))
-    frames_R = np.empty((n, N + 1, 3, 3))
-    frames_p = np.empty((n, N + 1, 3))
-    frames_R[:, 0] = np.eye(3)
-    frames_p[:, 0] = 0.0
-    joint_axes = np.empty((n, N, 3))
-    joint_origins = np.empty((n, N, 3))
-    # per elementary transform: (joint, column, kind, axis vector, origin)
-    records: list[tuple[int, int, str, np.ndarray, np.ndarray | None]] = []
+        cols[k][k] = 1.0
+    p = np.zeros((3, n))
+    FR = np.empty((N + 1, 3, 3, n))  # frame, column (axis), component, pose
+    Fp = np.empty((N + 1, 3, n))
+    FR[0] = np.eye(3)[:, :, None]
+    Fp[0] = 0.0
+    JA = np.empty((N, 3, n))
+    JO = np.empty((N, 3, n))
+    n_rot = sum(1 for kind, _, _ in seq if kind == "r") * N
+    n_tra = N * len(seq) - n_rot
+    if jacobian:
+        U = np.empty((n_rot, 3, n))  # rotation axes
+        O = np.empty((n_rot, 3, n))  # a point on each
+        T = np.empty((n_tra, 3, n))  # translation directions
+    rot_at: list[tuple[int, int]] = []
+    tra_at: list[tuple[int, int]] = []
 
     for j in range(N):
         for kind, ax, col in seq:
             value = table[j, col]
+            u = cols[ax]
             if kind == "r":
-                angle = q[:, j] + value if col == THETA else value
-                u = cols[ax]
                 if jacobian:
-                    records.append((j, col, "r", u, p))
+                    U[len(rot_at)] = u
+                    O[len(rot_at)] = p
+                    rot_at.append((j, col))
                 if col == THETA:
-                    joint_axes[:, j] = u
-                    joint_origins[:, j] = p
-                if col != THETA and value == 0.0:
+                    JA[j] = u
+                    JO[j] = p
+                    angle = q[:, j] + value
+                elif value == 0.0:
                     continue
+                else:
+                    angle = value
                 c, s = np.cos(angle), np.sin(angle)
-                if np.ndim(c):
-                    c, s = c[:, None], s[:, None]
                 i1, i2 = (ax + 1) % 3, (ax + 2) % 3
                 e1, e2 = cols[i1], cols[i2]
                 cols[i1], cols[i2] = c * e1 + s * e2, c * e2 - s * e1
             else:
-                u = cols[ax]
                 if jacobian:
-                    records.append((j, col, "t", u, None))
+                    T[len(tra_at)] = u
+                    tra_at.append((j, col))
                 if value == 0.0:
                     continue
-                step = value if grow is None else value * grow[:, None]
-                p = p + step * u
-        frames_R[:, j + 1] = np.stack(cols, axis=-1)
-        frames_p[:, j + 1] = p
+                p = p + (value if grow is None else value * grow) * u
+        for k in range(3):
+            FR[j + 1, k] = cols[k]
+        Fp[j + 1] = p
 
     tool = np.asarray(tool, dtype=float)
-    t = tool if grow is None else tool * grow[:, None]
-    if t.ndim == 1:
-        point = p + t[0] * cols[0] + t[1] * cols[1] + t[2] * cols[2]
-    else:
-        point = p + t[:, :1] * cols[0] + t[:, 1:2] * cols[1] + t[:, 2:3] * cols[2]
+    tc = tool if tool.ndim == 1 else tool.T  # (3,) or (3, n)
+    if grow is not None:
+        tc = tc[:, None] * grow if tc.ndim == 1 else tc * grow
+    point = p + tc[0] * cols[0] + tc[1] * cols[1] + tc[2] * cols[2]
 
-    dP = None
+    dP = dPi = None
     if jacobian:
-        dP = np.zeros((n, 3, N, 5))
-        rot = [r for r in records if r[2] == "r"]
-        tra = [r for r in records if r[2] == "t"]
-        if rot:
-            U = np.stack([r[3] for r in rot], axis=1)  # (n, k, 3)
-            O = np.stack([r[4] for r in rot], axis=1)
-            C = cross(U, point[:, None, :] - O)  # (n, k, 3)
-            for m, (j, col, *_rest) in enumerate(rot):
-                dP[:, :, j, col] = C[:, m]
-        for j, col, _k, u, _o in tra:
-            dP[:, :, j, col] = u if grow is None else u * grow[:, None]
-    flange_R = np.stack(cols, axis=-1)
-    return ChainResult(point, flange_R, p, dP, joint_axes, joint_origins, frames_R, frames_p)
+        dPi = np.zeros((N, 5, 3, n))
+        D = point[None] - O
+        C = np.empty_like(U)
+        C[:, 0] = U[:, 1] * D[:, 2] - U[:, 2] * D[:, 1]
+        C[:, 1] = U[:, 2] * D[:, 0] - U[:, 0] * D[:, 2]
+        C[:, 2] = U[:, 0] * D[:, 1] - U[:, 1] * D[:, 0]
+        rj, rc = np.array(rot_at).T
+        dPi[rj, rc] = C
+        tj, tc = np.array(tra_at).T
+        dPi[tj, tc] = T if grow is None else T * grow
+        dP = dPi.transpose(3, 2, 0, 1)
+    flange_R = FR[N].transpose(2, 1, 0)
+    result = ChainResult(
+        point.T,
+        flange_R,
+        p.T,
+        dP,
+        JA.transpose(2, 0, 1),
+        JO.transpose(2, 0, 1),
+        FR.transpose(3, 0, 2, 1),
+        Fp.transpose(2, 0, 1),
+    )
+    result.dP_internal = dPi
+    return result
+
 
 
 def forward(model: RobotModel, q_deg_or_rad: np.ndarray, *, degrees: bool = False) -> np.ndarray:

@@ -87,16 +87,16 @@ class Base(Effect):
         R, t = self.transform(p)
         out = P @ R.T + t
         n = P.shape[0]
-        J = np.empty((n, 3, 6))
-        J[:, :, :3] = np.eye(3)
-        # d(R(r) v)/dr = -R [v]x J_r(r)
-        Jr = right_jacobian(p[3:])
-        v = P
-        vx = np.zeros((n, 3, 3))
-        vx[:, 0, 1], vx[:, 0, 2] = -v[:, 2], v[:, 1]
-        vx[:, 1, 0], vx[:, 1, 2] = v[:, 2], -v[:, 0]
-        vx[:, 2, 0], vx[:, 2, 1] = -v[:, 1], v[:, 0]
-        J[:, :, 3:] = -np.einsum("ij,njk,kl->nil", R, vx, Jr, optimize=True)
+        J = np.zeros((n, 3, 6))
+        J[:, 0, 0] = J[:, 1, 1] = J[:, 2, 2] = 1.0
+        # d(R(r) v)/dr_k = -R [v]x J_r e_k = (R J_r e_k) x (R v)
+        W = R @ right_jacobian(p[3:])
+        Rv = out - t
+        for k in range(3):
+            w = W[:, k]
+            J[:, 0, 3 + k] = w[1] * Rv[:, 2] - w[2] * Rv[:, 1]
+            J[:, 1, 3 + k] = w[2] * Rv[:, 0] - w[0] * Rv[:, 2]
+            J[:, 2, 3 + k] = w[0] * Rv[:, 1] - w[1] * Rv[:, 0]
         return out, R, J
 
 

@@ -61,7 +61,8 @@ def solve_lm(
                 continue
             step = step_s / d
             x_new = x + step
-            r_new = problem.residual(x_new)
+            # most steps are accepted: evaluate the Jacobian with the residual in one pass
+            r_new, J_new = problem.residual_and_jacobian(x_new)
             cost_new = float(r_new @ r_new)
             predicted = float(step_s @ (mu * step_s - g))
             rho = (cost - cost_new) / predicted if predicted > 0 else -1.0
@@ -78,11 +79,9 @@ def solve_lm(
                 return SolverResult(x, False, "no step reduces the cost", it, history)
         small_step = np.linalg.norm(step_s) < xtol * (np.linalg.norm(d * x) + xtol)
         rel_drop = (cost - cost_new) / max(cost, 1e-300)
-        x = x_new
+        x, r, J, cost = x_new, r_new, J_new, cost_new
         mu *= max(1 / 3, 1 - (2 * rho - 1) ** 3)
         nu = 2.0
-        r, J = problem.residual_and_jacobian(x)
-        cost = float(r @ r)
         history.append(
             {"iter": it, "rms_mm": float(np.sqrt(cost / (len(r) // 3))), "lambda": float(mu)}
         )
