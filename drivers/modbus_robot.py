@@ -1,0 +1,505 @@
+"""A PLC-style robot controller over Modbus TCP (docs/modbus-register-map.md).
+
+All data lives in holding registers (function codes 3 and 16). Floats are
+IEEE-754 float32 in two registers, high word first unless the map says
+``word_order: little``. Joints in rad, lengths in mm, speeds in rad/s (joint
+moves) or mm/s (linear moves).
+
+A command is: write the targets and the speed, then write ``[command, seq]``
+(``seq`` a counter the driver bumps); the controller answers by copying
+``seq`` into ``command_ack`` and the result into ``error_code``. A
+``heartbeat`` register that stops counting for ``stale_after_s`` means the
+data are stale: :class:`~drivers.errors.ConnectionLost`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import struct
+import time
+from pathlib import Path
+from typing import ClassVar, Literal
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pymodbus.client import ModbusTcpClient
+from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
+
+from drivers.errors import (
+    CommandRejected,
+    CommandTimeout,
+    ConnectionLost,
+    DriverError,
+    LimitError,
+    NotReady,
+    ProtectiveStop,
+    ProtocolError,
+)
+from drivers.protocols import JointReading, RobotStatus
+
+# pymodbus reports every failure through logging as well as by its return
+# values; we turn those into exceptions, so keep its lines out of stderr unless
+# the application configures logging itself.
+logging.getLogger("pymodbus").addHandler(logging.NullHandler())
+
+#: command register values
+CMD_NONE, CMD_MOVE_JOINTS, CMD_MOVE_LINEAR, CMD_STOP, CMD_CLEAR_FAULT = 0, 1, 2, 3, 4
+
+#: error_code register values (same codes as the line protocol)
+ERR_NONE, ERR_BAD_ARGUMENT, ERR_LIMIT, ERR_UNREACHABLE = 0, 11, 20, 21
+ERR_PROTECTIVE_STOP, ERR_EMERGENCY_STOP, ERR_FAULT, ERR_BAD_COMMAND = 30, 31, 32, 10
+
+#: Modbus exception code → (error class, name)
+MODBUS_EXCEPTIONS: dict[int, tuple[type[DriverError], str]] = {
+    1: (CommandRejected, "ILLEGAL_FUNCTION"),
+    2: (CommandRejected, "ILLEGAL_DATA_ADDRESS"),
+    3: (CommandRejected, "ILLEGAL_DATA_VALUE"),
+    4: (CommandRejected, "SERVER_DEVICE_FAILURE"),
+    5: (NotReady, "ACKNOWLEDGE"),
+    6: (NotReady, "SERVER_DEVICE_BUSY"),
+    10: (ConnectionLost, "GATEWAY_PATH_UNAVAILABLE"),
+    11: (ConnectionLost, "GATEWAY_TARGET_FAILED_TO_RESPOND"),
+}
+
+
+class StatusBits(BaseModel):
+    """Bit numbers (0 = least significant) in the status register."""
+
+    model_config = ConfigDict(extra="forbid")
+    in_position: int = Field(0, ge=0, le=15)
+    busy: int = Field(1, ge=0, le=15)
+    fault: int = Field(2, ge=0, le=15)
+    protective_stop: int = Field(3, ge=0, le=15)
+    emergency_stop: int = Field(4, ge=0, le=15)
+    steady: int = Field(5, ge=0, le=15)
+
+
+class RegisterMap(BaseModel):
+    """Where each datum lives (holding-register addresses). Defaults: the documented map.
+
+    ``n_joints`` is the number of joint slots (float32 pairs) in the target
+    and actual blocks; the robot may use fewer (``joint_count`` register).
+    """
+
+    model_config = ConfigDict(extra="forbid")
+    n_joints: int = Field(6, ge=1, le=12)
+    word_order: Literal["big", "little"] = "big"
+    # written by the driver
+    command: int = Field(0, ge=0)
+    command_seq: int = Field(1, ge=0)
+    speed: int = Field(2, ge=0)
+    target_joints: int = Field(4, ge=0)
+    target_xyz: int = Field(16, ge=0)
+    # written by the controller
+    status: int = Field(32, ge=0)
+    error_code: int = Field(33, ge=0)
+    heartbeat: int = Field(34, ge=0)
+    command_ack: int = Field(35, ge=0)
+    joint_count: int = Field(36, ge=0)
+    actual_joints: int = Field(40, ge=0)
+    actual_tcp: int = Field(52, ge=0)
+    bits: StatusBits = StatusBits()
+
+    def fields(self) -> dict[str, tuple[int, int]]:
+        """name → (first address, number of registers)."""
+        n = self.n_joints
+        return {
+            "command": (self.command, 1),
+            "command_seq": (self.command_seq, 1),
+            "speed": (self.speed, 2),
+            "target_joints": (self.target_joints, 2 * n),
+            "target_xyz": (self.target_xyz, 6),
+            "status": (self.status, 1),
+            "error_code": (self.error_code, 1),
+            "heartbeat": (self.heartbeat, 1),
+            "command_ack": (self.command_ack, 1),
+            "joint_count": (self.joint_count, 1),
+            "actual_joints": (self.actual_joints, 2 * n),
+            "actual_tcp": (self.actual_tcp, 6),
+        }
+
+    #: the fields a status read covers
+    READ_FIELDS: ClassVar[tuple[str, ...]] = (
+        "status",
+        "error_code",
+        "heartbeat",
+        "command_ack",
+        "joint_count",
+        "actual_joints",
+        "actual_tcp",
+    )
+
+    @model_validator(mode="after")
+    def _no_overlap(self) -> RegisterMap:
+        spans = sorted((a, a + c, name) for name, (a, c) in self.fields().items())
+        for (a0, e0, n0), (a1, _e1, n1) in zip(spans, spans[1:], strict=False):
+            if a1 < e0:
+                raise ValueError(f"register map: {n0} ({a0}..{e0 - 1}) overlaps {n1} (at {a1})")
+        lo, hi = self.read_span()
+        if hi - lo > 125:
+            raise ValueError(f"register map: status block spans {hi - lo} registers (max 125)")
+        bits = list(self.bits.model_dump().values())
+        if len(set(bits)) != len(bits):
+            raise ValueError("register map: two status flags share a bit")
+        return self
+
+    def read_span(self) -> tuple[int, int]:
+        """[first, end) addresses of the block read for status and positions."""
+        f = self.fields()
+        lo = min(f[k][0] for k in self.READ_FIELDS)
+        hi = max(f[k][0] + f[k][1] for k in self.READ_FIELDS)
+        return lo, hi
+
+    @property
+    def size(self) -> int:
+        """Registers needed to hold the whole map (highest address + 1)."""
+        return max(a + c for a, c in self.fields().values())
+
+    @classmethod
+    def from_yaml(cls, path: str | Path) -> RegisterMap:
+        """Load a map from YAML (keys as the fields of this model; missing keys default)."""
+        try:
+            data = yaml.safe_load(Path(path).read_text()) or {}
+        except (OSError, yaml.YAMLError) as e:
+            raise ValueError(f"register map {path}: {e}") from e
+        if not isinstance(data, dict):
+            raise ValueError(f"register map {path}: expected a mapping")
+        return cls.model_validate(data)
+
+    # -------------------------------------------------------- float helpers
+    def pack_floats(self, values) -> list[int]:
+        """float32 values → registers (two per value, in this map's word order)."""
+        out: list[int] = []
+        for v in values:
+            hi, lo = struct.unpack(">HH", struct.pack(">f", float(v)))
+            out += [hi, lo] if self.word_order == "big" else [lo, hi]
+        return out
+
+    def unpack_floats(self, regs) -> np.ndarray:
+        """Registers (two per value) → float64 array."""
+        regs = list(regs)
+        out = []
+        for i in range(0, len(regs) - 1, 2):
+            a, b = regs[i], regs[i + 1]
+            hi, lo = (a, b) if self.word_order == "big" else (b, a)
+            out.append(struct.unpack(">f", struct.pack(">HH", hi, lo))[0])
+        return np.array(out, float)
+
+
+class ModbusRobot:
+    """RobotDriver (+ ``read_tcp``) for a controller exposing :class:`RegisterMap` over Modbus TCP.
+
+    Parameters
+    ----------
+    url : str
+        Driver URL for messages (``modbus+tcp://host:port?unit=1``).
+    host, port : str, int
+        Controller address.
+    unit : int
+        Modbus unit (device) id.
+    map_file : str or None
+        YAML register map; None for the default map.
+    register_map : RegisterMap or None
+        A map object (wins over ``map_file``).
+    stale_after_s : float
+        Heartbeat unchanged for this long → ConnectionLost.
+    poll_s : float
+        Status polling period of :meth:`wait_settled` (s).
+    """
+
+    def __init__(
+        self,
+        url: str,
+        host: str,
+        port: int = 502,
+        *,
+        unit: int = 1,
+        map_file: str | None = None,
+        register_map: RegisterMap | None = None,
+        stale_after_s: float = 2.0,
+        poll_s: float = 0.01,
+    ) -> None:
+        self.url = url
+        self.host, self.port, self.unit = host, port, unit
+        self.map = register_map or (RegisterMap.from_yaml(map_file) if map_file else RegisterMap())
+        self.stale_after_s = stale_after_s
+        self.poll_s = poll_s
+        self.n_joints = 0
+        self._client: ModbusTcpClient | None = None
+        self._seq = 0
+        self._hb: int | None = None
+        self._hb_changed = 0.0
+        self._dev = f"robot {url}"
+
+    # ----------------------------------------------------------- connection
+    def connect(self, timeout: float = 5.0) -> None:
+        """Connect and read the status block (learns the joint count)."""
+        self.close()
+        client = ModbusTcpClient(self.host, port=self.port, timeout=timeout, retries=0)
+        if not client.connect():
+            client.close()
+            raise ConnectionLost(self._dev, "connect", f"cannot reach {self.host}:{self.port}")
+        self._client = client
+        self._hb = None
+        try:
+            blk = self._read_block("connect", time.monotonic() + timeout)
+        except DriverError:
+            self.close()
+            raise
+        n = blk["joint_count"]
+        if not 1 <= n <= self.map.n_joints:
+            self.close()
+            raise ProtocolError(
+                self._dev, "connect", f"joint_count {n} outside 1..{self.map.n_joints}"
+            )
+        self.n_joints = n
+        self._seq = blk["command_ack"]
+
+    def close(self) -> None:
+        """Close the connection (idempotent)."""
+        client, self._client = self._client, None
+        if client is not None:
+            client.close()
+
+    def __enter__(self) -> ModbusRobot:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # ------------------------------------------------------------- plumbing
+    def _call(self, command: str, deadline: float, fn, *args, **kw):
+        """Run one pymodbus request; every failure becomes a typed error."""
+        client = self._client
+        if client is None:
+            raise ConnectionLost(self._dev, command, "not connected")
+        left = deadline - time.monotonic()
+        if left <= 0:
+            raise CommandTimeout(self._dev, command, "no time left")
+        client.comm_params.timeout_connect = left
+        try:
+            rr = fn(*args, device_id=self.unit, **kw)
+        except ConnectionException as e:
+            self.close()
+            raise ConnectionLost(self._dev, command, str(e)) from e
+        except ModbusIOException as e:
+            # no (complete) response in time: drop the link so a late reply
+            # cannot be taken for the answer to the next request
+            self.close()
+            if time.monotonic() < deadline - 0.05:  # closed early: the peer hung up
+                raise ConnectionLost(self._dev, command, str(e)) from e
+            raise CommandTimeout(self._dev, command, f"no reply within {left:.3f} s") from e
+        except (ModbusException, OSError) as e:
+            self.close()
+            raise ConnectionLost(self._dev, command, str(e)) from e
+        if rr.isError():
+            code = int(getattr(rr, "exception_code", 0))
+            cls, name = MODBUS_EXCEPTIONS.get(code, (CommandRejected, "UNKNOWN"))
+            raise cls(self._dev, command, f"Modbus exception {code} {name}")
+        return rr
+
+    def _read_block(self, command: str, deadline: float, *, retry: bool = True) -> dict:
+        lo, hi = self.map.read_span()
+        try:
+            rr = self._call(
+                command, deadline, self._client_method("read_holding_registers"), lo, count=hi - lo
+            )
+        except ConnectionLost:
+            if not retry or time.monotonic() >= deadline:
+                raise
+            self._reconnect(deadline)
+            rr = self._call(
+                command, deadline, self._client_method("read_holding_registers"), lo, count=hi - lo
+            )
+        regs = list(rr.registers)
+        if len(regs) != hi - lo:
+            raise ProtocolError(self._dev, command, f"read {len(regs)} registers, wanted {hi - lo}")
+        f = self.map.fields()
+
+        def get(name):
+            a, c = f[name]
+            return regs[a - lo : a - lo + c]
+
+        hb = get("heartbeat")[0]
+        now = time.monotonic()
+        if hb != self._hb:
+            self._hb, self._hb_changed = hb, now
+        elif now - self._hb_changed > self.stale_after_s:
+            stuck = now - self._hb_changed
+            raise ConnectionLost(
+                self._dev, command, f"stale data: heartbeat stuck at {hb} for {stuck:.1f} s"
+            )
+        n = self.n_joints or self.map.n_joints
+        return {
+            "status": get("status")[0],
+            "error_code": get("error_code")[0],
+            "heartbeat": hb,
+            "command_ack": get("command_ack")[0],
+            "joint_count": get("joint_count")[0],
+            "q": self.map.unpack_floats(get("actual_joints"))[:n],
+            "tcp": self.map.unpack_floats(get("actual_tcp")),
+        }
+
+    def _client_method(self, name: str):
+        def call(*args, **kw):
+            client = self._client
+            if client is None:
+                raise ConnectionException("not connected")
+            return getattr(client, name)(*args, **kw)
+
+        return call
+
+    def _reconnect(self, deadline: float) -> None:
+        client = ModbusTcpClient(
+            self.host, port=self.port, timeout=max(deadline - time.monotonic(), 0.05), retries=0
+        )
+        if not client.connect():
+            client.close()
+            raise ConnectionLost(self._dev, "reconnect", f"cannot reach {self.host}:{self.port}")
+        self._client = client
+
+    def _write(self, command: str, deadline: float, address: int, values: list[int]) -> None:
+        self._call(command, deadline, self._client_method("write_registers"), address, values)
+
+    def _flags(self, status: int) -> dict[str, bool]:
+        return {k: bool(status >> b & 1) for k, b in self.map.bits.model_dump().items()}
+
+    # --------------------------------------------------------------- queries
+    def read_joints(self, timeout: float = 1.0) -> JointReading:
+        """Actual joints (rad, shape (n_joints,)) and the time they were read (epoch s)."""
+        blk = self._read_block("read_joints", time.monotonic() + timeout)
+        return JointReading(q=blk["q"], timestamp=time.time())
+
+    def read_tcp(self, timeout: float = 1.0) -> np.ndarray:
+        """The controller's nominal TCP position (mm, base frame), shape (3,)."""
+        return self._read_block("read_tcp", time.monotonic() + timeout)["tcp"]
+
+    def status(self, timeout: float = 1.0) -> RobotStatus:
+        """Status bits, error code and heartbeat freshness."""
+        blk = self._read_block("status", time.monotonic() + timeout)
+        fl = self._flags(blk["status"])
+        return RobotStatus(
+            connected=True,
+            moving=fl["busy"],
+            in_position=fl["in_position"] and fl["steady"],
+            fault=fl["fault"],
+            protective_stop=fl["protective_stop"],
+            emergency_stop=fl["emergency_stop"],
+            error_code=blk["error_code"],
+            message=f"status=0x{blk['status']:04x} error={blk['error_code']} hb={blk['heartbeat']}",
+            timestamp=time.time(),
+        )
+
+    # --------------------------------------------------------------- motion
+    def _command(self, name: str, code: int, deadline: float) -> None:
+        m = self.map
+        self._seq = (self._seq + 1) % 65536 or 1
+        if m.command_seq == m.command + 1:
+            self._write(name, deadline, m.command, [code, self._seq])
+        else:
+            self._write(name, deadline, m.command_seq, [self._seq])
+            self._write(name, deadline, m.command, [code])
+        while True:
+            blk = self._read_block(name, deadline, retry=False)
+            if blk["command_ack"] == self._seq:
+                break
+            if time.monotonic() >= deadline:
+                raise CommandTimeout(self._dev, name, f"command {self._seq} not acknowledged")
+            time.sleep(self.poll_s)
+        err, fl = blk["error_code"], self._flags(blk["status"])
+        if err in (ERR_PROTECTIVE_STOP, ERR_EMERGENCY_STOP) or (
+            code in (CMD_MOVE_JOINTS, CMD_MOVE_LINEAR)
+            and (fl["protective_stop"] or fl["emergency_stop"])
+        ):
+            raise ProtectiveStop(self._dev, name, f"error code {err}")
+        if err == ERR_LIMIT:
+            raise LimitError(self._dev, name, f"error code {err} LIMIT")
+        if err != ERR_NONE:
+            raise CommandRejected(self._dev, name, f"error code {err}")
+
+    def _refine(self, e: CommandRejected, name: str, deadline: float) -> DriverError:
+        """After an ILLEGAL_DATA_VALUE on a command, read error_code to name the cause."""
+        if "ILLEGAL_DATA_VALUE" not in str(e):
+            return e
+        try:
+            err = self._read_block(name, deadline, retry=False)["error_code"]
+        except DriverError:
+            return e
+        if err == ERR_LIMIT:
+            return LimitError(self._dev, name, f"{e.detail}, error code {err} LIMIT")
+        return CommandRejected(self._dev, name, f"{e.detail}, error code {err}")
+
+    def move_joints(
+        self, q: np.ndarray, speed: float = 0.5, timeout: float = 60.0, *, wait: bool = False
+    ) -> None:
+        """Start a joint move to ``q`` (rad, shape (n_joints,)) at ``speed`` rad/s.
+
+        Returns when the controller acknowledged the command; ``wait=True`` also
+        waits until settled.
+        """
+        deadline = time.monotonic() + timeout
+        q = np.asarray(q, float)
+        if q.shape != (self.n_joints,):
+            raise CommandRejected(self._dev, "move_joints", f"expected {self.n_joints} joints")
+        padded = np.zeros(self.map.n_joints)
+        padded[: self.n_joints] = q
+        cmd_deadline = min(deadline, time.monotonic() + 5.0)
+        try:
+            self._write("move_joints", cmd_deadline, self.map.speed, self.map.pack_floats([speed]))
+            self._write(
+                "move_joints", cmd_deadline, self.map.target_joints, self.map.pack_floats(padded)
+            )
+            self._command("move_joints", CMD_MOVE_JOINTS, cmd_deadline)
+        except CommandRejected as e:
+            raise self._refine(e, "move_joints", cmd_deadline) from e
+        if wait:
+            self.wait_settled(max(deadline - time.monotonic(), 0.0))
+
+    def move_linear(
+        self, xyz: np.ndarray, speed: float = 100.0, timeout: float = 60.0, *, wait: bool = False
+    ) -> None:
+        """Start a linear TCP move to ``xyz`` (mm, base frame, shape (3,)) at ``speed`` mm/s."""
+        deadline = time.monotonic() + timeout
+        xyz = np.asarray(xyz, float)
+        if xyz.shape != (3,):
+            raise CommandRejected(self._dev, "move_linear", "expected x y z")
+        cmd_deadline = min(deadline, time.monotonic() + 5.0)
+        try:
+            self._write("move_linear", cmd_deadline, self.map.speed, self.map.pack_floats([speed]))
+            self._write("move_linear", cmd_deadline, self.map.target_xyz, self.map.pack_floats(xyz))
+            self._command("move_linear", CMD_MOVE_LINEAR, cmd_deadline)
+        except CommandRejected as e:
+            raise self._refine(e, "move_linear", cmd_deadline) from e
+        if wait:
+            self.wait_settled(max(deadline - time.monotonic(), 0.0))
+
+    def wait_settled(self, timeout: float = 30.0) -> None:
+        """Poll the status block until in position and steady; raise on stops or faults."""
+        deadline = time.monotonic() + timeout
+        while True:
+            if time.monotonic() >= deadline:
+                raise CommandTimeout(self._dev, "wait_settled", f"not settled after {timeout} s")
+            st = self.status(timeout=max(deadline - time.monotonic(), 0.01))
+            if st.protective_stop or st.emergency_stop:
+                raise ProtectiveStop(self._dev, "wait_settled", st.message)
+            if st.fault:
+                raise CommandRejected(self._dev, "wait_settled", f"fault: {st.message}")
+            if st.in_position and not st.moving:
+                return
+            time.sleep(min(self.poll_s, max(deadline - time.monotonic(), 0.0)))
+
+    def stop(self, timeout: float = 2.0) -> None:
+        """Command STOP."""
+        self._command("stop", CMD_STOP, time.monotonic() + timeout)
+
+    def clear_protective_stop(self, timeout: float = 2.0) -> None:
+        """Command CLEAR_FAULT (clears a protective stop or fault)."""
+        deadline = time.monotonic() + timeout
+        # the ack may still carry the old error code: the flags decide
+        with contextlib.suppress(ProtectiveStop):
+            self._command("clear_protective_stop", CMD_CLEAR_FAULT, deadline)
+        st = self.status(max(deadline - time.monotonic(), 0.01))
+        if st.protective_stop or st.emergency_stop:
+            raise ProtectiveStop(self._dev, "clear_protective_stop", st.message)
