@@ -328,7 +328,11 @@ class UrRtdeRobot:
         return self._rx
 
     def _sample(self, command: str, timeout: float) -> _State:
-        """A sample whose controller timestamp is fresh; ConnectionLost when the link is dead."""
+        """The next sample with a new controller timestamp (waits at most one streaming period).
+
+        If none arrives within ``timeout``, the last one is used when it is younger than
+        ``stale_after``; otherwise, or when ``isConnected()`` is false, ConnectionLost.
+        """
         rx = self._receive(command)
         deadline = time.monotonic() + timeout
         while True:
@@ -339,12 +343,12 @@ class UrRtdeRobot:
             except RuntimeError as e:
                 raise ConnectionLost(self.url, command, f"RTDE receive: {e}") from e
             now = time.monotonic()
-            if ts != self._last_ts:
+            if ts != self._last_ts:  # a sample newer than any seen before: fresh
                 self._last_ts, self._last_ts_seen = ts, now
                 break
-            if now - self._last_ts_seen <= self.stale_after:
-                break
             if now >= deadline:
+                if now - self._last_ts_seen <= self.stale_after:
+                    break  # nothing newer within the timeout, but the last one is recent
                 raise ConnectionLost(
                     self.url, command,
                     f"controller timestamp stuck at {ts:.3f} s for {now - self._last_ts_seen:.2f} s"
