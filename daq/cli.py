@@ -17,6 +17,8 @@ import sys
 COMMANDS = [
     "daq.commands.calibrate",
     "daq.commands.models",
+    "daq.commands.sim",
+    "daq.commands.simulate",
 ]
 
 
