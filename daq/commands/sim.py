@@ -1,0 +1,59 @@
+"""``cellcal sim serve``: run the simulated cell behind its wire protocols until stopped.
+
+Prints one driver URL per line (Modbus robot, line robot, tracker over TCP,
+tracker over a pty), then serves until Ctrl-C or SIGTERM and stops cleanly
+(exit code 0).
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+
+from daq.cli import UsageError
+
+
+def register(sub) -> None:
+    p = sub.add_parser("sim", help="simulated cell: serve it over the real wire protocols")
+    ssub = p.add_subparsers(dest="sim_command", metavar="SIM_COMMAND")
+    ssub.required = True
+    s = ssub.add_parser("serve", help="start the simulated servers and print their URLs")
+    s.add_argument("--seed", type=int, default=0, help="random seed of the cell (default 0)")
+    s.add_argument("--hidden", default=None, help="hidden effects of the true robot (passed on)")
+    s.add_argument("--faults", default=None,
+                   help="fault spec, e.g. 'beam=0.05,slow=0.02,drop@3,delay=2'")
+    s.add_argument("--time-scale", type=float, default=0.0,
+                   help="wall seconds per simulated second (0: instantaneous)")
+    s.add_argument("--host", default="127.0.0.1", help="address to listen on (default loopback)")
+    s.add_argument("--no-pty", action="store_true", help="no tracker on a pseudo-terminal")
+    s.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from sim_drivers.serve import ServeConfig, SimStack
+
+    if args.time_scale < 0:
+        raise UsageError(f"--time-scale must be >= 0, got {args.time_scale}")
+    config = ServeConfig(seed=args.seed, hidden=args.hidden, faults=args.faults,
+                         time_scale=args.time_scale, host=args.host, pty=not args.no_pty)
+    try:
+        stack = SimStack(config)
+    except ValueError as e:
+        raise UsageError(str(e)) from e
+    stop = threading.Event()
+    previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    try:
+        with stack:
+            for url in stack.urls:
+                print(url)
+            sys.stdout.flush()
+            try:
+                while not stop.wait(0.2):
+                    pass
+            except KeyboardInterrupt:
+                pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    print("cellcal sim: stopped", file=sys.stderr)
+    return 0

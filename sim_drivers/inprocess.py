@@ -1,0 +1,244 @@
+"""In-process simulated drivers reachable by URL: ``sim://robot?seed=1``, ``sim://tracker?seed=1``.
+
+Importing this module registers the ``sim`` scheme with :mod:`drivers.urls`
+(:func:`register` does it again, e.g. after a test unregistered it). Robot and
+tracker URLs with the same ``seed`` and ``name`` share one
+:class:`~sim_drivers.cell.SimCell`, so the tracker sees the robot move. Query
+parameters used when the cell is first created: ``time_scale`` (default 0)
+and ``faults`` (only ``beam`` and ``pstop`` apply in process).
+
+The truth is built by :data:`truth_factory` ``(seed, hidden) -> TrueRobot``
+(``ToyArm`` until the calibration-backed true robot replaces it);
+``hidden`` comes from the URL's ``hidden=`` parameter.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from urllib.parse import parse_qs, urlsplit
+
+import numpy as np
+
+from drivers import urls
+from drivers.errors import CommandRejected, CommandTimeout, ProtectiveStop
+from drivers.line_robot import ROBOT_ERRORS
+from drivers.line_tracker import TRACKER_ERRORS
+from drivers.protocols import JointReading, Measurement, RobotStatus, TrackerStatus
+from sim_drivers.cell import CellRefused, SimCell
+from sim_drivers.faults import FaultInjector
+from sim_drivers.truth import ToyArm, TrueRobot
+
+
+def default_truth(seed: int, hidden: str | None) -> TrueRobot:
+    """The stand-in truth: a :class:`~sim_drivers.truth.ToyArm` (``hidden`` is ignored)."""
+    return ToyArm()
+
+
+#: builds the true robot of a new cell; replace to plug in another truth
+truth_factory: Callable[[int, str | None], TrueRobot] = default_truth
+
+_cells: dict[tuple[str, int], SimCell] = {}
+_lock = threading.Lock()
+
+
+def get_cell(name: str = "default", seed: int = 0, **kw) -> SimCell:
+    """The shared cell for ``(name, seed)``, created with ``kw`` on first use."""
+    with _lock:
+        key = (name, seed)
+        if key not in _cells:
+            hidden = kw.pop("hidden", None)
+            spec = kw.pop("faults", None)
+            _cells[key] = SimCell(
+                truth_factory(seed, hidden),
+                seed=seed,
+                faults=FaultInjector(spec, seed=seed),
+                **kw,
+            )
+        return _cells[key]
+
+
+def reset_cells() -> None:
+    """Forget every shared cell (tests)."""
+    with _lock:
+        _cells.clear()
+
+
+def _refused(e: CellRefused, device: str, command: str, table: dict) -> Exception:
+    cls = table.get(e.name, CommandRejected)
+    return cls(device, command, f"{e.name} {e.detail}".strip())
+
+
+class SimRobot:
+    """RobotDriver (+ ``read_tcp``) acting directly on a :class:`SimCell`."""
+
+    def __init__(self, url: str, cell: SimCell, poll_s: float = 0.005) -> None:
+        self.url = url
+        self.cell = cell
+        self.poll_s = poll_s
+        self.n_joints = cell.n_joints
+        self.connected = False
+        self._dev = f"robot {url}"
+
+    def connect(self, timeout: float = 5.0) -> None:
+        self.connected = True
+
+    def close(self) -> None:
+        self.connected = False
+
+    def __enter__(self) -> SimRobot:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def read_joints(self, timeout: float = 1.0) -> JointReading:
+        """Reported joints (rad)."""
+        return JointReading(q=self.cell.robot_state().q, timestamp=time.time())
+
+    def read_tcp(self, timeout: float = 1.0) -> np.ndarray:
+        """Nominal TCP (mm, base frame)."""
+        return self.cell.robot_state().tcp
+
+    def status(self, timeout: float = 1.0) -> RobotStatus:
+        s = self.cell.robot_state()
+        return RobotStatus(
+            connected=self.connected,
+            moving=s.moving,
+            in_position=s.in_position and s.steady,
+            fault=s.fault,
+            protective_stop=s.protective_stop,
+            emergency_stop=s.emergency_stop,
+            error_code=s.error_code,
+            timestamp=s.timestamp,
+        )
+
+    def _move(self, command: str, fn, wait: bool, timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        faults = self.cell.faults
+        if faults is not None and faults.fires("pstop"):
+            self.cell.trigger_protective_stop()
+        try:
+            fn()
+        except CellRefused as e:
+            raise _refused(e, self._dev, command, ROBOT_ERRORS) from e
+        if wait:
+            self.wait_settled(max(deadline - time.monotonic(), 0.0))
+
+    def move_joints(self, q, speed: float = 0.5, timeout: float = 60.0, *, wait: bool = False):
+        """Start a joint move to ``q`` (rad) at ``speed`` rad/s."""
+        q = np.asarray(q, float)
+        self._move("move_joints", lambda: self.cell.command_move_joints(q, speed), wait, timeout)
+
+    def move_linear(self, xyz, speed: float = 100.0, timeout: float = 60.0, *, wait: bool = False):
+        """Start a linear TCP move to ``xyz`` (mm) at ``speed`` mm/s."""
+        xyz = np.asarray(xyz, float)
+        self._move("move_linear", lambda: self.cell.command_move_linear(xyz, speed), wait, timeout)
+
+    def wait_settled(self, timeout: float = 30.0) -> None:
+        deadline = time.monotonic() + timeout
+        while True:
+            s = self.cell.robot_state()
+            if s.protective_stop or s.emergency_stop:
+                raise ProtectiveStop(self._dev, "wait_settled", f"error code {s.error_code}")
+            if s.in_position and s.steady:
+                return
+            if time.monotonic() >= deadline:
+                raise CommandTimeout(self._dev, "wait_settled", f"not settled after {timeout} s")
+            time.sleep(self.poll_s)
+
+    def stop(self, timeout: float = 2.0) -> None:
+        self.cell.command_stop()
+
+    def clear_protective_stop(self, timeout: float = 2.0) -> None:
+        self.cell.clear_protective_stop()
+
+
+class SimTracker:
+    """TrackerDriver acting directly on a :class:`SimCell` (initialises on connect)."""
+
+    def __init__(self, url: str, cell: SimCell) -> None:
+        self.url = url
+        self.cell = cell
+        self.connected = False
+        self._dev = f"tracker {url}"
+
+    def connect(self, timeout: float = 5.0) -> None:
+        self.cell.tracker_init()
+        self.connected = True
+
+    def close(self) -> None:
+        self.connected = False
+
+    def __enter__(self) -> SimTracker:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def status(self, timeout: float = 1.0) -> TrackerStatus:
+        c = self.cell
+        return TrackerStatus(
+            connected=self.connected,
+            initialised=c.tracker_initialised,
+            warmed_up=c.tracker_warmed_up(),
+            beam_ok=c.beam_ok,
+            timestamp=time.time(),
+        )
+
+    def measure(self, duration_s: float = 0.5, timeout: float = 10.0) -> Measurement:
+        """Measure the target (mm, tracker frame)."""
+        faults = self.cell.faults
+        try:
+            if faults is not None and faults.fires("beam"):
+                raise CellRefused("BEAM_BROKEN", "beam interrupted during measurement")
+            r = self.cell.tracker_measure(duration_s)
+        except CellRefused as e:
+            raise _refused(e, self._dev, "measure", TRACKER_ERRORS) from e
+        return Measurement(
+            xyz=r.xyz,
+            std=r.std,
+            n=r.n,
+            timestamp=r.timestamp,
+            env={
+                "temp_c": r.temp_c,
+                "pressure_hpa": r.pressure_hpa,
+                "humidity_pct": r.humidity_pct,
+            },
+        )
+
+
+def open_sim(url: str, kind: str, **kw):
+    """Factory registered for ``sim://``: ``sim://robot?...`` or ``sim://tracker?...``."""
+    parts = urlsplit(url)
+    what = parts.netloc or parts.path.strip("/")
+    if what not in ("robot", "tracker"):
+        raise ValueError(f"bad URL {url!r}: expected sim://robot?... or sim://tracker?...")
+    if what != kind:
+        raise ValueError(f"bad URL {url!r}: a {what} URL where a {kind} is wanted")
+    q = {k: v[-1] for k, v in parse_qs(parts.query, keep_blank_values=True).items()}
+    unknown = set(q) - {"seed", "name", "time_scale", "faults", "hidden"}
+    if unknown:
+        raise ValueError(f"bad URL {url!r}: unknown parameter(s) {sorted(unknown)}")
+    try:
+        seed = int(q.get("seed", "0"))
+        time_scale = float(q.get("time_scale", "0"))
+    except ValueError as e:
+        raise ValueError(f"bad URL {url!r}: {e}") from None
+    cell = get_cell(
+        q.get("name", "default"),
+        seed,
+        time_scale=time_scale,
+        faults=q.get("faults"),
+        hidden=q.get("hidden"),
+    )
+    return SimRobot(url, cell, **kw) if kind == "robot" else SimTracker(url, cell, **kw)
+
+
+def register() -> None:
+    """Register the ``sim`` URL scheme with :mod:`drivers.urls`."""
+    urls.register_scheme("sim", open_sim)
+
+
+register()

@@ -1,0 +1,127 @@
+"""Run the whole simulated cell behind its wire protocols (``cellcal sim serve``).
+
+:class:`SimStack` builds one :class:`~sim_drivers.cell.SimCell` and serves it as
+a Modbus TCP robot, a line-protocol robot over TCP, and the line-protocol
+tracker over TCP and over a pty, all on loopback. Preferred ports are tried
+first (:data:`DEFAULT_PORTS`); a busy one falls back to a free port.
+
+The truth is one parameter: ``truth_factory(seed, hidden) -> TrueRobot``
+(default :func:`sim_drivers.inprocess.default_truth`, a ``ToyArm``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from sim_drivers.cell import SimCell
+from sim_drivers.faults import FaultInjector
+from sim_drivers.inprocess import default_truth
+from sim_drivers.modbus_server import ModbusRobotServer
+from sim_drivers.robot_server import RobotLineServer
+from sim_drivers.tracker_server import TrackerServer
+from sim_drivers.truth import TrueRobot
+
+#: preferred ports: Modbus robot, line robot, tracker
+DEFAULT_PORTS = {"modbus": 15020, "line_robot": 15021, "tracker": 15700}
+
+
+@dataclass
+class ServeConfig:
+    """What ``cellcal sim serve`` runs.
+
+    ``hidden`` is passed to the truth factory unchanged; ``faults`` is a fault
+    spec (:mod:`sim_drivers.faults`); ports of 0 mean "any free port".
+    """
+
+    seed: int = 0
+    hidden: str | None = None
+    faults: str | None = None
+    time_scale: float = 0.0
+    host: str = "127.0.0.1"
+    ports: dict[str, int] = field(default_factory=lambda: dict(DEFAULT_PORTS))
+    pty: bool = True
+
+
+class SimStack:
+    """Every simulated server for one cell; ``start()``/``stop()`` or ``with``.
+
+    Parameters
+    ----------
+    config : ServeConfig
+    truth_factory : callable(seed, hidden) -> TrueRobot
+    cell_kw : dict
+        Extra :class:`SimCell` arguments.
+    """
+
+    def __init__(
+        self,
+        config: ServeConfig | None = None,
+        *,
+        truth_factory: Callable[[int, str | None], TrueRobot] = default_truth,
+        **cell_kw,
+    ) -> None:
+        self.config = config or ServeConfig()
+        c = self.config
+        self.faults = FaultInjector(c.faults, seed=c.seed)  # parses: ValueError on a bad spec
+        self.cell = SimCell(
+            truth_factory(c.seed, c.hidden),
+            seed=c.seed,
+            time_scale=c.time_scale,
+            faults=self.faults,
+            **cell_kw,
+        )
+        self.servers: list = []
+
+    def _start_one(self, make, port: int):
+        try:
+            return make(port).start()
+        except OSError:
+            if port == 0:
+                raise
+            return make(0).start()
+
+    def start(self) -> SimStack:
+        """Start every server (fixed ports first, free ones as fallback)."""
+        c, cell, f = self.config, self.cell, self.faults
+        try:
+            self.servers.append(
+                self._start_one(
+                    lambda p: ModbusRobotServer(cell, faults=f, host=c.host, port=p),
+                    c.ports.get("modbus", 0),
+                )
+            )
+            self.servers.append(
+                self._start_one(
+                    lambda p: RobotLineServer(cell, faults=f, host=c.host, port=p),
+                    c.ports.get("line_robot", 0),
+                )
+            )
+            self.servers.append(
+                self._start_one(
+                    lambda p: TrackerServer(cell, faults=f, host=c.host, port=p),
+                    c.ports.get("tracker", 0),
+                )
+            )
+            if c.pty:
+                self.servers.append(TrackerServer(cell, faults=f, transport="pty").start())
+        except BaseException:
+            self.stop()
+            raise
+        return self
+
+    def stop(self) -> None:
+        """Stop every server (reverse order)."""
+        while self.servers:
+            self.servers.pop().stop()
+
+    def __enter__(self) -> SimStack:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    @property
+    def urls(self) -> list[str]:
+        """One driver URL per server, in start order."""
+        return [s.url for s in self.servers]

@@ -1,0 +1,67 @@
+"""``sim://`` URLs: in-process drivers on a shared SimCell."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from drivers.errors import BeamBroken, LimitError, ProtectiveStop
+from drivers.protocols import CommandedPosition, RobotDriver, TrackerDriver
+from drivers.urls import open_robot, open_tracker
+from sim_drivers import inprocess
+
+
+@pytest.fixture(autouse=True)
+def fresh_cells():
+    inprocess.register()
+    inprocess.reset_cells()
+    yield
+    inprocess.reset_cells()
+
+
+def test_robot_and_tracker_share_a_cell():
+    rob = open_robot("sim://robot?seed=4")
+    trk = open_tracker("sim://tracker?seed=4")
+    assert isinstance(rob, RobotDriver) and isinstance(rob, CommandedPosition)
+    assert isinstance(trk, TrackerDriver)
+    assert rob.cell is trk.cell
+    assert open_robot("sim://robot?seed=5").cell is not rob.cell
+    rob.connect()
+    trk.connect()
+    p0 = trk.measure(0.1).xyz
+    rob.move_joints(np.array([0.4, 0.2, 0.1]), wait=True, timeout=1.0)
+    p1 = trk.measure(0.1).xyz
+    assert np.linalg.norm(p1 - p0) > 10
+    assert np.linalg.norm(p1 - rob.cell.true_point()) < 0.1
+    assert rob.status().in_position and trk.status().initialised
+
+
+def test_errors_are_typed():
+    rob = open_robot("sim://robot?seed=1&faults=pstop@2,beam@3")
+    trk = open_tracker("sim://tracker?seed=1")
+    rob.connect()
+    trk.connect()
+    with pytest.raises(LimitError):
+        rob.move_joints(np.array([9.0, 0.0, 0.0]))
+    rob.cell.faults.begin_command()
+    rob.cell.faults.begin_command()
+    with pytest.raises(ProtectiveStop):
+        rob.move_joints(np.array([0.1, 0.0, 0.0]))
+    rob.clear_protective_stop()
+    rob.cell.faults.begin_command()
+    with pytest.raises(BeamBroken):
+        trk.measure(0.1)
+
+
+@pytest.mark.parametrize(
+    "url, kind",
+    [
+        ("sim://arm?seed=1", "robot"),
+        ("sim://tracker?seed=1", "robot"),
+        ("sim://robot?seed=x", "robot"),
+        ("sim://robot?colour=red", "robot"),
+    ],
+)
+def test_bad_sim_urls(url, kind):
+    with pytest.raises(ValueError, match="bad URL"):
+        open_robot(url) if kind == "robot" else open_tracker(url)

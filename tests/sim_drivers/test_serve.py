@@ -1,0 +1,102 @@
+"""``cellcal sim serve`` as a real subprocess, and SimStack in process."""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drivers.urls import open_robot, open_tracker
+from sim_drivers.serve import ServeConfig, SimStack
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _read_lines(proc: subprocess.Popen, n: int, timeout: float) -> list[str]:
+    lines, buf = [], b""
+    deadline = time.monotonic() + timeout
+    fd = proc.stdout.fileno()
+    while len(lines) < n:
+        left = deadline - time.monotonic()
+        assert left > 0, f"only got {lines} from cellcal sim serve"
+        if select.select([fd], [], [], left)[0]:
+            chunk = os.read(fd, 4096)
+            assert chunk, f"cellcal sim serve exited early: {proc.stderr.read().decode()}"
+            buf += chunk
+            *done, buf = buf.split(b"\n")
+            lines += [d.decode().strip() for d in done if d.strip()]
+    return lines
+
+
+def test_cellcal_sim_serve_subprocess():
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "daq", "sim", "serve", "--seed", "3", "--faults", "beam=0"],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    try:
+        urls = _read_lines(proc, 4, timeout=20.0)
+        assert urls[0].startswith("modbus+tcp://127.0.0.1:")
+        assert urls[1].startswith("socket://127.0.0.1:")
+        assert urls[2].startswith("tracker+tcp://127.0.0.1:")
+        assert urls[3].startswith("tracker+serial:///dev/")
+        target = np.array([0.2, 0.3, -0.1])
+        for robot_url in urls[:2]:
+            with open_robot(robot_url) as rob:
+                rob.connect(2.0)
+                rob.move_joints(target, speed=0.5, wait=True, timeout=2.0)
+                assert np.allclose(rob.read_joints().q, target, atol=1e-4)
+        points = []
+        for tracker_url in urls[2:]:
+            with open_tracker(tracker_url) as trk:
+                trk.connect(2.0)
+                points.append(trk.measure(0.1, timeout=2.0).xyz)
+        assert np.linalg.norm(points[0] - points[1]) < 0.1  # same cell, same target
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=10) == 0
+        assert b"stopped" in proc.stderr.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()
+
+
+def test_bad_fault_spec_is_a_usage_error():
+    out = subprocess.run(
+        [sys.executable, "-m", "daq", "sim", "serve", "--faults", "laser=1"],
+        cwd=ROOT,
+        capture_output=True,
+        timeout=30,
+    )
+    assert out.returncode == 2
+    assert b"unknown fault 'laser'" in out.stderr
+
+
+def test_stack_falls_back_to_free_ports():
+    with SimStack(ServeConfig(pty=False, ports={"modbus": 0, "line_robot": 0, "tracker": 0})) as a:
+        taken = {
+            "modbus": a.servers[0].port,
+            "line_robot": a.servers[1].port,
+            "tracker": a.servers[2].port,
+        }
+        with SimStack(ServeConfig(pty=False, ports=taken)) as b:
+            assert len(b.urls) == 3
+            assert [s.port for s in b.servers] != list(taken.values())
+            with open_tracker(b.urls[2]) as trk:
+                trk.connect(1.0)
+                trk.measure(0.05, 1.0)
+
+
+def test_stack_rejects_bad_faults():
+    with pytest.raises(ValueError, match="unknown fault"):
+        SimStack(ServeConfig(faults="nope=1"))
