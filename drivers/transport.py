@@ -175,21 +175,24 @@ class LineTransport:
                     self.events.append((time.time(), line[3:].strip()))
 
     def discard_input(self, settle_s: float = 0.02) -> None:
-        """Throw away whatever the device sent but nobody read (after a timeout)."""
+        """Throw away replies the device sent but nobody read (after a timeout).
+
+        Reads for ``settle_s``; events among them are still queued.
+        """
+        deadline = time.monotonic() + settle_s
         with self._lock:
+            while self._ser is not None:
+                try:
+                    line = self._read_raw(deadline, "resync")
+                except ProtocolError:
+                    continue
+                except ConnectionLost:
+                    return
+                if line is None:
+                    break
+                if line.startswith("EVT"):
+                    self.events.append((time.time(), line[3:].strip()))
             self._buf.clear()
-            ser = self._ser
-            if ser is None:
-                return
-            deadline = time.monotonic() + settle_s
-            try:
-                while time.monotonic() < deadline:
-                    ser.timeout = max(deadline - time.monotonic(), 0.0)
-                    if not ser.read(max(1, ser.in_waiting)):
-                        break
-                ser.reset_input_buffer()
-            except (serial.SerialException, OSError):
-                self.close()
 
 
 def parse_kv(tokens: list[str], device: str, command: str) -> dict[str, str]:

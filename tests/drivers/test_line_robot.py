@@ -60,7 +60,7 @@ def test_wait_settled_follows_the_motion_time_model():
     cell = make_cell(time_scale=0.05, settle_s=1.0)
     with RobotLineServer(cell) as srv, open_robot(srv.url) as rob:
         rob.connect(1.0)
-        rob.move_joints(np.array([0.5, 0.0, 0.0]), speed=0.25)  # 2 s + 1 s sim = 0.15 s wall
+        rob.move_joints(np.array([0.5, 0.0, 0.0]), speed=0.1)  # 5 s + 1 s sim = 0.3 s wall
         assert rob.status().moving
         with elapsed_below(1.0):
             rob.wait_settled(timeout=2.0)

@@ -59,7 +59,7 @@ def test_wait_settled_with_real_motion_time():
     cell = make_cell(time_scale=0.05, settle_s=1.0)
     with ModbusRobotServer(cell) as srv, open_robot(srv.url) as rob:
         rob.connect(1.0)
-        rob.move_joints(np.array([0.5, 0.0, 0.0]), speed=0.25)
+        rob.move_joints(np.array([0.5, 0.0, 0.0]), speed=0.1)  # 0.3 s wall
         assert rob.status().moving
         rob.wait_settled(timeout=2.0)
         rob.move_joints(np.array([-0.5, 0.0, 0.0]), speed=0.1)

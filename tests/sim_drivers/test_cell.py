@@ -53,7 +53,7 @@ def test_time_scale_makes_motion_take_wall_time():
     st = cell.robot_state()
     assert st.moving and not st.in_position
     assert 0 < st.q[0] < 0.5
-    time.sleep(0.08)
+    time.sleep(0.2)
     st = cell.robot_state()
     assert not st.moving and st.steady
 
