@@ -285,11 +285,10 @@ class ModbusRobot:
             self.close()
             raise ConnectionLost(self._dev, command, str(e)) from e
         except ModbusIOException as e:
-            # no (complete) response in time: drop the link so a late reply
-            # cannot be taken for the answer to the next request
-            self.close()
-            if time.monotonic() < deadline - 0.05:  # closed early: the peer hung up
-                raise ConnectionLost(self._dev, command, str(e)) from e
+            # no (complete) response in time: close the socket so a late reply
+            # cannot be taken for the answer to the next request; pymodbus
+            # reopens it on the next request
+            client.close()
             raise CommandTimeout(self._dev, command, f"no reply within {left:.3f} s") from e
         except (ModbusException, OSError) as e:
             self.close()
@@ -302,12 +301,13 @@ class ModbusRobot:
 
     def _read_block(self, command: str, deadline: float, *, retry: bool = True) -> dict:
         lo, hi = self.map.read_span()
+        was_connected = self._client is not None  # never reopen a link the caller closed
         try:
             rr = self._call(
                 command, deadline, self._client_method("read_holding_registers"), lo, count=hi - lo
             )
         except ConnectionLost:
-            if not retry or time.monotonic() >= deadline:
+            if not (retry and was_connected) or time.monotonic() >= deadline:
                 raise
             self._reconnect(deadline)
             rr = self._call(

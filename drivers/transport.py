@@ -282,10 +282,11 @@ class LineSession:
         """
         command = line.split(" ", 1)[0]
         with self._lock:
+            was_open = self.t.is_open  # never reopen a link the caller closed
             try:
                 return self._exchange_once(line, keyword, command, deadline)
             except ConnectionLost:
-                if not retry or time.monotonic() >= deadline:
+                if not (retry and was_open) or time.monotonic() >= deadline:
                     raise
             # one automatic reconnect for idempotent queries
             self.connect(max(deadline - time.monotonic(), 0.05))

@@ -190,3 +190,11 @@ def test_transcript_unexpected_line_fails_the_check():
         rob.close()
         with pytest.raises(AssertionError, match="unexpected line 'POS\\?'"):
             peer.check()
+
+
+def test_closed_driver_does_not_reconnect_by_itself(robot):
+    robot.close()
+    with pytest.raises(ConnectionLost, match="not connected"):
+        robot.read_joints(timeout=0.5)
+    robot.connect(1.0)
+    robot.read_joints(timeout=0.5)

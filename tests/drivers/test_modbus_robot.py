@@ -195,3 +195,11 @@ def test_register_map_validation(tmp_path):
     assert np.allclose(m.unpack_floats(m.pack_floats([1.5, -2.25])), [1.5, -2.25])
     assert m.pack_floats([1.0]) == [0x3F80, 0x0000]
     assert m.size == 58
+
+
+def test_closed_driver_does_not_reconnect_by_itself(robot):
+    robot.close()
+    with pytest.raises(ConnectionLost, match="not connected"):
+        robot.read_joints(timeout=0.5)
+    robot.connect(1.0)
+    robot.read_joints(timeout=0.5)
