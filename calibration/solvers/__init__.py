@@ -2,14 +2,35 @@
 
 A solver is a function ``solve(problem, **options) -> SolverResult`` registered in
 :data:`SOLVERS` under the name ``--solver`` uses. ``lm`` (Levenberg-Marquardt) is the
-default.
+default; ``ridge`` is robust ridge estimation (IGG3 pose weights + Tikhonov, see
+:mod:`.ridge`); ``besa`` and ``sa`` are the improved and the classic simulated
+annealing (see :mod:`.anneal`); ``besa+lm`` is Be-SA as a global start polished by LM.
 """
 
 from __future__ import annotations
 
+from .anneal import solve_besa, solve_besa_lm, solve_sa
 from .common import Problem, SolverResult
 from .lm import solve_lm
+from .ridge import igg3_weights, plot_ridge, solve_ridge
 
-SOLVERS = {"lm": solve_lm}
+SOLVERS = {
+    "lm": solve_lm,
+    "ridge": solve_ridge,
+    "besa": solve_besa,
+    "sa": solve_sa,
+    "besa+lm": solve_besa_lm,
+}
 
-__all__ = ["SOLVERS", "Problem", "SolverResult", "solve_lm"]
+__all__ = [
+    "SOLVERS",
+    "Problem",
+    "SolverResult",
+    "igg3_weights",
+    "plot_ridge",
+    "solve_besa",
+    "solve_besa_lm",
+    "solve_lm",
+    "solve_ridge",
+    "solve_sa",
+]
