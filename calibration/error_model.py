@@ -17,6 +17,7 @@ from .dataset import Dataset
 from .effects import DEFAULT_EFFECTS, Effect, parse_effects
 from .kinematics import A, ChainResult, D, run_chain
 from .robot_model import RobotModel
+from .transforms import fit_rigid, matrix_to_rotvec
 
 _STAGES = ("joint", "table", "length", "tool", "base", "measure")
 
@@ -98,10 +99,33 @@ class ErrorModel:
         return Bound(data, nominal, states)
 
     def initial(self, bound: Bound) -> np.ndarray:
-        """Starting parameter vector: each effect's own start (base from a rigid fit)."""
+        """Starting parameter vector: each effect's own start; with both a base and a tool
+        effect, the two are estimated together from the nominal chain (alternating a rigid
+        fit for the base and linear least squares for the tool), so an SMR far from the
+        model's nominal tool needs no guess either."""
         x = np.zeros(self.n_params)
         for e, sl, st in zip(self.effects, self.slices, bound.states, strict=True):
             x[sl] = e.initial(bound.data, bound.nominal, st)
+        base = [i for i in self._by_stage["base"] if self.effects[i].family == "base"]
+        tool = [i for i in self._by_stage["tool"] if self.effects[i].family == "tool"]
+        if base and tool and bound.data.n >= 4:
+            sb, st_ = self.slices[base[0]], self.slices[tool[0]]
+            nom = bound.nominal
+            Rf, pf, meas = nom.flange_R, nom.flange_p, bound.data.xyz
+            t = x[st_].copy()
+            for _ in range(8):
+                R, c = fit_rigid(pf + Rf @ t, meas)
+                # meas = R (pf + Rf t) + c  ->  (R Rf) t = meas - c - R pf, linear in t
+                A = (R @ Rf).reshape(-1, 3)
+                b = (meas - c - pf @ R.T).ravel()
+                t_new = np.linalg.lstsq(A, b, rcond=None)[0]
+                done = np.linalg.norm(t_new - t) < 1e-9
+                t = t_new
+                if done:
+                    break
+            R, c = fit_rigid(pf + Rf @ t, meas)
+            x[sb] = np.concatenate([c, matrix_to_rotvec(R)])
+            x[st_] = t
         return x
 
     def normalize(self, x: np.ndarray) -> np.ndarray:
@@ -185,6 +209,27 @@ class ErrorModel:
                 J = J * factor
                 J[:, :, sls[i]] = Jm
         return P, J
+
+    def penalty(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Regularisation pseudo-observations of the effects that have them (mm), with their
+        Jacobian (m, n_params); None when no effect is regularised."""
+        rows, jacs = [], []
+        for e, sl in zip(self.effects, self.slices, strict=True):
+            if hasattr(e, "penalty"):
+                r, Je = e.penalty(np.asarray(x, float)[sl])
+                J = np.zeros((r.size, self.n_params))
+                J[:, sl] = Je
+                rows.append(r)
+                jacs.append(J)
+        if not rows:
+            return None
+        return np.concatenate(rows), np.vstack(jacs)
+
+    def prepare(self, data: Dataset) -> Dataset:
+        """Let every effect complete the data (in capture order) before any split."""
+        for e in self.effects:
+            data = e.prepare(data)
+        return data
 
     def residuals(self, x: np.ndarray, bound: Bound) -> np.ndarray:
         """Measured minus predicted target centres, (n, 3) mm."""

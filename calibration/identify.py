@@ -154,17 +154,21 @@ class Fit:
         return out
 
 
-def covariance(J: np.ndarray, r: np.ndarray, free: np.ndarray, sigma: float | None = None):
+def covariance(J: np.ndarray, r: np.ndarray, free: np.ndarray, sigma: float | None = None,
+               penalty: tuple[np.ndarray, np.ndarray] | None = None):
     """Parameter covariance from the final Jacobian (n, 3, p) and residuals (n, 3).
 
     Uses ``sigma`` (mm per axis) when given, else the residual variance
-    RSS / (3 n - m). Returns (covariance (p, p), sigma used).
+    RSS / (3 n - m). Penalty rows (regularised effects) join the normal matrix, so the
+    covariance is that of the regularised estimate. Returns (covariance (p, p), sigma).
     """
     p = J.shape[-1]
     Jf = J[:, :, free].reshape(-1, int(free.sum()))
     m = Jf.shape[1]
     dof = max(Jf.shape[0] - m, 1)
     s2 = sigma**2 if sigma is not None else float(np.sum(r**2)) / dof
+    if penalty is not None:
+        Jf = np.vstack([Jf, penalty[1][:, free]])
     cov = np.zeros((p, p))
     if m:
         d = np.linalg.norm(Jf, axis=0)
@@ -185,7 +189,7 @@ def identify(
     *,
     valid: Dataset | None = None,
     x0: np.ndarray | None = None,
-    rtol: float = 1e-6,
+    rtol: float = 1e-3,
     fixed: list[str] | None = None,
     solver_options: dict | None = None,
 ) -> Fit:
@@ -197,7 +201,8 @@ def identify(
     solver : a name in :data:`calibration.solvers.SOLVERS` (``lm`` by default)
     valid : validation poses (in addition to the ``set=valid`` rows)
     x0 : starting parameters (default: each effect's start, base by a rigid fit)
-    rtol : relative pivot below which a parameter is unidentifiable
+    rtol : relative pivot below which a parameter is unidentifiable (practically: an SMR
+        0.03 mm off the flange axis must not make the wrist's redundancies "identifiable")
     fixed : parameter names to hold at their start value in any case
     solver_options : keyword arguments for the solver
 
@@ -206,6 +211,17 @@ def identify(
     if solver not in SOLVERS:
         raise ValueError(f"unknown solver {solver!r}; available: {', '.join(SOLVERS)}")
     t0 = time.perf_counter()
+    data = error_model.prepare(data)
+    for e in error_model.effects:
+        if getattr(e, "smoothing", 0.0) is None:  # a table whose smoothing is to be chosen
+            from .effects.table import tune_smoothing
+
+            def fit_fn(em, d, _valid=valid):
+                return identify(em, d, solver, rtol=rtol, fixed=fixed,
+                                solver_options=solver_options)
+
+            tune_smoothing(error_model, data.calib() if data.is_valid.any() else data, e,
+                           fit_fn)
     calib = data.calib() if data.is_valid.any() else data
     held = data.valid() if data.is_valid.any() else None
     if valid is not None:
@@ -227,6 +243,12 @@ def identify(
         rtol=rtol,
         n_poses=calib.n,
     )
+    for e, st in zip(error_model.effects, bound.states, strict=True):
+        for local, why in e.pinned(st).items():
+            name = f"{e.prefix}.{local}"
+            k = error_model.index(name)
+            ident.free[k] = False
+            ident.fixed[name] = why
     for name in fixed or []:
         k = error_model.index(name)
         if ident.free[k]:
@@ -240,7 +262,7 @@ def identify(
     weights = result.info.get("weights")
     r_w = resid if weights is None else resid * np.sqrt(weights)[:, None]
     J_w = J if weights is None else J * np.sqrt(weights)[:, None, None]
-    cov, sigma = covariance(J_w, r_w, ident.free)
+    cov, sigma = covariance(J_w, r_w, ident.free, penalty=error_model.penalty(x))
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     fit = Fit(
         error_model=error_model,

@@ -16,8 +16,10 @@ from pathlib import Path
 from ..robot_model import RobotModel
 from .base import Effect, EffectError, JointEffect, display_unit
 from .geometric import BUILTIN, Base, Geometric, Tool
+from .physical import PHYSICAL
+from .table import Table
 
-REGISTRY: dict[str, type[Effect]] = dict(BUILTIN)
+REGISTRY: dict[str, type[Effect]] = {**BUILTIN, **PHYSICAL, "table": Table}
 
 DEFAULT_EFFECTS = "geometric,base,tool"
 

@@ -34,11 +34,12 @@ class EffectError(ValueError):
 
 
 def display_unit(unit: str) -> tuple[str, float]:
-    """The unit a parameter is written in files, and the factor from the internal unit."""
+    """The unit a parameter is written in files, and the factor from the internal unit.
+
+    Angles (``rad``) are written in degrees; every other unit as it is (a compliance stays
+    in rad/(N*m), as drive makers quote it)."""
     if unit == "rad":
         return "deg", float(np.degrees(1.0))
-    if unit.startswith("rad/"):
-        return "deg/" + unit[4:], float(np.degrees(1.0))
     return unit, 1.0
 
 
@@ -115,6 +116,16 @@ class Effect:
         :class:`EffectError` when the data lack what the effect needs.
         """
         return None
+
+    def prepare(self, data: Dataset) -> Dataset:
+        """Called once on the whole data set, in capture order, before calibration and
+        validation rows are split (e.g. to derive approach directions). Returns the data,
+        possibly with columns added."""
+        return data
+
+    def pinned(self, state: Any) -> dict[str, str]:
+        """Local parameter names to hold at their start value for this data, with reasons."""
+        return {}
 
     def initial(self, data: Dataset, nominal: Any, state: Any) -> np.ndarray:
         """Starting values (internal units); zeros unless the effect knows better."""

@@ -42,14 +42,17 @@ class Problem:
         return self.error_model.normalize(x)
 
     def residual(self, xf: np.ndarray) -> np.ndarray:
-        """Measured minus predicted, (3 n,)."""
-        r = self.error_model.residuals(self.full(xf), self.bound)
+        """Measured minus predicted, (3 n,), followed by any penalty rows (regularised
+        effects: minus the penalty, so the cost adds its square)."""
+        x = self.full(xf)
+        r = self.error_model.residuals(x, self.bound)
         if self.weights is not None:
             r = r * np.sqrt(self.weights)[:, None]
-        return r.ravel()
+        pen = self.error_model.penalty(x)
+        return r.ravel() if pen is None else np.concatenate([r.ravel(), -pen[0]])
 
     def residual_and_jacobian(self, xf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Residual (3 n,) and its Jacobian d r / d xf, (3 n, n_free)."""
+        """Residual (3 n [+ m],) and its Jacobian d r / d xf, (3 n [+ m], n_free)."""
         x = self.full(xf)
         P, J = self.error_model.evaluate(x, self.bound, jacobian=True)
         r = self.bound.data.xyz - P
@@ -58,7 +61,12 @@ class Problem:
             w = np.sqrt(self.weights)[:, None]
             r = r * w
             Jr = Jr * w[:, :, None]
-        return r.ravel(), Jr.reshape(-1, Jr.shape[-1])
+        r, Jr = r.ravel(), Jr.reshape(-1, Jr.shape[-1])
+        pen = self.error_model.penalty(x)
+        if pen is not None:
+            r = np.concatenate([r, -pen[0]])
+            Jr = np.vstack([Jr, -pen[1][:, self.free]])
+        return r, Jr
 
 
 @dataclass
