@@ -5,8 +5,9 @@ pivoted QR in tiers: first the frame parameters (base, tool),
 then the geometric ones, then every other effect, each tier after projecting
 out the columns already kept. A parameter whose pivot falls below ``rtol`` (default
 1e-3: its independent effect is under 0.1 % of a unit column, which keeps the
-condition number of the free set below about 1e3) is unidentifiable (no effect on the measured points) or redundant (its effect is a
-combination of the others') and is fixed at its starting value. The tiers make
+condition number of the free set below about 1e3) is unidentifiable (no effect
+on the measured points) or redundant (its effect is a combination of the
+others') and is fixed at its starting value. The tiers make
 the choice between exactly redundant parameters stable and readable: with
 position-only data joint 1's offset and d are fixed, not the base; within a
 tier, exact ties go to the parameter declared first.
