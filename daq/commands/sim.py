@@ -20,7 +20,11 @@ def register(sub) -> None:
     ssub.required = True
     s = ssub.add_parser("serve", help="start the simulated servers and print their URLs")
     s.add_argument("--seed", type=int, default=0, help="random seed of the cell (default 0)")
-    s.add_argument("--hidden", default=None, help="hidden effects of the true robot (passed on)")
+    s.add_argument("--model", default="ur10e",
+                   help="the true robot: a model name or YAML with realistic hidden errors "
+                        "(default ur10e), or 'toy' for a 3-joint stand-in arm")
+    s.add_argument("--hidden", default=None,
+                   help="hidden physical effects of the true robot, e.g. compliance:3")
     s.add_argument("--faults", default=None,
                    help="fault spec, e.g. 'beam=0.05,slow=0.02,drop@3,delay=2'")
     s.add_argument("--time-scale", type=float, default=0.0,
@@ -37,9 +41,17 @@ def run(args) -> int:
         raise UsageError(f"--time-scale must be >= 0, got {args.time_scale}")
     config = ServeConfig(seed=args.seed, hidden=args.hidden, faults=args.faults,
                          time_scale=args.time_scale, host=args.host, pty=not args.no_pty)
+    if args.model == "toy":
+        from sim_drivers.inprocess import default_truth as factory
+    else:
+        from sim_drivers.model_truth import ModelTruth
+
+        def factory(seed, hidden):
+            return ModelTruth.from_spec(args.model, hidden, seed)
+
     try:
-        stack = SimStack(config)
-    except ValueError as e:
+        stack = SimStack(config, truth_factory=factory)
+    except ValueError as e:  # ModelError and EffectError are ValueErrors too
         raise UsageError(str(e)) from e
     stop = threading.Event()
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())

@@ -37,7 +37,8 @@ def _read_lines(proc: subprocess.Popen, n: int, timeout: float) -> list[str]:
 
 def test_cellcal_sim_serve_subprocess():
     proc = subprocess.Popen(
-        [sys.executable, "-m", "daq", "sim", "serve", "--seed", "3", "--faults", "beam=0"],
+        [sys.executable, "-m", "daq", "sim", "serve", "--model", "toy", "--seed", "3",
+         "--faults", "beam=0"],
         cwd=ROOT,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
