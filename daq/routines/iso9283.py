@@ -1,0 +1,87 @@
+"""``iso9283``: pose accuracy and repeatability cycles (ISO 9283 cube points).
+
+The cube of side ``side_mm`` centred at ``centre_xyz`` (base frame): P1 its
+centre, P2–P5 on the diagonals of the diagonal plane through two opposite
+edges, 10 % of the diagonal in from the corners. ``cycles`` cycles visit P1..P5
+in order, each approached from the same direction: a linear move to a
+pre-position ``approach_mm`` away along ``approach_dir`` first.
+
+:func:`finalize` computes per point the positional repeatability
+RP = l̄ + 3·S_l (ISO 9283 §7.2.2, from the tracker only) and, when the run knows
+the measurement frame (``tracker_T_base`` in its options), the positional
+accuracy AP = |x̄ − x_c| of the mean attained position from the commanded one.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..plans import Plan, Target
+from ._common import default_start, expected_joints, floats, nominal_point
+
+
+def cube_points(centre, side_mm: float) -> np.ndarray:
+    """P1..P5 (5, 3) mm: the centre and four points 10 % of the diagonal in from the corners
+    of the diagonal plane (corners (-,-,-), (+,+,-), (+,+,+), (-,-,+))."""
+    c = np.asarray(centre, float)
+    h = side_mm / 2.0
+    corners = np.array([[-h, -h, -h], [h, h, -h], [h, h, h], [-h, -h, h]])
+    return np.vstack([c, c + 0.8 * corners])
+
+
+def make_plan(model, *, centre_xyz=None, start_deg=None, side_mm: float = 200.0,
+              cycles: int = 30, approach_mm: float = 20.0, approach_dir=(0.0, 0.0, 1.0)) -> Plan:
+    """The iso9283 plan: ``5 × cycles`` linear targets with pre-positions."""
+    if cycles < 1:
+        raise ValueError("iso9283: cycles must be >= 1")
+    q0 = np.radians(start_deg) if start_deg is not None else default_start(model)
+    c = np.asarray(centre_xyz, float) if centre_xyz is not None else nominal_point(model, q0)
+    d = np.asarray(approach_dir, float)
+    d = d / np.linalg.norm(d)
+    pts = cube_points(c, side_mm)
+    qs, _ = expected_joints(model, pts, q0)
+    targets = []
+    for cyc in range(cycles):
+        for k in range(5):
+            targets.append(Target(len(targets), "linear", q=qs[k], xyz=pts[k],
+                                  via=pts[k] + approach_mm * d, label=f"c{cyc + 1}.P{k + 1}",
+                                  info={"cycle": cyc + 1, "point": k + 1}))
+    params = {"centre_xyz_mm": c.tolist(), "start_deg": np.degrees(q0).tolist(),
+              "side_mm": side_mm, "cycles": cycles, "approach_mm": approach_mm,
+              "approach_dir": d.tolist()}
+    return Plan("iso9283", params, tuple(targets), model=model.name)
+
+
+def finalize(plan: Plan, samples: dict, run) -> dict:
+    """RP (and AP when the frame is known) per cube point, mm."""
+    pts = np.array([(t or {}).get("info", {}).get("point", 0) for t in samples["target"]])
+    T = (run.options or {}).get("tracker_T_base")
+    out = {}
+    for k in range(1, 6):
+        X = samples["xyz"][pts == k]
+        if len(X) == 0:
+            continue
+        mean = X.mean(axis=0)
+        ell = np.linalg.norm(X - mean, axis=1)
+        s = float(np.std(ell, ddof=1)) if len(ell) > 1 else 0.0
+        entry = {"n": len(X), "RP_mm": float(ell.mean() + 3 * s)}
+        if T is not None:
+            T = np.asarray(T, float)
+            xc = T[:3, :3] @ np.asarray(plan.targets[k - 1].xyz) + T[:3, 3]
+            entry["AP_mm"] = float(np.linalg.norm(mean - xc))
+        out[f"P{k}"] = entry
+    return {"summary": {"iso9283": out}}
+
+
+def add_args(p) -> None:
+    p.add_argument("--centre-xyz", metavar="X,Y,Z", help="cube centre, mm (base frame)")
+    p.add_argument("--start-deg", metavar="Q1,..,QN", help="IK seed posture, deg")
+    p.add_argument("--side-mm", type=float, default=200.0)
+    p.add_argument("--cycles", type=int, default=30)
+    p.add_argument("--approach-mm", type=float, default=20.0)
+
+
+def params_from_args(args) -> dict:
+    return {"centre_xyz": floats(args.centre_xyz, 3, "--centre-xyz"),
+            "start_deg": floats(args.start_deg, None, "--start-deg"), "side_mm": args.side_mm,
+            "cycles": args.cycles, "approach_mm": args.approach_mm}
