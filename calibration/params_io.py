@@ -8,7 +8,14 @@ The file embeds the nominal model, so it is self-contained::
      "solver": "lm",
      "parameters": [{"name": "geometric.j2.a", "value": 0.21, "std": 0.004,
                      "unit": "mm", "identifiable": true}, ...],
-     "stats": {"calib": {...}, "valid": {...}}, "noise_floor_mm": 0.029}
+     "stats": {"calib": {...}, "valid": {...}}, "noise_floor_mm": 0.029,
+     "correlation": {"names": [...free parameters...], "matrix": [[1.0, ...], ...]},
+     "strongest_correlations": [{"a": "geometric.j5.d", "b": "geometric.j5.alpha",
+                                 "r": -0.99}, ...],
+     "solver_info": {"xi": 2e-05, "condition_class": "strong", "rejected": ["17"], ...}}
+
+``correlation``, ``strongest_correlations`` and ``solver_info`` (only for solvers with
+extras: ridge, besa, sa) were added after version 1 and are ignored when reading.
 
 Angles are in degrees (``unit: "deg"``). Geometric parameters are deltas to the
 nominal table; base and tool parameters are absolute.
@@ -25,6 +32,7 @@ from .effects import display_unit, load_effect_file
 from .error_model import ErrorModel
 from .identify import Fit
 from .robot_model import model_from_dict
+from .uncertainty import correlations
 
 FORMAT = "cellcal-params"
 
@@ -51,6 +59,28 @@ def fit_to_dict(fit: Fit, effect_files: list[str] | None = None) -> dict:
         "converged": fit.converged,
         "reason": fit.reason,
     }
+    # added keys (version 1 readers ignore them): correlations of the free parameters,
+    # and the robust solver's verdict on the poses
+    corr = correlations(fit)
+    out["correlation"] = {"names": corr["names"], "matrix": corr["matrix"]}
+    out["strongest_correlations"] = corr["strongest"]
+    info = solver_summary(fit)
+    if info:
+        out["solver_info"] = info
+    return out
+
+
+def solver_summary(fit: Fit) -> dict:
+    """JSON-ready solver extras: ridge (xi, condition class, rejected and down-weighted
+    pose ids) and annealing (evaluations, seed); empty for other solvers."""
+    keys = ("xi", "xi_method", "condition_number", "condition_class", "scale_mm",
+            "rejected", "downweighted", "refixed", "evaluations", "accepted", "seed",
+            "f_best_mm2", "ideal_mm2")
+    out = {}
+    for k in keys:
+        if k in fit.info:
+            v = fit.info[k]
+            out[k] = float(v) if isinstance(v, (np.floating, float)) else v
     return out
 
 

@@ -162,6 +162,7 @@ def solve_ridge(
     xtol: float = 1e-9,
     wtol: float = 1e-4,
     rtol: float = 1e-6,
+    penalize: str = "errors",
     xf0: np.ndarray | None = None,
 ) -> SolverResult:
     """Robust ridge estimation (IGG3 + Tikhonov), iterated to convergence on the nonlinear model.
@@ -178,6 +179,9 @@ def solve_ridge(
     wtol : weights have settled when none changed by more than this
     rtol : relative pivot of the weighted, equilibrated Jacobian below which a free
         parameter is held at its start (re-check of identifiability after weighting)
+    penalize : ``"errors"`` (default): the ridge acts on the error parameters only, not on
+        the frame parameters (families base, tool, tracker_scale), which are absolute and
+        have no nominal value to shrink to; ``"all"``: on every free parameter
     xf0 : starting point (default the problem's start, which is also the ridge centre)
 
     Returns
@@ -194,7 +198,15 @@ def solve_ridge(
     n, m = problem.n_poses, centre.size
     ids = list(problem.bound.data.pose_id)
     prior = np.ones(n) if problem.weights is None else np.asarray(problem.weights, float)
-    names = [nm for nm, f in zip(problem.error_model.names, problem.free, strict=True) if f]
+    em = problem.error_model
+    names = [nm for nm, f in zip(em.names, problem.free, strict=True) if f]
+    if penalize not in ("errors", "all"):
+        raise ValueError(f"penalize must be 'errors' or 'all', not {penalize!r}")
+    families = np.array([em.effect_of(k).family for k in np.flatnonzero(problem.free)])
+    penal = (np.ones(m, bool) if penalize == "all"
+             else ~np.isin(families, ["base", "tool", "tracker_scale"]))
+    if m == 0 or not penal.any():
+        penal = np.ones(m, bool)  # nothing to hold out: plain ridge
     if m == 0:
         return SolverResult(x, True, "no free parameters", 0, [], {"weights": prior})
     xi_method = xi if isinstance(xi, str) else "fixed"
@@ -229,15 +241,27 @@ def solve_ridge(
         A = (Jr.reshape(n, 3, m) * sw[:, None, None]).reshape(-1, m) / d
         u = d * (x - centre)
         c = (r * sw[:, None]).ravel() - A @ u
+        pen_rows = _penalty(problem, x)
+        if pen_rows is not None:  # regularised effects' own penalty rows, unweighted
+            Ap = pen_rows[1] / d
+            A = np.vstack([A, Ap])
+            c = np.concatenate([c, pen_rows[0] - Ap @ u])
         # re-check identifiability on the weighted system: pivoted QR of A
         _, R, piv = scipy.linalg.qr(A, mode="economic", pivoting=True)
         rdiag = np.abs(np.diag(R))
         active = np.zeros(m, bool)
         active[piv[rdiag > rtol * max(rdiag[0], 1e-300)]] = True
-        Aa = A[:, active]
-        U, s, Vt = np.linalg.svd(Aa, full_matrices=False)
-        beta = U.T @ c
-        curve = ridge_curve(s, beta, float(c @ c - beta @ beta), Vt.T)
+        # frame parameters (unpenalised) are projected out; ridge acts on the rest
+        pen = active & penal
+        keep = active & ~penal
+        A1, A2 = A[:, keep], A[:, pen]
+        Q1 = np.linalg.qr(A1)[0] if A1.shape[1] else np.zeros((A.shape[0], 0))
+        A2p = A2 - Q1 @ (Q1.T @ A2)
+        cp = c - Q1 @ (Q1.T @ c)
+        U, s, Vt = np.linalg.svd(A2p, full_matrices=False)
+        beta = U.T @ cp
+        curve = ridge_curve(s, beta, float(cp @ cp - beta @ beta), Vt.T)
+        curve["trace_h"] = curve["trace_h"] + A1.shape[1]
         n_obs = 3 * int(np.count_nonzero(w > 0))
         if xi_method == "gcv":
             k = int(np.argmin(_gcv(curve, n_obs)))
@@ -245,22 +269,27 @@ def solve_ridge(
             k = _lcurve_corner(curve)
         if xi_method == "fixed":
             xi_val = float(xi)
-            u_new_a = -Vt.T @ (s / (s**2 + xi_val) * beta) if xi_val > 0 else -Vt.T @ (beta / s)
+            filt = s / (s**2 + xi_val) if xi_val > 0 else 1.0 / s
+            u2 = -Vt.T @ (filt * beta)
         else:
             xi_val = float(curve["xi"][k])
-            u_new_a = curve["trace"][k]
-        cond = float((s[0] / s[-1]) ** 2) if s[-1] > 0 else float("inf")
+            u2 = curve["trace"][k]
+        u1 = (-np.linalg.lstsq(A1, c + A2 @ u2, rcond=None)[0] if A1.shape[1]
+              else np.zeros(0))
         u_new = np.zeros(m)
-        u_new[active] = u_new_a
+        u_new[pen] = u2
+        u_new[keep] = u1
+        s = np.linalg.svd(A[:, active], compute_uv=False)
+        cond = float((s[0] / s[-1]) ** 2) if s[-1] > 0 else float("inf")
         # safeguarded Gauss-Newton step on the penalised objective (weights and xi fixed)
-        phi = float(np.sum(w * np.sum(r**2, axis=1)) + xi_val * u @ u)
+        phi = _cost(problem, x, r, w) + xi_val * float(np.sum(u[pen] ** 2))
         step = u_new - u
         t = 1.0
         for _ in range(30):
             x_try = centre + (u + t * step) / d
             r_try, _ = evaluate(x_try, jac=False)
-            phi_try = float(np.sum(w * np.sum(r_try**2, axis=1))
-                            + xi_val * np.sum((u + t * step) ** 2))
+            phi_try = (_cost(problem, x_try, r_try, w)
+                       + xi_val * float(np.sum((u + t * step)[pen] ** 2)))
             if np.isfinite(phi_try) and phi_try <= phi * (1 + 1e-12):
                 break
             t *= 0.5
@@ -293,7 +322,7 @@ def solve_ridge(
         "k1": k1,
     }
     if curve is not None:
-        curve["names"] = [names[k] for k in np.flatnonzero(active)]
+        curve["names"] = [names[k] for k in np.flatnonzero(pen)]
     return SolverResult(x, converged, reason, it, history, info)
 
 
@@ -302,6 +331,20 @@ def _unweighted(problem: Problem, xf: np.ndarray) -> tuple[np.ndarray, np.ndarra
     x = problem.full(xf)
     P, J = problem.error_model.evaluate(x, problem.bound, jacobian=True)
     return problem.bound.data.xyz - P, -J[:, :, problem.free]
+
+
+def _penalty(problem: Problem, xf: np.ndarray):
+    """Penalty rows of regularised effects as (residual (k,), d residual / d xf (k, m)), or None."""
+    pen = problem.error_model.penalty(problem.full(xf))
+    if pen is None:
+        return None
+    return -pen[0], -pen[1][:, problem.free]
+
+
+def _cost(problem: Problem, xf: np.ndarray, r: np.ndarray, w: np.ndarray) -> float:
+    pen = _penalty(problem, xf)
+    extra = 0.0 if pen is None else float(pen[0] @ pen[0])
+    return float(np.sum(w * np.sum(r**2, axis=1))) + extra
 
 
 def _rms(r: np.ndarray) -> float:

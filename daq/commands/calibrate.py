@@ -6,8 +6,9 @@ import json
 from pathlib import Path
 
 from calibration import DEFAULT_EFFECTS, ErrorModel, identify, load_csv
-from calibration.params_io import fit_to_dict, load_params
-from calibration.solvers import SOLVERS
+from calibration.params_io import fit_to_dict, load_params, solver_summary
+from calibration.solvers import SOLVERS, plot_ridge
+from calibration.uncertainty import correlations, monte_carlo
 
 from ..cli import UsageError
 from .common import add_model_args, fmt, load_inputs, print_json, table, wrap_errors
@@ -27,6 +28,14 @@ def register(sub) -> None:
     p.add_argument("--valid", metavar="FILE", help="validation CSV (besides set=valid rows)")
     p.add_argument("--params", metavar="params.json", help="start from these parameters")
     p.add_argument("--out", metavar="params.json", help="write the parameters here")
+    p.add_argument("--seed", type=int, default=None,
+                   help="random seed of the besa/sa solvers and of --monte-carlo (default 0)")
+    p.add_argument("--monte-carlo", type=int, default=0, metavar="N",
+                   help="re-identify N times from the calibrated model plus instrument noise "
+                   "(sigma from the data or --sigma) and report the parameter spread and the "
+                   "position uncertainty over the workspace")
+    p.add_argument("--ridge-plot", metavar="FILE.png",
+                   help="with --solver ridge: save the L-curve, GCV and ridge trace here")
     p.set_defaults(func=run)
 
 
@@ -45,12 +54,28 @@ def calibrate(args):
             if name in em.names:
                 x0[em.index(name)] = x_p[k]
     baseline = identify(ErrorModel(model, "base"), data, valid=valid)
-    fit = wrap_errors(lambda: identify(em, data, args.solver, valid=valid, x0=x0))
+    opts = {}
+    if getattr(args, "seed", None) is not None and args.solver in ("besa", "sa", "besa+lm"):
+        opts["seed"] = args.seed
+    fit = wrap_errors(lambda: identify(em, data, args.solver, valid=valid, x0=x0,
+                                       solver_options=opts or None))
     return fit, baseline
 
 
 def run(args) -> int:
+    ridge_plot = getattr(args, "ridge_plot", None)
+    if ridge_plot and args.solver != "ridge":
+        raise UsageError("--ridge-plot needs --solver ridge")
+    n_mc = getattr(args, "monte_carlo", 0) or 0
+    if n_mc and n_mc < 2:
+        raise UsageError("--monte-carlo needs N >= 2")
     fit, baseline = calibrate(args)
+    if ridge_plot:
+        plot_ridge(fit.info, ridge_plot, f"{fit.data.source}: ridge solver")
+    mc = None
+    if n_mc:
+        seed = args.seed if getattr(args, "seed", None) is not None else 0
+        mc = monte_carlo(fit, n_mc, seed=seed)
     if args.out:
         Path(args.out).write_text(
             json.dumps(fit_to_dict(fit, args.effect_file), indent=1) + "\n"
@@ -59,13 +84,31 @@ def run(args) -> int:
         out = fit.summary()
         out["params_file"] = args.out
         out["uncalibrated"] = {"calib": baseline.calib, "valid": baseline.valid}
+        out["strongest_correlations"] = correlations(fit)["strongest"]
+        info = solver_summary(fit)
+        if info:
+            out["solver_info"] = info
+        if mc is not None:
+            out["monte_carlo"] = mc_summary(mc, fit)
+        if ridge_plot:
+            out["ridge_plot"] = ridge_plot
         print_json(out)
         return 0 if fit.converged else 1
-    print_report(fit, baseline, args.out)
+    print_report(fit, baseline, args.out, mc, ridge_plot)
     return 0 if fit.converged else 1
 
 
-def print_report(fit, baseline, out_path=None) -> None:
+def mc_summary(mc, fit) -> dict:
+    """The ``monte_carlo`` object of ``calibrate --json``."""
+    return {
+        "n": int(mc.samples.shape[0]), "sigma_mm": mc.sigma_mm, "n_failed": mc.n_failed,
+        "parameters": mc.rows(fit),
+        "position_uncertainty_mm": {k: mc.position[k] for k in ("mean_mm", "max_mm")},
+        "position_uncertainty_mc_mm": {k: mc.position_mc[k] for k in ("mean_mm", "max_mm")},
+    }
+
+
+def print_report(fit, baseline, out_path=None, mc=None, ridge_plot=None) -> None:
     em = fit.error_model
     d = fit.data
     print(f"data      {d.source}: {d.n} calibration poses"
@@ -105,6 +148,39 @@ def print_report(fit, baseline, out_path=None) -> None:
         print("fixed at their start value (the data cannot determine them):")
         for name, why in ident.fixed.items():
             print(f"  {name}: {why}")
+    strongest = correlations(fit)["strongest"]
+    if strongest:
+        print()
+        print("strongest correlations:")
+        for c in strongest:
+            print(f"  {c['a']:<24} {c['b']:<24} {c['r']:+.3f}")
+    if fit.solver == "ridge":
+        i = fit.info
+        print()
+        print(f"ridge     xi {i['xi']:.3g} ({i['xi_method']}) on the equilibrated normal "
+              f"matrix; condition number {i['condition_number']:.3g} "
+              f"({i['condition_class']} ill-conditioning)")
+        if i.get("robust", True):
+            print(f"IGG3      k0 {i['k0']}, k1 {i['k1']}, scale {i['scale_mm']:.4f} mm; "
+                  f"rejected {len(i['rejected'])}, down-weighted {len(i['downweighted'])} poses")
+            print(f"  rejected: {', '.join(i['rejected']) or 'none'}")
+            print(f"  down-weighted: {', '.join(i['downweighted']) or 'none'}")
+        if i.get("refixed"):
+            print(f"  held after weighting: {', '.join(i['refixed'])}")
+        if ridge_plot:
+            print(f"  L-curve, GCV and ridge trace saved to {ridge_plot}")
+    if mc is not None:
+        print()
+        print(f"Monte-Carlo: {mc.samples.shape[0]} re-identifications, sigma {mc.sigma_mm:.4f} mm"
+              + (f", {mc.n_failed} did not converge" if mc.n_failed else ""))
+        rows = [[r["name"], fmt(r["std_analytic"], 5), fmt(r["std_mc"], 5), fmt(r["ratio"], 2),
+                 r["unit"]] for r in mc.rows(fit)]
+        print(table(rows, ["parameter", "std analytic", "std MC", "MC/analytic", "unit"]))
+        print(f"position uncertainty (1 sigma, 3-D, robot base frame, "
+              f"{mc.position['n_poses']} random poses): analytic mean "
+              f"{mc.position['mean_mm']:.4f} mm, max {mc.position['max_mm']:.4f} mm; "
+              f"Monte-Carlo mean {mc.position_mc['mean_mm']:.4f} mm, "
+              f"max {mc.position_mc['max_mm']:.4f} mm")
     if out_path:
         print()
         print(f"parameters written to {out_path}")
