@@ -19,6 +19,7 @@ COMMANDS = [
     "daq.commands.models",
     "daq.commands.sim",
     "daq.commands.simulate",
+    "daq.commands.zero",
 ]
 
 

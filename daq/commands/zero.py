@@ -1,0 +1,214 @@
+"""``cellcal zero``: zero-point recalibration from 20 postures on one fixed point.
+
+Exit codes: 0 the recalibration is decided (within tolerance), 3 the data are too
+poor to decide (an offset that matters is undetermined, the uncertainty exceeds the
+tolerance, the residual is far above the tip scatter, or no convergence), 2 bad input.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from calibration import load_model
+from calibration.inverse import ChainFK
+from calibration.params_io import load_params
+from calibration.zero_point import (
+    DEFAULT_SIGMA_MM,
+    load_postures,
+    rigorous_method,
+    seed_method,
+    summary,
+)
+
+from ..cli import UsageError
+from .common import fmt, print_json, table, wrap_errors
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "zero",
+        help="recalibrate joint zero offsets from 20 postures on one point",
+        description="Estimate joint zero corrections (true = reported + offset) from "
+        "postures that all put the tool tip on one fixed point (FORMATS.md §1, zero-point "
+        "postures CSV): the published seed method and a rigorous least-squares method. "
+        "Exit 0 when decided, 3 when the data are too poor to decide, 2 for bad input.",
+    )
+    p.add_argument("postures", metavar="POSTURES.csv", help="zero-point postures CSV")
+    p.add_argument("--model", required=True, metavar="NAME|PATH",
+                   help="built-in model name or a model YAML file")
+    p.add_argument("--params", metavar="params.json",
+                   help="a calibrated model (geometric deltas, base for measured x,y,z)")
+    p.add_argument("--method", choices=("seed", "rigorous", "both"), default="both",
+                   help="seed (published), rigorous, or both compared (default; the "
+                   "rigorous result is reported)")
+    p.add_argument("--tolerance-deg", type=float, default=0.01, metavar="T",
+                   help="a joint changed when |offset| > T; decided when 2 sigma < T "
+                   "(default 0.01)")
+    p.add_argument("--sigma", type=float, default=DEFAULT_SIGMA_MM, metavar="MM",
+                   help=f"tip scatter per axis (teaching repeatability), mm "
+                   f"(default {DEFAULT_SIGMA_MM})")
+    p.add_argument("--replay", metavar="previous.json",
+                   help="fine pass: start from a previous `zero --json` result")
+    p.add_argument("--keep-outliers", action="store_true",
+                   help="do not leave out postures with improbable residuals")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the resampling")
+    p.add_argument("--out", metavar="FILE",
+                   help="write the updated model (.yaml) or params (.json, needs --params); "
+                   "never the input file")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=run)
+
+
+def _chain(model, params_path):
+    """The chain to recalibrate and the base transform (R, t) or None."""
+    table = model.dh_table()
+    tool = model.tool_mm()
+    base = None
+    if params_path:
+        em, x, _ = wrap_errors(lambda: load_params(params_path))
+        if em.model.n_joints != model.n_joints:
+            raise UsageError(f"{params_path}: its model has {em.model.n_joints} joints, "
+                             f"{model.name} has {model.n_joints}")
+        table = em.model.dh_table()
+        for e, sl in zip(em.effects, em.slices, strict=True):
+            if e.family == "geometric":
+                table = table + e.table_delta(x[sl])[0]
+            elif e.family == "tool":
+                tool = x[sl]
+            elif e.family == "base":
+                base = e.transform(x[sl])
+    return ChainFK(model.convention, table, tool), base
+
+
+def _replay_start(path, n_joints):
+    try:
+        doc = json.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise UsageError(f"{path}: no such file") from None
+    except json.JSONDecodeError as e:
+        raise UsageError(f"{path}: not valid JSON: {e}") from None
+    if "offsets_rad" in doc:
+        off = np.array(doc["offsets_rad"], float)
+    elif "offsets_deg" in doc:
+        off = np.radians([0.0 if v is None else v for v in doc["offsets_deg"]])
+    else:
+        raise UsageError(f"{path}: no offsets_deg: not a `cellcal zero --json` result")
+    if off.shape != (n_joints,):
+        raise UsageError(f"{path}: {off.size} offsets, the model has {n_joints} joints")
+    return off
+
+
+def _check_out(out: str, *inputs) -> Path:
+    path = Path(out)
+    for i in inputs:
+        if i and Path(i).exists() and path.exists() and path.resolve() == Path(i).resolve():
+            raise UsageError(f"--out {out} is an input file; write a new file instead")
+    if path.suffix not in (".yaml", ".yml", ".json"):
+        raise UsageError(f"--out {out}: give a .yaml (model) or .json (params) file")
+    return path
+
+
+def run(args) -> int:
+    if not (args.sigma > 0 and math.isfinite(args.sigma)):
+        raise UsageError("--sigma must be a positive number of mm")
+    if not (args.tolerance_deg > 0 and math.isfinite(args.tolerance_deg)):
+        raise UsageError("--tolerance-deg must be a positive number")
+    model = wrap_errors(lambda: load_model(args.model))
+    postures = wrap_errors(lambda: load_postures(args.postures, model))
+    out = None
+    if args.out:
+        out = _check_out(args.out, args.model, args.params, args.postures, args.replay)
+        if out.suffix == ".json" and not args.params:
+            raise UsageError("--out *.json updates a params file: give --params")
+    fk, base = _chain(model, args.params)
+    offsets0 = _replay_start(args.replay, model.n_joints) if args.replay else None
+    measured = None
+    if postures.xyz is not None:
+        measured = postures.xyz if base is None else (postures.xyz - base[1]) @ base[0]
+    results = {}
+    if args.method in ("seed", "both"):
+        results["seed"] = seed_method(fk, postures, offsets0=offsets0,
+                                      rng=np.random.default_rng(args.seed), sigma_mm=args.sigma)
+    if args.method in ("rigorous", "both"):
+        results["rigorous"] = rigorous_method(fk, postures, offsets0=offsets0,
+                                              measured_base=measured, sigma_mm=args.sigma,
+                                              reject_outliers=not args.keep_outliers)
+    main = results.get("rigorous", results.get("seed"))
+    doc = summary(main, model.name, postures.n, tolerance_deg=args.tolerance_deg,
+                  sigma_mm=args.sigma, measured=measured is not None and main.method != "seed")
+    if "seed" in results and main is not results["seed"]:
+        s = results["seed"]
+        sdoc = summary(s, model.name, postures.n, tolerance_deg=args.tolerance_deg,
+                       sigma_mm=args.sigma)
+        doc["seed"] = {k: sdoc[k] for k in ("offsets_deg", "tool_mm", "target_mm", "rms_mm",
+                                            "status", "reasons", "converged", "reason",
+                                            "iterations", "solve_s")}
+        both = main.determined & s.determined
+        diff = np.degrees(np.abs(main.offsets - s.offsets))[both]
+        doc["max_difference_deg"] = float(diff.max()) if diff.size else None
+    doc["pose_ids"] = postures.pose_id
+    doc["residuals_mm"] = [round(float(v), 6) for v in np.linalg.norm(main.residuals, axis=1)]
+    doc["out_file"] = None
+    if out is not None and doc["status"] == "ok":
+        _write_out(out, model, args.params, main)
+        doc["out_file"] = str(out)
+    if args.json:
+        print_json(doc)
+    else:
+        _print(doc, main, results, args, out)
+    return 0 if doc["status"] == "ok" else 3
+
+
+def _write_out(out: Path, model, params_path, result) -> None:
+    off = np.where(result.determined, result.offsets, 0.0)
+    if out.suffix == ".json":
+        doc = json.loads(Path(params_path).read_text())
+        rows = {r["name"]: r for r in doc["parameters"]}
+        for j, v in enumerate(off):
+            name = f"geometric.j{j + 1}.theta"
+            if name not in rows:
+                raise UsageError(f"{params_path}: no parameter {name} (no geometric effect); "
+                                 "write a model YAML instead")
+            rows[name]["value"] = rows[name]["value"] + math.degrees(v)
+        doc.setdefault("history", []).append(
+            {"zero_point": {"offsets_deg": [math.degrees(v) for v in off]}})
+        out.write_text(json.dumps(doc, indent=1) + "\n")
+        return
+    joints = [j.model_dump() for j in model.joints]
+    for j, v in enumerate(off):
+        joints[j]["theta_offset"] = joints[j]["theta_offset"] + math.degrees(v)
+    out.write_text(model.with_changes(joints=joints).to_yaml())
+
+
+def _print(doc, main, results, args, out) -> None:
+    print(f"postures  {args.postures}: {doc['n_poses']} postures; model {doc['model']}")
+    for name, r in results.items():
+        print(f"{name:9s} {r.reason}; rms {r.rms_mm:.4f} mm; {r.solve_s * 1000:.1f} ms")
+    if main.outliers:
+        print(f"outliers  {', '.join(main.outliers)} (left out)")
+    print()
+    rows = []
+    seed = results.get("seed")
+    for j in range(len(main.offsets)):
+        det = bool(main.determined[j])
+        rows.append([
+            f"j{j + 1}",
+            fmt(math.degrees(main.offsets[j]), 4) if det else "undetermined",
+            fmt(math.degrees(main.std[j]), 4) if det else "-",
+            fmt(math.degrees(seed.offsets[j]), 4) if seed is not None and det else "-",
+            "yes" if f"j{j + 1}" in doc["changed"] else "",
+        ])
+    print(table(rows, ["joint", "offset deg", "std deg", "seed deg", "changed"]))
+    print()
+    print(f"tool      {', '.join(f'{v:.3f}' for v in main.tool)} mm (flange frame)")
+    print(f"target    {', '.join(f'{v:.3f}' for v in main.target)} mm (base frame)")
+    for name, why in main.fixed.items():
+        print(f"note      {name}: {why}")
+    print(f"status    {doc['status']}" + (": " + "; ".join(doc["reasons"]) if doc["reasons"]
+                                           else ""))
+    if out is not None:
+        print(f"written   {out}" if doc["out_file"] else f"not written ({out}): status poor")
