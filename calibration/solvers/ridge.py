@@ -246,6 +246,10 @@ def solve_ridge(
             Ap = pen_rows[1] / d
             A = np.vstack([A, Ap])
             c = np.concatenate([c, pen_rows[0] - Ap @ u])
+        # everything below depends only on |A u + c|: work on the triangular factor of
+        # [A c] ((m+1) x (m+1)) instead of the 3n rows
+        Rf = np.linalg.qr(np.column_stack([A, c]), mode="r")
+        A, c = Rf[:, :m], Rf[:, m]
         # re-check identifiability on the weighted system: pivoted QR of A
         _, R, piv = scipy.linalg.qr(A, mode="economic", pivoting=True)
         rdiag = np.abs(np.diag(R))
