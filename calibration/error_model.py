@@ -137,14 +137,16 @@ class ErrorModel:
         return x
 
     def evaluate(
-        self, x: np.ndarray, bound: Bound, jacobian: bool = True
-    ) -> tuple[np.ndarray, np.ndarray | None]:
+        self, x: np.ndarray, bound: Bound, jacobian: bool = True, joints: bool = False
+    ):
         """Predicted target centres in the tracker frame, and their Jacobian.
 
         Returns
         -------
         P : (n, 3) mm
         J : (n, 3, n_params), d P / d x (internal units), or None
+        G : (n, 3, N), d P / d q_j in the tracker frame (only with ``joints=True``): the
+            column any joint correction acts through
         """
         x = np.asarray(x, float)
         data = bound.data
@@ -177,8 +179,10 @@ class ErrorModel:
             tool, part = eff[i].tool_point(x[sls[i]])
             tool_part = (i, part)
 
+        jacobian = jacobian or joints
         r = run_chain(self.model.convention, table, q, tool, scale, jacobian=jacobian)
         P = r.point
+        G = r.dP_dtable[:, :, :, 0] if joints else None
         if jacobian:
             dP = r.dP_dtable
             for i, j, part in joint_parts:
@@ -203,11 +207,17 @@ class ErrorModel:
             if jacobian:
                 J = np.matmul(R, J)
                 J[:, :, sls[i]] = Jb
+                if joints:
+                    G = np.matmul(R, G)
         for i in self._by_stage["measure"]:
             P, factor, Jm = eff[i].measure(x[sls[i]], P)
             if jacobian:
                 J = J * factor
                 J[:, :, sls[i]] = Jm
+                if joints:
+                    G = G * factor
+        if joints:
+            return P, J, G
         return P, J
 
     def penalty(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:

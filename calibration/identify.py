@@ -288,3 +288,11 @@ def identify(
         fit.valid_data, fit.valid_residuals, fit.valid = held, vres, error_stats(vres)
     fit.solve_s = time.perf_counter() - t0
     return fit
+
+
+def fit_at(error_model: ErrorModel, data: Dataset, x: np.ndarray, **kw) -> Fit:
+    """A :class:`Fit` for given parameters without solving (residuals, statistics,
+    identifiability and covariance at ``x``), e.g. for parameters read from params.json."""
+    fit = identify(error_model, data, x0=x, solver_options={"max_iter": 0}, **kw)
+    fit.converged, fit.reason, fit.iterations = True, "parameters given, not fitted", 0
+    return fit

@@ -15,7 +15,12 @@ import sys
 
 #: sub-command modules, in the order ``cellcal --help`` lists them
 COMMANDS = [
+    "daq.commands.capture",
+    "daq.commands.runs",
+    "daq.commands.resume",
+    "daq.commands.export",
     "daq.commands.calibrate",
+    "daq.commands.diagnose",
     "daq.commands.models",
     "daq.commands.sim",
     "daq.commands.simulate",

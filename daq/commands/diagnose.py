@@ -1,0 +1,84 @@
+"""``cellcal diagnose``: where the model fails, and which missing effect explains it."""
+
+from __future__ import annotations
+
+from calibration import DEFAULT_EFFECTS, ErrorModel, identify
+from calibration.diagnosis import Diagnosis, diagnose
+from calibration.identify import fit_at
+from calibration.params_io import load_params
+
+from .common import add_model_args, fmt, load_inputs, print_json, table, wrap_errors
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "diagnose",
+        help="rank the physical effects missing from the model",
+        description="Fit the current model (or read --params), then rank every candidate "
+        "effect not in it by how much of the remaining error it explains, with a "
+        "significance test against the noise and a held-out check; say which effect to add.",
+    )
+    add_model_args(p)
+    p.add_argument("--effects", default=DEFAULT_EFFECTS, metavar="LIST",
+                   help=f"the current model's effects (default {DEFAULT_EFFECTS})")
+    p.add_argument("--params", metavar="params.json",
+                   help="use these parameters (and their model) instead of fitting")
+    p.add_argument("--solver", default="lm")
+    p.add_argument("--top", type=int, default=12, help="rows of the ranking to print")
+    p.set_defaults(func=run)
+
+
+def current_fit(args, model, data):
+    if args.params:
+        em, x, _ = wrap_errors(lambda: load_params(args.params))
+        if em.model.n_joints != model.n_joints:
+            from ..cli import UsageError
+
+            raise UsageError(f"{args.params}: model has {em.model.n_joints} joints, "
+                             f"the data {model.n_joints}")
+        return fit_at(em, data, x)
+    em = wrap_errors(lambda: ErrorModel(model, args.effects))
+    return wrap_errors(lambda: identify(em, data, args.solver))
+
+
+def run(args) -> int:
+    model, data = load_inputs(args)
+    fit = current_fit(args, model, data)
+    diag = diagnose(fit, data)
+    if args.json:
+        print_json(diag.to_json())
+        return 0
+    print_diagnosis(diag, args.top)
+    return 0
+
+
+def print_diagnosis(diag: Diagnosis, top: int = 12) -> None:
+    fit = diag.fit
+    floor = diag.noise_floor_mm
+    print(f"model     {fit.error_model.model.name}, effects {','.join(fit.error_model.labels)}")
+    print(f"error     RMS {diag.rms_mm:.4f} mm over {fit.data.n} calibration poses"
+          + (f"; noise floor {floor:.4f} mm" if floor else "; noise floor unknown (--sigma)"))
+    print(f"screened  {diag.n_screened} candidate effects in {diag.screen_s:.2f} s; "
+          f"best refitted and checked on held-out poses in {diag.confirm_s:.2f} s")
+    print()
+    rows = []
+    for c in diag.candidates[:top]:
+        held = (f"{c.heldout_before_mm:.4f} -> {c.heldout_after_mm:.4f}"
+                if c.heldout_after_mm is not None else "")
+        rows.append([c.effect, c.n_params, f"{100 * c.explained_fraction:.1f}",
+                     fmt(c.refit_rms_mm or c.rms_after_mm, 4), f"{c.log10_p:.0f}",
+                     "yes" if c.significant else "no", held])
+    print(table(rows, ["candidate", "params", "explains %", "rms after", "log10 p",
+                       "significant", "held-out rms mm"]))
+    print()
+    print(diag.recommendation())
+    if diag.best is not None:
+        print(f"next:     --effects {diag.next_effects()}")
+    w = diag.where
+    print()
+    print("worst poses: " + ", ".join(f"{p} (line {line}) {e:.3f} mm" for p, line, e in w.worst))
+    strong = {k: v for k, v in w.correlations.items() if abs(v) >= 0.3}
+    if strong:
+        print("error correlates with: " + ", ".join(f"{k} ({v:+.2f})" for k, v in strong.items()))
+    for note in diag.notes + fit.notes:
+        print(f"note: {note}")
