@@ -18,7 +18,9 @@ def sim_csv(tmp_path_factory):
     em = ErrorModel(m)
     rng = np.random.default_rng(42)
     q = random_joints(m, 400, rng)
-    data = simulate(em, realistic_truth(em, rng), q, 0.015, rng,
+    x = realistic_truth(em, rng)
+    x[em.index("tool.x")] = x[em.index("tool.y")] = 0.0  # SMR on the flange axis: 25 free
+    data = simulate(em, x, q, 0.015, rng,
                     is_valid=np.arange(400) >= 250)
     path = tmp_path_factory.mktemp("cli") / "sim.csv"
     data.to_csv(path)
