@@ -409,3 +409,43 @@ def _software_version() -> str:
         return f"cellcal {version('cellcal')}"
     except Exception:  # noqa: BLE001 - not installed: still record something
         return "cellcal (unknown version)"
+
+
+def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std"):
+    """The run's samples as a :class:`calibration.Dataset` (for the measurement CSV).
+
+    ``sigma_mm`` per point: with ``sigma_mode="std"`` (default) the RMS over the axes of
+    the per-axis std the tracker reports for the measurement; with ``"mean"`` that
+    divided by sqrt(n) (the standard error of the average). The default is the
+    conservative one: a stationary tracker measurement's error is dominated by
+    effects that are correlated over its samples (interferometer, angle encoders,
+    air), which averaging does not reduce as 1/sqrt(n).
+
+    ``cmd``, ``temp_c`` and ``dirs`` are set only when every sample has them.
+    """
+    from calibration import Dataset
+
+    if sigma_mode not in ("std", "mean"):
+        raise ValueError(f"sigma_mode must be std or mean, got {sigma_mode!r}")
+    run = store.run(run_id)
+    s = store.samples(run_id)
+    if len(s["point_index"]) == 0:
+        raise StoreError(f"{store.path}: run {run_id} has no samples")
+    sigma = np.sqrt(np.mean(s["std"] ** 2, axis=1))
+    if sigma_mode == "mean":
+        sigma = sigma / np.sqrt(np.maximum(s["n"], 1))
+    ids = list(s["pose_id"])
+    if len(set(ids)) != len(ids):
+        ids = [f"{p}#{i}" for p, i in zip(ids, s["point_index"], strict=True)]
+    cmd = s["cmd"] if np.all(np.isfinite(s["cmd"])) else None
+    temp = s["temp_c"] if np.all(np.isfinite(s["temp_c"])) else None
+    meta = {"run": str(run.id), "routine": run.routine, "plan_hash": run.plan_hash,
+            "model": run.model or "", "robot": run.robot_url or "",
+            "tracker": run.tracker_url or "", "software": run.software or "",
+            "sigma_mm": ("tracker std, RMS over axes" if sigma_mode == "std"
+                         else "tracker std / sqrt(n), RMS over axes")}
+    return Dataset(
+        q=s["q"], xyz=s["xyz"], pose_id=ids, cmd=cmd, temp_c=temp, t_s=s["t"],
+        sigma_mm=sigma, dirs=s["dirs"], is_valid=np.array([v == "valid" for v in s["set"]]),
+        meta=meta, source=f"{store.path} run {run_id}",
+    )

@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration.zero_point import zero20_postures
-
 from ..plans import Plan, Target
 from ._common import floats
 
@@ -35,6 +33,8 @@ def make_plan(model, *, target_xyz=None, seed_deg=None, seed: int = 0) -> Plan:
     seed : int
         Seed of the IK's extra random starts.
     """
+    from calibration.zero_point import zero20_postures
+
     if model.n_joints < 6:
         raise ValueError(f"zero20: model {model.name} has {model.n_joints} joints; 20 distinct "
                          "postures on one point need an arm that orients its tool (6+ joints)")

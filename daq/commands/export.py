@@ -1,0 +1,58 @@
+"""``cellcal export [RUN]``: write a run's samples as a measurement CSV (FORMATS.md §1).
+
+Columns: ``pose_id``, ``q1..qN`` (deg, as read from the controller), ``x y z``
+(mm, tracker frame), ``cmd_x/y/z`` (the controller's nominal TCP, when the robot
+reported it for every point), ``temp_c``, ``t_s``, ``sigma_mm``, ``dir1..dirN``
+(approach direction of each joint from the previous commanded pose), ``set``
+(when some rows are validation rows). ``sigma_mm`` is the RMS over the axes
+of the tracker's reported per-axis std (``--sigma-mode std``, default) or
+that divided by sqrt(n) (``--sigma-mode mean``). The result is read directly
+by ``cellcal calibrate`` and ``cellcal diagnose``.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from ..cli import UsageError
+
+
+def register(sub) -> None:
+    p = sub.add_parser("export", help="write a run's samples as a measurement CSV",
+                       description=__doc__.splitlines()[0])
+    p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN",
+                   help="run id (default: the latest)")
+    p.add_argument("--db", required=True, metavar="cell.db")
+    p.add_argument("--out", required=True, metavar="data.csv", help="CSV to write ('-': stdout)")
+    p.add_argument("--sigma-mode", choices=("std", "mean"), default="std",
+                   help="sigma_mm from the tracker's std (default) or std/sqrt(n)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from ..store import RunStore, StoreError, dataset_from_run
+
+    if not Path(args.db).exists():
+        raise UsageError(f"{args.db}: no such run store")
+    try:
+        store = RunStore(args.db)
+    except StoreError as e:
+        raise UsageError(str(e)) from None
+    try:
+        try:
+            r = store.run(args.run_id)
+            data = dataset_from_run(store, r.id, sigma_mode=args.sigma_mode)
+        except StoreError as e:
+            raise UsageError(str(e)) from None
+        text = data.to_csv(None if args.out == "-" else args.out)
+        if args.out == "-":
+            sys.stdout.write(text)
+        else:
+            note = "" if r.status == "completed" else f" (run is {r.status})"
+            print(f"run {r.id}: {data.n}/{r.n_points} points written to {args.out}{note}",
+                  file=sys.stderr)
+        return 0
+    finally:
+        store.close()
