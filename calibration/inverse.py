@@ -144,7 +144,8 @@ def solve_ik(
     Parameters
     ----------
     fk : callable q (n, N) -> (P (n, 3), R (n, 3, 3), Jp (n, 3, N), Jw (n, 3, N))
-        e.g. a :class:`ChainFK`.
+        e.g. a :class:`ChainFK`; one with ``takes_rows = True`` is called as
+        ``fk(q, rows)`` with the indices of the targets evaluated (per-target data).
     q0 : array, shape (n, N) or (N,), starting joints, rad
     target_p : array, shape (n, 3) or (3,), target tool point, mm
     target_R : array, shape (n, 3, 3) or (3, 3), optional
@@ -171,8 +172,10 @@ def solve_ik(
         target_R = np.broadcast_to(np.asarray(target_R, float), (n, 3, 3))
     N = q.shape[1]
 
+    rows = getattr(fk, "takes_rows", False)
+
     def residual(idx, qq):
-        P, R, Jp, Jw = fk(qq)
+        P, R, Jp, Jw = fk(qq, idx) if rows else fk(qq)
         e = target_p[idx] - P
         if pose:
             er = rotation_error(R, target_R[idx])

@@ -1,0 +1,198 @@
+"""Compensation: joints that reach target points on the real robot, from a calibration.
+
+Targets are points of the tool (the calibrated tool point) in the **robot base frame**,
+mm. The calibrated chain is the error model without its base (tracker_T_base) and
+without measurement effects (tracker scale): those belong to the cell and the
+instrument, not to the robot.
+
+For each target, the nominal solution q_nom (given, or found by IK on the nominal
+model) fixes the configuration and the orientation. Compensation then solves, by
+batched damped Newton from q_nom, for the joints q_c that put the calibrated tool
+point on the target with the flange in the orientation the nominal model has at q_nom
+(a 6-axis arm: 6 equations, 6 unknowns); with ``keep_orientation=False`` (or fewer than
+6 joints) it is a minimum-norm correction from q_nom for the position alone.
+
+A controller that knows only its nominal model is then sent the *corrected Cartesian
+target*: the nominal forward kinematics of q_c (point of the nominal tool and flange
+orientation); its own IK gives back q_c.
+
+Lengths mm, angles rad.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .dataset import Dataset
+from .error_model import ErrorModel
+from .inverse import ChainFK, IKResult, solve_ik
+from .kinematics import cross, run_chain
+
+
+class CalibratedFK:
+    """Forward kinematics of the calibrated robot in its base frame, for :func:`solve_ik`.
+
+    Every effect at the joint, table, length and tool stages is applied (joint
+    corrections are evaluated at the commanded joints); base and measure stages are
+    left out. The joint Jacobian is that of the chain at the corrected joints (the
+    small derivative of pose-dependent joint corrections is neglected: Newton still
+    converges to the exact solution because the residual is exact).
+
+    Parameters
+    ----------
+    error_model, x : the calibration (internal units)
+    columns : extra per-pose data some effects need (``temp_c``, ``payload_kg``, ...),
+        arrays of shape (n,) for n targets
+    """
+
+    #: :func:`~calibration.inverse.solve_ik` passes the target rows it evaluates
+    takes_rows = True
+
+    def __init__(self, error_model: ErrorModel, x: np.ndarray, columns: dict | None = None):
+        self.em = error_model
+        self.x = np.asarray(x, float)
+        self.columns = columns or {}
+
+    def chain(self, q: np.ndarray, rows: np.ndarray | None = None):
+        """The :class:`~calibration.kinematics.ChainResult` of the calibrated robot."""
+        em, x = self.em, self.x
+        q = np.atleast_2d(np.asarray(q, float))
+        cols = {k: (v if rows is None else np.asarray(v)[rows]) for k, v in self.columns.items()}
+        qc = q.copy()
+        table = em.model.dh_table()
+        tool = em.model.tool_mm()
+        scale = None
+        stages = {e.stage for e in em.effects}
+        data = None
+        if stages & {"joint", "length"}:
+            data = Dataset(q=q, xyz=np.zeros((len(q), 3)), source="compensation", **cols)
+            bound = em.bind(data)
+        for k, (e, sl) in enumerate(zip(em.effects, em.slices, strict=True)):
+            if e.stage == "joint":
+                qc[:, e.joint - 1] += e.delta(x[sl], data, bound.states[k])[0]
+            elif e.stage == "table":
+                table = table + e.table_delta(x[sl])[0]
+            elif e.stage == "length":
+                scale = e.length_scale(x[sl], data, bound.states[k])[0]
+            elif e.stage == "tool":
+                tool = e.tool_point(x[sl])[0]
+        return run_chain(em.model.convention, table, qc, tool, scale, jacobian=False)
+
+    def __call__(self, q: np.ndarray, rows: np.ndarray | None = None):
+        r = self.chain(q, rows)
+        Jp = cross(r.joint_axes, r.point[:, None, :] - r.joint_origins).transpose(0, 2, 1)
+        return r.point, r.flange_R, Jp, r.joint_axes.transpose(0, 2, 1)
+
+    def point(self, q: np.ndarray) -> np.ndarray:
+        """Calibrated tool point (base frame) for commanded joints q (rad), (n, 3) mm."""
+        return self.chain(q).point
+
+
+@dataclass
+class Compensation:
+    """Result of :func:`compensate`, n targets, N joints.
+
+    Attributes
+    ----------
+    target : (n, 3) desired tool point, robot base frame, mm
+    q_nominal : (n, N) nominal solution, rad
+    q : (n, N) compensated joints (send these to reach the target), rad
+    cmd_point : (n, 3) corrected Cartesian target: nominal FK of ``q`` (nominal tool), mm
+    cmd_R : (n, 3, 3) flange orientation of that corrected target
+    residual_mm : (n,) calibrated model's distance from the target at ``q`` (solver
+        accuracy), mm
+    correction_mm : (n,) how far the corrected Cartesian target moved from the nominal, mm
+    success : (n,) bool, the calibrated tool point reaches the target
+    orientation_kept : (n,) bool, the nominal flange orientation is held as well
+    iterations : damped-Newton iterations (largest over the targets)
+    reason : solver summary
+    """
+
+    target: np.ndarray
+    q_nominal: np.ndarray
+    q: np.ndarray
+    cmd_point: np.ndarray
+    cmd_R: np.ndarray
+    residual_mm: np.ndarray
+    correction_mm: np.ndarray
+    success: np.ndarray
+    orientation_kept: np.ndarray
+    iterations: int
+    reason: str
+
+
+def nominal_solution(model, target: np.ndarray, q_start: np.ndarray, *,
+                     limits: np.ndarray | None = None) -> IKResult:
+    """Nominal joints for target points: minimum-norm position IK on the nominal model.
+
+    Parameters
+    ----------
+    model : the nominal RobotModel (its tool is the controller's TCP)
+    target : (n, 3) mm, base frame
+    q_start : (N,) or (n, N) starting joints (the configuration to stay in), rad
+    """
+    return solve_ik(ChainFK.from_model(model), q_start, target, None, limits=limits,
+                    max_iter=200)
+
+
+def compensate(
+    error_model: ErrorModel,
+    x: np.ndarray,
+    target: np.ndarray,
+    q_nominal: np.ndarray | None = None,
+    *,
+    q_start: np.ndarray | None = None,
+    keep_orientation: bool = True,
+    columns: dict | None = None,
+    max_iter: int = 50,
+) -> Compensation:
+    """Compensated joints and corrected Cartesian targets for target points.
+
+    Parameters
+    ----------
+    error_model, x : the calibration (e.g. from :func:`~calibration.params_io.load_params`)
+    target : (n, 3) desired tool points, robot base frame, mm
+    q_nominal : (n, N) nominal joints (rad), e.g. the joints the program uses today; when
+        None they are found by :func:`nominal_solution` from ``q_start``
+    q_start : (N,) starting configuration for the nominal IK (default all zeros), rad
+    keep_orientation : hold the nominal flange orientation (6 joints); else minimum-norm
+    columns : per-target data for effects that need it (``temp_c``...), arrays (n,)
+    """
+    model = error_model.model
+    target = np.atleast_2d(np.asarray(target, float))
+    n, N = len(target), model.n_joints
+    limits = model.limits_rad()
+    nominal = ChainFK.from_model(model)
+    if q_nominal is None:
+        start = np.zeros(N) if q_start is None else np.asarray(q_start, float)
+        q_nominal = nominal_solution(model, target, start, limits=limits).q
+    q_nominal = np.atleast_2d(np.asarray(q_nominal, float))
+    if q_nominal.shape != (n, N):
+        raise ValueError(f"q_nominal has shape {q_nominal.shape}, expected ({n}, {N})")
+    fk = CalibratedFK(error_model, x, columns)
+    R_nom = nominal(q_nominal)[1]
+
+    orient = keep_orientation and N >= 6
+    res = solve_ik(fk, q_nominal, target, R_nom if orient else None, limits=limits,
+                   max_iter=max_iter, success_mm=1e-6, success_rad=1e-7)
+    q = res.q
+    kept = res.success & orient
+    if orient and not res.success.all():
+        # near a singularity the orientation cannot be held exactly: fall back to the
+        # minimum-norm position correction from the nominal joints for those targets
+        bad = np.flatnonzero(~res.success)
+        sub = CalibratedFK(error_model, x, {k: np.asarray(v)[bad] for k, v in
+                                           (columns or {}).items()})
+        fb = solve_ik(sub, q_nominal[bad], target[bad], None, limits=limits,
+                      max_iter=max_iter, success_mm=1e-6)
+        q[bad] = fb.q
+        res.success[bad] = fb.success
+        res.reason += f"; {len(bad)} solved for position only (orientation not held)"
+    P_cmd, R_cmd, _, _ = nominal(q)
+    P_nom = nominal.point(q_nominal)
+    residual = np.linalg.norm(fk.chain(q).point - target, axis=1)
+    return Compensation(target, q_nominal, q, P_cmd, R_cmd, residual,
+                        np.linalg.norm(P_cmd - P_nom, axis=1), res.success, kept,
+                        res.iterations, res.reason)
