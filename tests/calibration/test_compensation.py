@@ -91,3 +91,42 @@ def test_nominal_solution_from_a_start(calibrated):
     target = ChainFK.from_model(m).point(q_nom)
     c = compensate(em, fit.values, target, q_start=np.radians([0, -60, 60, -60, -60, 0]))
     assert c.success.all()
+
+
+def test_cli_compensate_and_exports(calibrated, tmp_path, capsys):
+    import json
+
+    from calibration.params_io import save_params
+    from calibration.ur_conf import read_calibration_conf
+    from daq.cli import main
+
+    m, em, _, fit, rng = calibrated
+    params = tmp_path / "params.json"
+    save_params(fit, params)
+    q_nom = random_joints(m, 30, rng, max_abs_deg=150)
+    target = ChainFK.from_model(m).point(q_nom)
+    csv_in = tmp_path / "targets.csv"
+    lines = ["pose_id,x,y,z," + ",".join(f"q{j + 1}" for j in range(6))]
+    for i in range(30):
+        lines.append(",".join([f"t{i}"] + [repr(float(v)) for v in target[i]]
+                              + [repr(float(v)) for v in np.degrees(q_nom[i])]))
+    csv_in.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "compensated.csv"
+    rc = main(["compensate", str(csv_in), "--params", str(params), "--out", str(out), "--json",
+               "--export-model", str(tmp_path / "cal.yaml"),
+               "--export-ur", str(tmp_path / "calibration.conf")])
+    doc = json.loads(capsys.readouterr().out)
+    assert rc == 0 and doc["n_reached"] == 30 and doc["nominal_joints"] == "given"
+    assert 0.1 < doc["correction_mm"]["mean"] < 10
+    text = out.read_text().splitlines()
+    assert text[0].startswith("pose_id,x,y,z,q1") and len(text) == 31
+    direct = compensate(em, fit.values, target, q_nom)
+    q_csv = np.array([[float(v) for v in row.split(",")[4:10]] for row in text[1:]])
+    np.testing.assert_allclose(np.radians(q_csv), direct.q, atol=1e-6)
+    assert read_calibration_conf(tmp_path / "calibration.conf")["delta_d"].shape == (6,)
+    assert "cal.yaml" in doc["model_file"]
+    # bad input: exit 2 with file, line and column
+    csv_in.write_text("x,y,z\n1,2,abc\n")
+    assert main(["compensate", str(csv_in), "--params", str(params)]) == 2
+    assert "line 2, column z: not a number" in capsys.readouterr().err
+    assert main(["compensate", str(csv_in), "--params", str(params), "--out", str(params)]) == 2

@@ -1,0 +1,137 @@
+"""``cellcal compensate``: joints and corrected Cartesian targets that make the real robot
+reach target points, from a calibration (params.json); exports of the calibrated model."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+
+from calibration.compensation import compensate, load_targets
+from calibration.export import calibrated_model, write_model_yaml, write_ur_conf
+from calibration.params_io import load_params
+from calibration.transforms import matrix_to_rotvec
+
+from ..cli import UsageError
+from .common import fmt, print_json, wrap_errors
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "compensate",
+        help="compensate target points with a calibrated model",
+        description="For target points of the tool in the robot base frame (CSV: x, y, z "
+        "in mm required; optional pose_id, q1..qN nominal joints in deg, temp_c, "
+        "payload_kg) compute the joints that reach them on the real robot and the corrected "
+        "Cartesian targets (nominal FK of those joints) for a controller that only knows "
+        "its nominal model. Optionally export the calibrated model (YAML) or UR deltas.",
+    )
+    p.add_argument("targets", metavar="TARGETS.csv", nargs="?",
+                   help="target points (omit to only export)")
+    p.add_argument("--params", required=True, metavar="params.json", help="the calibration")
+    p.add_argument("--out", metavar="compensated.csv", help="write the compensated targets")
+    p.add_argument("--start", metavar="Q1,..,QN",
+                   help="start configuration (deg) for targets without nominal joints")
+    p.add_argument("--position-only", action="store_true",
+                   help="minimum-norm position correction; do not hold the nominal "
+                   "orientation")
+    p.add_argument("--export-model", metavar="FILE.yaml",
+                   help="write the calibrated kinematics as a model YAML")
+    p.add_argument("--export-ur", metavar="calibration.conf",
+                   help="write UR calibration.conf deltas (standard-DH models)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=run)
+
+
+def _parse_start(text, n):
+    try:
+        v = [float(s) for s in text.split(",")]
+    except ValueError:
+        raise UsageError(f"--start {text!r}: give {n} comma-separated angles in deg") from None
+    if len(v) != n or not all(math.isfinite(a) for a in v):
+        raise UsageError(f"--start needs {n} finite angles (deg), got {len(v)}")
+    return np.radians(v)
+
+
+def run(args) -> int:
+    em, x, _ = wrap_errors(lambda: load_params(args.params))
+    model = em.model
+    inputs = {Path(p).resolve() for p in (args.params, args.targets) if p}
+    for out in (args.out, args.export_model, args.export_ur):
+        if out and Path(out).resolve() in inputs:
+            raise UsageError(f"{out} is an input file; write a new file instead")
+    if not args.targets and not (args.export_model or args.export_ur):
+        raise UsageError("give TARGETS.csv, --export-model or --export-ur")
+    doc = {"params_file": args.params, "model": model.name, "notes": []}
+    if args.export_model:
+        m, notes = calibrated_model(em, x)
+        write_model_yaml(m, args.export_model, notes)
+        doc["model_file"] = args.export_model
+        doc["notes"] += notes
+    if args.export_ur:
+        try:
+            notes = write_ur_conf(em, x, args.export_ur)
+        except ValueError as e:
+            raise UsageError(str(e)) from None
+        doc["ur_conf_file"] = args.export_ur
+        doc["notes"] += [n for n in notes if n not in doc["notes"]]
+    rc = 0
+    if args.targets:
+        t = wrap_errors(lambda: load_targets(args.targets, model))
+        start = _parse_start(args.start, model.n_joints) if args.start else None
+        c = compensate(em, x, t.xyz, t.q, q_start=start, keep_orientation=not args.position_only,
+                       columns=t.columns)
+        text = _csv(t, c)
+        if args.out:
+            Path(args.out).write_text(text)
+        doc.update({
+            "n_targets": len(t.xyz),
+            "n_reached": int(c.success.sum()),
+            "n_orientation_kept": int(c.orientation_kept.sum()),
+            "nominal_joints": "given" if t.q is not None else "computed",
+            "correction_mm": {"mean": float(c.correction_mm.mean()),
+                              "max": float(c.correction_mm.max())},
+            "residual_mm_max": float(c.residual_mm.max()),
+            "iterations": c.iterations,
+            "reason": c.reason,
+            "out_file": args.out,
+        })
+        rc = 0 if c.success.all() else 1
+        if not args.json:
+            print(f"targets   {args.targets}: {len(t.xyz)}, reached {int(c.success.sum())}, "
+                  f"orientation held {int(c.orientation_kept.sum())}")
+            print(f"solver    {c.reason}; {c.iterations} iterations")
+            print(f"correction of the Cartesian targets: mean {fmt(c.correction_mm.mean())} mm, "
+                  f"max {fmt(c.correction_mm.max())} mm")
+            if args.out:
+                print(f"written   {args.out}")
+            else:
+                print(text, end="")
+    if args.json:
+        print_json(doc)
+    elif not args.targets:
+        for k in ("model_file", "ur_conf_file"):
+            if k in doc:
+                print(f"written   {doc[k]}")
+    return rc
+
+
+def _csv(t, c) -> str:
+    N = c.q.shape[1]
+    head = (["pose_id", "x", "y", "z"] + [f"q{j + 1}" for j in range(N)]
+            + ["cmd_x", "cmd_y", "cmd_z", "cmd_rx", "cmd_ry", "cmd_rz"]
+            + [f"nom_q{j + 1}" for j in range(N)] + ["correction_mm", "residual_mm", "ok"])
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(head)
+    qd, nd = np.degrees(c.q), np.degrees(c.q_nominal)
+    for i in range(len(c.q)):
+        rv = np.degrees(matrix_to_rotvec(c.cmd_R[i]))
+        row = ([t.pose_id[i]] + list(c.target[i]) + list(qd[i]) + list(c.cmd_point[i])
+               + list(rv) + list(nd[i]) + [c.correction_mm[i], c.residual_mm[i]])
+        w.writerow([r if isinstance(r, str) else repr(float(r)) for r in row]
+                   + [int(c.success[i])])
+    return buf.getvalue()
