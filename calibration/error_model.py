@@ -245,7 +245,7 @@ class ErrorModel:
         """Measured minus predicted target centres, (n, 3) mm."""
         return bound.data.xyz - self.evaluate(x, bound, jacobian=False)[0]
 
-    def numeric_jacobian(self, x: np.ndarray, bound: Bound, rel: float = 1e-4) -> np.ndarray:
+    def numeric_jacobian(self, x: np.ndarray, bound: Bound, rel: float = 1e-3) -> np.ndarray:
         """Central finite differences of :meth:`evaluate` (for tests), (n, 3, n_params)."""
         x = np.asarray(x, float)
         J = np.empty((bound.data.n, 3, self.n_params))
