@@ -1,0 +1,69 @@
+"""Helpers for the capture tests: a served simulated cell, drivers, a run in a store."""
+
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+
+import numpy as np
+
+from calibration import ErrorModel, load_model
+from daq.executor import Executor, ExecutorOptions
+from daq.routines import get
+from daq.store import RunStore
+from drivers.urls import open_robot, open_tracker
+from sim_drivers.model_truth import ModelTruth
+from sim_drivers.serve import ServeConfig, SimStack
+
+DATA = Path(__file__).parent / "data"
+TOY = str(DATA / "toyarm.yaml")
+ROOT = Path(__file__).resolve().parents[2]
+FREE_PORTS = {"modbus": 0, "line_robot": 0, "tracker": 0}
+
+
+def ur10e_controller_model():
+    """The nominal UR10e as the simulated controller knows it (SMR on a 60 mm holder)."""
+    return load_model("ur10e").with_changes(tool=(0.0, 0.0, 60.0))
+
+
+def base_only_truth(seed: int, hidden=None) -> ModelTruth:
+    """A UR10e whose only hidden error is its pose in the tracker frame (and the tool)."""
+    nominal = ur10e_controller_model()
+    em = ErrorModel(nominal, "base,tool")
+    rng = np.random.default_rng(seed)
+    from calibration.simulate import realistic_truth
+
+    x = realistic_truth(em, rng)
+    x[em.index("tool.x"):em.index("tool.x") + 3] = nominal.tool_mm()
+    return ModelTruth(nominal, em, x)
+
+
+@contextlib.contextmanager
+def served_cell(truth_factory, *, faults=None, seed=0):
+    """A SimStack on free loopback ports (no pty): yields the stack."""
+    cfg = ServeConfig(seed=seed, faults=faults, ports=dict(FREE_PORTS), pty=False)
+    with SimStack(cfg, truth_factory=truth_factory) as stack:
+        yield stack
+
+
+@contextlib.contextmanager
+def connected(robot_url: str, tracker_url: str):
+    robot, tracker = open_robot(robot_url), open_tracker(tracker_url)
+    try:
+        robot.connect(2.0)
+        tracker.connect(2.0)
+        yield robot, tracker
+    finally:
+        robot.close()
+        tracker.close()
+
+
+def run_plan(store: RunStore, plan, robot, tracker, model=None, options=None, run_id=None,
+             urls=("", ""), run_options=None) -> tuple[int, str]:
+    """Create (or continue) a run and execute it; returns (run id, status)."""
+    if run_id is None:
+        run_id = store.create_run(plan, robot_url=urls[0], tracker_url=urls[1],
+                                  options=run_options)
+    ex = Executor(store, run_id, plan, robot, tracker, options or ExecutorOptions(),
+                  model=model, finalize=getattr(get(plan.routine), "finalize", None))
+    return run_id, ex.run()

@@ -1,0 +1,166 @@
+"""End to end over real sockets: frame recovery, steps → export → calibrate, SIGKILL + resume."""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from daq.check import check_plan
+from daq.cli import main
+from daq.frame_fit import axis_angle_deg
+from daq.routines import make_plan
+from daq.store import RunStore, dataset_from_run
+from sim_drivers.inprocess import default_truth
+from sim_drivers.model_truth import model_truth_factory
+
+from .capture_helpers import (
+    ROOT,
+    TOY,
+    base_only_truth,
+    connected,
+    run_plan,
+    served_cell,
+    ur10e_controller_model,
+)
+
+
+def _frame_error(T_fit, T_true):
+    angles = [axis_angle_deg(T_fit[:3, k], T_true[:3, k]) for k in range(3)]
+    return max(angles), float(np.linalg.norm(T_fit[:3, 3] - T_true[:3, 3]))
+
+
+@pytest.mark.parametrize("truth", ["ur10e", "toy"])
+def test_frame_routine_recovers_the_measurement_frame(tmp_path, truth):
+    if truth == "ur10e":
+        factory, model = base_only_truth, ur10e_controller_model()
+        start = [20.0, -100.0, 100.0, -90.0, -90.0, 0.0]
+    else:
+        from calibration import load_model
+
+        factory, model, start = default_truth, load_model(TOY), [0.0, 20.0, -60.0]
+    length = 400.0 if truth == "ur10e" else 150.0
+    plan = make_plan("frame", model, start_deg=start, line_length_mm=length, circle_points=24,
+                     circle_span_deg=120.0, line_points=31)
+    assert check_plan(plan, model, floor_z_mm=None).ok
+    with served_cell(factory, seed=4) as stack, RunStore(tmp_path / "c.db") as store:
+        with connected(stack.urls[1], stack.urls[2]) as (robot, tracker):
+            run_id, status = run_plan(store, plan, robot, tracker)
+        assert status == "completed"
+        frame = store.run(run_id).frame
+        truth_T = (stack.cell.truth.tracker_T_base if truth == "ur10e"
+                   else np.block([[np.eye(3), -stack.cell.truth.tracker_offset[:, None]],
+                                  [np.zeros((1, 3)), np.ones((1, 1))]]))
+    ang, org = _frame_error(np.array(frame["tracker_T_base"]), truth_T)
+    print(f"\n{truth}: axis error {ang:.5f} deg, origin error {org:.4f} mm, "
+          f"circle rms {frame['circle']['rms_mm']:.4f}, line rms {frame['line']['rms_mm']:.4f}")
+    assert ang < 0.01
+    assert org < 0.05
+    assert frame["circle"]["rms_mm"] < 0.05 and frame["line"]["rms_mm"] < 0.05
+
+
+def test_steps_export_calibrates(tmp_path, capsys):
+    model = ur10e_controller_model()
+    plan = make_plan("steps", model, start_deg=[20.0, -100.0, 100.0, -90.0, -90.0, 0.0],
+                     step_mm=40.0, count=8)
+    with served_cell(model_truth_factory, seed=2) as stack, RunStore(tmp_path / "c.db") as st:
+        with connected(stack.urls[0], stack.urls[2]) as (robot, tracker):
+            run_id, status = run_plan(st, plan, robot, tracker)
+        assert status == "completed"
+        data = dataset_from_run(st, run_id)
+    assert data.cmd is not None and data.dirs is not None and data.sigma_mm is not None
+    # the controller's nominal TCP is where it was told to go (float32 registers, arrival noise)
+    assert np.allclose(data.cmd, [t.xyz for t in plan.targets], atol=0.05)
+    csv = tmp_path / "steps.csv"
+    assert main(["export", "--db", str(tmp_path / "c.db"), "--out", str(csv)]) == 0
+    capsys.readouterr()
+    rc = main(["calibrate", str(csv), "--model", "ur10e", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert rc == 0, out
+    assert out["calib"]["n"] == len(plan)
+    assert out["calib"]["rms_mm"] < 0.1
+
+
+def _read_lines(proc, n, timeout):
+    lines, buf = [], b""
+    deadline = time.monotonic() + timeout
+    fd = proc.stdout.fileno()
+    while len(lines) < n:
+        left = deadline - time.monotonic()
+        assert left > 0, f"only got {lines}"
+        if select.select([fd], [], [], left)[0]:
+            chunk = os.read(fd, 4096)
+            assert chunk, "cellcal sim serve exited early"
+            buf += chunk
+            *done, buf = buf.split(b"\n")
+            lines += [d.decode().strip() for d in done if d.strip()]
+    return lines
+
+
+def _count(db) -> int:
+    try:
+        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5)
+        try:
+            return int(con.execute("SELECT count(*) FROM samples").fetchone()[0])
+        finally:
+            con.close()
+    except sqlite3.OperationalError:
+        return 0
+
+
+@pytest.mark.slow
+def test_sigkill_three_times_then_resume(tmp_path):
+    db = tmp_path / "cell.db"
+    rng = np.random.default_rng(7)
+    cli = [sys.executable, "-m", "daq"]
+    serve = subprocess.Popen([*cli, "sim", "serve", "--no-pty", "--seed", "5"], cwd=ROOT,
+                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    try:
+        urls = _read_lines(serve, 3, timeout=30)
+        robot, tracker = urls[1], urls[2]
+        capture = [*cli, "capture", "poses", "--count", "150", "--seed", "2", "--model",
+                   "ur10e", "--tool-mm", "0,0,60", "--no-floor", "--robot", robot,
+                   "--tracker", tracker, "--db", str(db), "--json"]
+        resume = [*cli, "resume", "--db", str(db), "--json"]
+        kills = []
+        for k in range(3):
+            start = _count(db)
+            target = start + int(rng.integers(5, 35))
+            p = subprocess.Popen(capture if k == 0 else resume, cwd=ROOT,
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            deadline = time.monotonic() + 60
+            while _count(db) < target:
+                assert p.poll() is None, f"capture ended early (rc {p.returncode})"
+                assert time.monotonic() < deadline
+                time.sleep(0.001)
+            p.send_signal(signal.SIGKILL)
+            p.wait(timeout=10)
+            kills.append(_count(db))
+        out = subprocess.run(resume, cwd=ROOT, capture_output=True, timeout=120)
+        assert out.returncode == 0, out.stderr.decode()
+        summary = json.loads(out.stdout)
+    finally:
+        serve.send_signal(signal.SIGTERM)
+        try:
+            serve.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            serve.kill()
+            serve.wait()
+        serve.stdout.close()
+    assert summary["status"] == "completed" and summary["samples"] == 150
+    with RunStore(db) as store:
+        s = store.samples(1)
+        kinds = [k for _, _, k, _ in store.interruptions(1)]
+        assert store.run(1).status == "completed"
+    assert np.array_equal(s["point_index"], np.arange(150))  # no gaps, no duplicates
+    assert kinds.count("killed") == 3
+    assert kills == sorted(kills) and kills[-1] < 150
+    print(f"\nkilled after {kills} committed samples; final 150/150")
