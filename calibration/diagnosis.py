@@ -15,9 +15,9 @@ effect that is not in the model (every family on every joint where it makes sens
    instrument's noise is known and the residual is statistically at the noise floor
    (chi-square test), no candidate is significant.
 3. **Confirmation.** The most convincing candidates are added and the model refitted
-   (nonlinear), and judged on held-out poses (the validation rows, else k-fold
-   cross-validation): one that does not lower the held-out error only overfits and is
-   not recommended.
+   (nonlinear), and judged on held-out poses (the validation rows when there are at
+   least 100, else k-fold cross-validation): one that does not lower the held-out
+   error only overfits and is not recommended.
 
 "Where it fails" (:class:`WhereItFails`) gives per-pose errors and the worst poses, and
 the residual seen from each joint (the joint correction that would explain it) against
@@ -44,6 +44,8 @@ from .identify import Fit, error_stats, identify
 HARMONIC_ORDERS = range(1, 61)
 #: significance level after the multiple-comparison correction
 ALPHA = 0.01
+#: fewer validation rows than this: confirm by k-fold cross-validation instead
+MIN_HELDOUT = 100
 
 
 @dataclass
@@ -189,20 +191,22 @@ class Diagnosis:
 
 
 def describe_effect(c: Candidate) -> str:
-    j = f"joint {c.joint} " if c.joint else ""
+    """The effect in words: "Compliance of joint 3", "A 12-per-turn periodic error of joint 4"."""
     names = {
         "compliance": "compliance",
-        "harmonic": f"a {c.order}-per-turn periodic error" if c.order and c.order > 1
-        else "a once-per-turn periodic error",
+        "harmonic": (f"a {c.order}-per-turn periodic error" if c.order and c.order > 1
+                     else "a once-per-turn periodic error"),
         "table": "an irregular angle-dependent error (correction table)",
-        "scale": "angle scale (gear ratio) error",
+        "scale": "an angle scale (gear ratio) error",
         "backlash": "backlash",
         "coupling": "coupling to the previous joint",
         "thermal": "thermal growth",
         "tracker_scale": "a tracker scale error",
     }
-    what = names.get(c.family, c.family)
-    return (j + what)[0].upper() + (j + what)[1:]
+    what = names.get(c.family, f"effect {c.effect}")
+    if c.joint:
+        what = f"{what} of joint {c.joint}"
+    return what[0].upper() + what[1:]
 
 
 # ---- candidates -------------------------------------------------------------------
@@ -372,7 +376,10 @@ def diagnose(
         else:
             c.significant = False
             c.note = "does not lower the held-out error: it only fits noise"
-    cands.sort(key=lambda c: (not c.significant, -c.score))
+    # confirmed candidates first, ordered by their held-out error (the figure to trust);
+    # then the other significant ones by BIC gain, then the rest
+    cands.sort(key=lambda c: (not c.significant, not c.confirmed,
+                              c.heldout_after_mm if c.confirmed else -c.score))
     confirm_s = time.perf_counter() - t1
 
     where = where_it_fails(fit, calib, G, r.reshape(n, 3), periodogram)
@@ -403,7 +410,7 @@ def _confirm(c: Candidate, fit: Fit, data: Dataset, folds: int, seed: int) -> No
             e.smoothing = 1.0  # screening only: the final fit chooses it by cross-validation
     refit = identify(ext, data, fit.solver)
     c.refit_rms_mm = refit.calib["rms_mm"]
-    if fit.valid is not None and refit.valid is not None:
+    if fit.valid is not None and refit.valid is not None and fit.valid["n"] >= MIN_HELDOUT:
         c.heldout_before_mm = fit.valid["rms_mm"]
         c.heldout_after_mm = refit.valid["rms_mm"]
     else:
