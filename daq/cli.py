@@ -25,6 +25,7 @@ COMMANDS = [
     "daq.commands.sim",
     "daq.commands.simulate",
     "daq.commands.zero",
+    "daq.commands.report",
     "daq.commands.compensate",
 ]
 
