@@ -294,7 +294,7 @@ def _body(page: _Page, diag: Diagnosis, stages: list[Stage], title: str) -> str:
             "(model's mass model). A straight sloped line is joint compliance (deflection "
             "proportional to load): the slope is the missing stiffness term."
             + (f" Joint(s) {', '.join(str(j + 1) for j in no_torque)} carry no gravity "
-               "torque (vertical axis) and are not shown." if no_torque else "")
+               "torque in the mass model and are not shown." if no_torque else "")
             + torque_txt))
     parts.append(page.figure(
         "fig-time", _fig_time(diag), "Error over the capture",
@@ -311,7 +311,7 @@ def _body(page: _Page, diag: Diagnosis, stages: list[Stage], title: str) -> str:
             "explain, K = 1…60 (gear and bearing errors repeat a whole number of times per "
             "turn). The dashed line is the significance threshold (F-test, corrected for "
             "every candidate screened): a bar above it is a real periodic error, bars below "
-            "are noise."))
+            "are noise. Each panel has its own scale."))
     parts.append(_candidates_table(diag))
     parts.append(_params_table(stages[-1], diag))
     notes = diag.notes + [n for s in stages for n in s.fit.notes]
@@ -517,7 +517,8 @@ def _nice(v: float) -> float:
     return 10.0**e
 
 
-def _grid(n: int, cols: int = 3):
+def _grid(n: int):
+    cols = n if n <= 4 else 3
     rows = math.ceil(n / cols)
     fig = Figure(figsize=(11, 2.7 * rows + 0.4), layout="constrained")
     axes = fig.subplots(rows, cols, squeeze=False).ravel()
@@ -712,7 +713,7 @@ def _fig_torque(diag: Diagnosis, overlay) -> Figure:
         ax.plot(bx, by, color="black", lw=1.4)
         ys = [y]
         title = f"joint {j + 1}"
-        if overlay is not None and overlay[0] == j:
+        if overlay is not None and overlay[0] == j and diag.best.family == "compliance":
             yc = overlay[1][idx] * 1e6
             ax.scatter(x, yc, s=s * 0.7, color=_CANDIDATE_COLOUR, alpha=0.8, linewidths=0)
             ys.append(yc)
@@ -773,15 +774,14 @@ def _fig_periodogram(diag: Diagnosis) -> Figure:
     joints = sorted(per)
     fig, axes = _grid(len(joints))
     thr = _harmonic_threshold(diag)
-    top = max(float(np.max(per[j][1])) for j in joints) * 100
-    top = max(top, (thr or 0) * 100) * 1.18 or 1.0
     best = diag.best
     for ax, j in zip(axes, joints, strict=False):
         orders, frac = per[j]
         ax.vlines(orders, 0, frac * 100, color=_STAGE_COLOURS[1], lw=1.6)
         k = int(np.argmax(frac))
-        ax.annotate(f"K={orders[k]}", (orders[k], frac[k] * 100), xytext=(0, 3),
-                    textcoords="offset points", ha="center", fontsize=7.5)
+        ax.annotate(f"K={orders[k]}", (orders[k], frac[k] * 100), xytext=(3, 3),
+                    textcoords="offset points", ha="left" if orders[k] < 8 else "center",
+                    fontsize=7.5)
         if best is not None and best.family == "harmonic" and best.joint == j:
             kk = int(np.flatnonzero(orders == best.order)[0])
             ax.vlines([orders[kk]], 0, frac[kk] * 100, color=_CANDIDATE_COLOUR, lw=2.4)
@@ -791,7 +791,8 @@ def _fig_periodogram(diag: Diagnosis) -> Figure:
             if j == joints[0]:
                 ax.legend(loc="upper right", frameon=False)
         ax.set_xlim(0, max(orders) + 1)
-        ax.set_ylim(0, top)
+        top = max(float(np.max(frac)), thr or 0.0) * 100 * 1.22
+        ax.set_ylim(0, top if top > 0 else 1.0)
         ax.set_title(f"joint {j}")
         ax.set_xlabel("harmonic order K (cycles per turn)")
         ax.set_ylabel("explains, %")
