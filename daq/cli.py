@@ -15,6 +15,7 @@ import sys
 
 #: sub-command modules, in the order ``cellcal --help`` lists them
 COMMANDS = [
+    "daq.commands.demo",
     "daq.commands.capture",
     "daq.commands.runs",
     "daq.commands.resume",

@@ -54,7 +54,11 @@ class ModelTruth:
         nominal = nominal.with_changes(tool=tuple(float(v) for v in tool_mm))
         spec = DEFAULT_EFFECTS + ("," + hidden if hidden else "")
         em = ErrorModel(nominal, spec)
-        x = realistic_truth(em, np.random.default_rng(seed))
+        # the tracker stands 1.2-2.2 m beyond the robot's reach (it cannot measure closer
+        # than ~0.8 m, and a cell keeps it out of the robot's way)
+        reach = sum(abs(j.a) + abs(j.d) for j in nominal.joints) + float(np.abs(tool_mm).sum())
+        x = realistic_truth(em, np.random.default_rng(seed),
+                            base_distance_mm=(reach + 1200.0, reach + 2200.0))
         return cls(nominal, em, x)
 
     # ---- TrueRobot -------------------------------------------------------------

@@ -1,0 +1,42 @@
+"""``cellcal demo``: the whole cell on the simulator, from capture to a more accurate robot."""
+
+from __future__ import annotations
+
+from ..cli import UsageError
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "demo",
+        help="run the whole workflow on the simulated cell (no robot needed)",
+        description="Start a simulated UR10e with hidden errors and one hidden physical effect "
+        "behind real wire protocols, capture through the real drivers, calibrate, diagnose, "
+        "add the missing effect, calibrate again and write an HTML report.",
+    )
+    p.add_argument("--seed", type=int, default=1, help="chooses the cell and its hidden effect")
+    p.add_argument("--hidden", default=None, metavar="EFFECT",
+                   help="the hidden physical effect (default: chosen by the seed)")
+    p.add_argument("--out", default="cellcal-demo", metavar="DIR",
+                   help="where the run store, CSV, params.json and report.html go")
+    p.add_argument("--poses", type=int, default=300, help="calibration poses (default 300)")
+    p.add_argument("--valid", type=int, default=150, help="validation poses (default 150)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from calibration.effects import EffectError, parse_effect
+    from calibration.robot_model import load_model
+
+    if args.poses < 50 or args.valid < 20:
+        raise UsageError("--poses must be >= 50 and --valid >= 20")
+    if args.hidden:
+        try:
+            parse_effect(args.hidden, load_model("ur10e"))
+        except EffectError as e:
+            raise UsageError(str(e)) from None
+    from ..demo import run_demo
+
+    result = run_demo(args.out, seed=args.seed, hidden=args.hidden, poses=args.poses,
+                      valid=args.valid, progress=not args.quiet)
+    return 0 if result.found == result.hidden else 1
