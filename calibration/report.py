@@ -474,7 +474,7 @@ def _subsample(n: int, limit: int = MAX_POINTS) -> np.ndarray:
 
 
 def _marker_size(n: int) -> float:
-    return float(np.clip(900.0 / max(n, 1), 2.0, 12.0))
+    return float(np.clip(1800.0 / max(n, 1), 2.5, 9.0))
 
 
 def _binned_median(x: np.ndarray, y: np.ndarray, bins: int = 16):
