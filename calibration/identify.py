@@ -296,3 +296,15 @@ def fit_at(error_model: ErrorModel, data: Dataset, x: np.ndarray, **kw) -> Fit:
     fit = identify(error_model, data, x0=x, solver_options={"max_iter": 0}, **kw)
     fit.converged, fit.reason, fit.iterations = True, "parameters given, not fitted", 0
     return fit
+
+
+#: the "uncalibrated" reference: nominal kinematics, with only the base (where the robot
+#: stands) and the tool (where the SMR sits) fitted, since neither is a property of the arm
+UNCALIBRATED_EFFECTS = "base,tool"
+UNCALIBRATED_LABEL = "uncalibrated (best-fit base and tool)"
+
+
+def fit_uncalibrated(model, data: Dataset, **kw) -> Fit:
+    """The nominal robot's accuracy: only the base and tool fitted (see
+    :data:`UNCALIBRATED_EFFECTS`)."""
+    return identify(ErrorModel(model, UNCALIBRATED_EFFECTS), data, **kw)

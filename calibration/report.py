@@ -33,7 +33,7 @@ from .dataset import Dataset
 from .diagnosis import Diagnosis, describe_effect, diagnose
 from .effects import DEFAULT_EFFECTS, JointEffect
 from .error_model import ErrorModel
-from .identify import Fit, error_stats, fit_at, identify
+from .identify import Fit, error_stats, fit_at, fit_uncalibrated, identify
 from .params_io import load_params
 from .robot_model import RobotModel
 
@@ -148,7 +148,7 @@ def build_report(
         em = ErrorModel(model, effects)
         current = identify(em, data, solver)
         current_label = "current model"
-    uncalibrated = identify(ErrorModel(model, "base"), data, solver)
+    uncalibrated = fit_uncalibrated(model, data, solver=solver)
     t1 = time.perf_counter()
     diag = diagnose(current, data)
     t2 = time.perf_counter()
@@ -179,8 +179,9 @@ def render_report(
     ----------
     diagnosis : the diagnosis of the current model (its ``fit`` is the current model)
     stages : the story, in order, as :class:`Stage` or (label, fit): typically the
-        uncalibrated fit (``ErrorModel(model, "base")``), the current model and the current
-        model plus the recommended effect. The last stage's parameters are tabulated.
+        uncalibrated fit (:func:`~calibration.identify.fit_uncalibrated`), the current model
+        and the current model plus the recommended effect. The last stage's parameters are
+        tabulated.
     title : the page's heading
     dpi : resolution of the plots
     """

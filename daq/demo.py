@@ -18,6 +18,7 @@ from pathlib import Path
 
 from calibration import ErrorModel, identify, load_csv
 from calibration.diagnosis import diagnose
+from calibration.identify import UNCALIBRATED_LABEL, fit_uncalibrated
 from calibration.params_io import save_params
 from calibration.report import render_report
 from drivers.urls import open_robot, open_tracker
@@ -125,14 +126,14 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     data = load_csv(csv_path, model)  # through the interchange format, as a user would
     floor = data.noise_floor_mm()
     result.noise_floor_mm = floor
-    base_fit = identify(ErrorModel(model, "base"), data)
+    base_fit = fit_uncalibrated(model, data)
     fit = identify(ErrorModel(model), data)
     say(f"[4/7] calibrated {','.join(fit.error_model.labels)}: validation RMS "
         f"{fit.valid['rms_mm']:.4f} mm (uncalibrated {base_fit.valid['rms_mm']:.3f} mm, "
         f"noise floor {floor:.4f} mm)")
     diag = diagnose(fit, data)
     say(f"[5/7] diagnosis ({diag.n_screened} candidates): {diag.recommendation()}")
-    stages = [("uncalibrated (best-fit base)", base_fit), (",".join(fit.error_model.labels), fit)]
+    stages = [(UNCALIBRATED_LABEL, base_fit), (",".join(fit.error_model.labels), fit)]
     final = fit
     if diag.best is not None:
         result.found = diag.best.effect

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 from calibration import DEFAULT_EFFECTS, ErrorModel, identify, load_csv
+from calibration.identify import UNCALIBRATED_LABEL, fit_uncalibrated
 from calibration.params_io import fit_to_dict, load_params, solver_summary
 from calibration.solvers import SOLVERS, plot_ridge
 from calibration.uncertainty import correlations, monte_carlo
@@ -53,7 +54,7 @@ def calibrate(args):
         for k, name in enumerate(em_p.names):
             if name in em.names:
                 x0[em.index(name)] = x_p[k]
-    baseline = identify(ErrorModel(model, "base"), data, valid=valid)
+    baseline = fit_uncalibrated(model, data, valid=valid)
     opts = {}
     if getattr(args, "seed", None) is not None and args.solver in ("besa", "sa", "besa+lm"):
         opts["seed"] = args.seed
@@ -124,7 +125,7 @@ def print_report(fit, baseline, out_path=None, mc=None, ridge_plot=None) -> None
         print(f"note      {note}")
     print()
     rows = []
-    for label, f in (("uncalibrated (best-fit base)", baseline), ("calibrated", fit)):
+    for label, f in ((UNCALIBRATED_LABEL, baseline), ("calibrated", fit)):
         for part in ("calib", "valid"):
             s = getattr(f, part)
             if s:

@@ -88,7 +88,7 @@ def test_before_after_numbers_match_independent_fits(compliance_report, model):
     data, rep = compliance_report
     rows = _stats_rows(rep.html)
     expected = {
-        "uncalibrated": identify(ErrorModel(model, "base"), data),
+        "uncalibrated": identify(ErrorModel(model, "base,tool"), data),
         "current model": identify(ErrorModel(model, DEFAULT_EFFECTS), data),
         "current model + compliance:3": identify(
             ErrorModel(model, DEFAULT_EFFECTS + ",compliance:3"), data),
