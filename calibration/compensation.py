@@ -220,61 +220,14 @@ def load_targets(path, model) -> Targets:
     """Read a targets CSV: ``x, y, z`` (mm, robot base frame) required; optional
     ``pose_id``, ``q1..qN`` (deg, nominal/seed joints, all or none), ``temp_c``,
     ``payload_kg``. Strict like the measurement CSV: errors name file, line and column."""
-    from pathlib import Path
+    from .dataset import CsvTable
 
-    from .dataset import DataError, _float, _read_rows
-
-    path = Path(path)
-    source = str(path)
-    _, header, header_line, rows = _read_rows(path, source)
+    t = CsvTable(path)
     N = model.n_joints
-    dupes = {h for h in header if header.count(h) > 1}
-    if dupes:
-        raise DataError(f"{source}: line {header_line}: duplicated column(s) {sorted(dupes)}")
-    missing = [c for c in "xyz" if c not in header]
-    if missing:
-        raise DataError(f"{source}: line {header_line}: missing required column(s) "
-                        f"{', '.join(missing)}")
-    qcols = [f"q{j + 1}" for j in range(N)]
-    present = [c for c in qcols if c in header]
-    if present and len(present) != N:
-        raise DataError(f"{source}: line {header_line}: joint columns need all of q1..q{N}; "
-                        f"missing {', '.join(c for c in qcols if c not in header)}")
-    if not rows:
-        raise DataError(f"{source}: no data rows")
-    col = {h: i for i, h in enumerate(header)}
-    for line_no, f in rows:
-        if len(f) != len(header):
-            raise DataError(f"{source}: line {line_no}: {len(f)} fields, the header has "
-                            f"{len(header)}")
-
-    def numeric(name):
-        out = np.empty(len(rows))
-        for r, (line_no, f) in enumerate(rows):
-            if f[col[name]] == "":
-                raise DataError(f"{source}: line {line_no}, column {name}: empty value")
-            out[r] = _float(source, line_no, name, f[col[name]])
-        return out
-
-    xyz = np.column_stack([numeric(c) for c in "xyz"])
-    q = None
-    if present:
-        q = np.column_stack([numeric(c) for c in qcols])
-        lim = np.array([[j.min, j.max] for j in model.joints])
-        bad = (q < lim[:, 0] - 1e-9) | (q > lim[:, 1] + 1e-9)
-        if bad.any():
-            r, j = map(int, np.argwhere(bad)[0])
-            raise DataError(f"{source}: line {rows[r][0]}, column q{j + 1}: {q[r, j]:g} deg is "
-                            f"outside the model's limits [{lim[j, 0]:g}, {lim[j, 1]:g}]")
-        q = np.radians(q)
-    pose_id = [str(i + 1) for i in range(len(rows))]
-    if "pose_id" in col:
-        pose_id = [f[col["pose_id"]] for _, f in rows]
-        seen = {}
-        for (line_no, _), pid in zip(rows, pose_id, strict=True):
-            if pid in seen:
-                raise DataError(f"{source}: line {line_no}, column pose_id: {pid!r} already "
-                                f"used on line {seen[pid]}")
-            seen[pid] = line_no
-    columns = {c: numeric(c) for c in ("temp_c", "payload_kg") if c in col}
+    t.require(["x", "y", "z"])
+    has_q = t.all_or_none([f"q{j + 1}" for j in range(N)], "joint columns")
+    xyz = np.column_stack([t.numeric(c) for c in "xyz"])
+    q = np.radians(t.joints_deg(model)) if has_q else None
+    pose_id = t.ids("pose_id")
+    columns = {c: t.numeric(c) for c in ("temp_c", "payload_kg") if c in t}
     return Targets(xyz, q, pose_id, columns)

@@ -187,7 +187,7 @@ _OPTIONAL_FLOAT = ("temp_c", "t_s", "payload_kg", "sigma_mm")
 
 
 def _read_rows(path: Path, source: str):
-    """Yield (line_no, row) for data rows; collect metadata and the header."""
+    """Metadata, header, its line number and the data rows as (line_no, fields)."""
     try:
         text = path.read_text()
     except FileNotFoundError:
@@ -231,6 +231,111 @@ def _float(source, line_no, col, text) -> float:
     return v
 
 
+class CsvTable:
+    """A CSV file read strictly, for every table format of FORMATS.md §1.
+
+    Reading refuses a file with no header, duplicated columns or a row whose field
+    count differs from the header's; :meth:`require` refuses missing columns and a
+    file without data rows; the accessors refuse
+    empty or non-numeric values, NaNs, duplicated ids and joints outside the limits.
+    Every message names the file, the line and the column.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.source = str(self.path)
+        self.meta, self.header, self.header_line, rows = _read_rows(self.path, self.source)
+        dupes = {h for h in self.header if self.header.count(h) > 1}
+        if dupes:
+            raise self.error(f"duplicated column(s) {sorted(dupes)}")
+        for line_no, f in rows:
+            if len(f) != len(self.header):
+                raise DataError(f"{self.source}: line {line_no}: {len(f)} fields, the header "
+                                f"has {len(self.header)}")
+        self.rows = rows
+        self.col = {h: i for i, h in enumerate(self.header)}
+        self.lines = np.array([ln for ln, _ in rows])
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.col
+
+    def error(self, message: str) -> DataError:
+        """An error about the header line."""
+        return DataError(f"{self.source}: line {self.header_line}: {message}")
+
+    def require(self, names: list[str], hint: str = "") -> None:
+        """Refuse a file without these columns, or (then) without data rows."""
+        missing = [c for c in names if c not in self.col]
+        if missing:
+            raise self.error(f"missing required column(s) {', '.join(missing)}"
+                             + (f" ({hint})" if hint else ""))
+        if not self.rows:
+            raise DataError(f"{self.source}: no data rows")
+
+    def all_or_none(self, names: list[str], what: str) -> bool:
+        """True when all of ``names`` are present, False when none is; refuses a part."""
+        present = [c for c in names if c in self.col]
+        if present and len(present) != len(names):
+            missing = [c for c in names if c not in self.col]
+            raise self.error(f"{what} need all of {names[0]}..{names[-1]}; missing "
+                             f"{', '.join(missing)}")
+        return bool(present)
+
+    def text(self, name: str) -> list[str]:
+        k = self.col[name]
+        return [f[k] for _, f in self.rows]
+
+    def numeric(self, name: str) -> np.ndarray:
+        k = self.col[name]
+        out = np.empty(len(self.rows))
+        for r, (line_no, f) in enumerate(self.rows):
+            if f[k] == "":
+                raise DataError(f"{self.source}: line {line_no}, column {name}: empty value")
+            out[r] = _float(self.source, line_no, name, f[k])
+        return out
+
+    def ids(self, name: str = "pose_id") -> list[str]:
+        """Unique, non-empty labels from a column (``1..n`` when the column is absent)."""
+        if name not in self.col:
+            return [str(i + 1) for i in range(len(self.rows))]
+        seen: dict[str, int] = {}
+        out = []
+        for line_no, f in self.rows:
+            pid = f[self.col[name]]
+            if pid == "":
+                raise DataError(f"{self.source}: line {line_no}, column {name}: empty value")
+            if pid in seen:
+                raise DataError(f"{self.source}: line {line_no}, column {name}: {pid!r} already "
+                                f"used on line {seen[pid]}")
+            seen[pid] = line_no
+            out.append(pid)
+        return out
+
+    def joints_deg(self, model: RobotModel | int, check_limits: bool = True) -> np.ndarray:
+        """``q1..qN`` (deg), shape (n, N); refuses extra joint columns and, with a model,
+        values outside its limits."""
+        N = model if isinstance(model, int) else model.n_joints
+        extra = [h for h in self.header if h.startswith("q") and h[1:].isdigit()
+                 and int(h[1:]) > N]
+        if extra:
+            raise self.error(f"column(s) {', '.join(extra)} but the model has {N} joints")
+        q = np.column_stack([self.numeric(f"q{j + 1}") for j in range(N)])
+        if not isinstance(model, int) and check_limits:
+            lim = np.array([[j.min, j.max] for j in model.joints])
+            bad = (q < lim[:, 0] - 1e-9) | (q > lim[:, 1] + 1e-9)
+            if bad.any():
+                r, j = map(int, np.argwhere(bad)[0])
+                raise DataError(
+                    f"{self.source}: line {self.lines[r]}, column q{j + 1}: {q[r, j]:g} deg is "
+                    f"outside the model's limits [{lim[j, 0]:g}, {lim[j, 1]:g}] of joint {j + 1} "
+                    f"({int(bad.any(axis=1).sum())} row(s) affected)"
+                )
+        return q
+
+
 def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = True) -> Dataset:
     """Read a measurement CSV (FORMATS.md §1).
 
@@ -240,117 +345,45 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
     model : the robot model (its joint count and limits are checked), or a joint count
     check_limits : refuse joints outside the model's limits (only with a model)
     """
-    path = Path(path)
-    source = str(path)
-    meta, header, header_line, rows = _read_rows(path, source)
+    t = CsvTable(path)
+    source = t.source
     N = model if isinstance(model, int) else model.n_joints
-    dupes = {h for h in header if header.count(h) > 1}
-    if dupes:
-        raise DataError(f"{source}: line {header_line}: duplicated column(s) {sorted(dupes)}")
-    required = [f"q{j + 1}" for j in range(N)] + ["x", "y", "z"]
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise DataError(
-            f"{source}: line {header_line}: missing required column(s) {', '.join(missing)} "
-            f"(the model has {N} joints: q1..q{N}, and x, y, z are required)"
-        )
-    extra_q = [h for h in header if h.startswith("q") and h[1:].isdigit() and int(h[1:]) > N]
-    if extra_q:
-        raise DataError(
-            f"{source}: line {header_line}: column(s) {', '.join(extra_q)} but the model has "
-            f"{N} joints"
-        )
-    col = {h: i for i, h in enumerate(header)}
-    n = len(rows)
-    if n == 0:
-        raise DataError(f"{source}: no data rows")
-
-    def numeric(name: str) -> np.ndarray:
-        k = col[name]
-        out = np.empty(n)
-        for r, (line_no, f) in enumerate(rows):
-            if k >= len(f) or f[k] == "":
-                raise DataError(f"{source}: line {line_no}, column {name}: empty value")
-            out[r] = _float(source, line_no, name, f[k])
-        return out
-
-    for line_no, f in rows:
-        if len(f) != len(header):
-            raise DataError(
-                f"{source}: line {line_no}: {len(f)} fields, the header has {len(header)}"
-            )
-    q = np.column_stack([numeric(f"q{j + 1}") for j in range(N)])
-    xyz = np.column_stack([numeric(c) for c in "xyz"])
-    lines = np.array([ln for ln, _ in rows])
-
-    if not isinstance(model, int) and check_limits:
-        lim = np.array([[j.min, j.max] for j in model.joints])
-        bad = (q < lim[:, 0] - 1e-9) | (q > lim[:, 1] + 1e-9)
-        if bad.any():
-            r, j = map(int, np.argwhere(bad)[0])
-            raise DataError(
-                f"{source}: line {lines[r]}, column q{j + 1}: {q[r, j]:g} deg is outside the "
-                f"model's limits [{lim[j, 0]:g}, {lim[j, 1]:g}] of joint {j + 1} "
-                f"({int(bad.any(axis=1).sum())} row(s) affected)"
-            )
-
-    pose_id = [str(i + 1) for i in range(n)]
-    if "pose_id" in col:
-        k = col["pose_id"]
-        seen: dict[str, int] = {}
-        pose_id = []
-        for line_no, f in rows:
-            pid = f[k]
-            if pid == "":
-                raise DataError(f"{source}: line {line_no}, column pose_id: empty value")
-            if pid in seen:
-                raise DataError(
-                    f"{source}: line {line_no}, column pose_id: {pid!r} already used on line "
-                    f"{seen[pid]}"
-                )
-            seen[pid] = line_no
-            pose_id.append(pid)
-
-    cmd = None
-    present = [c for c in ("cmd_x", "cmd_y", "cmd_z") if c in col]
-    if present and len(present) != 3:
-        raise DataError(f"{source}: line {header_line}: cmd_x, cmd_y, cmd_z must come together")
-    if present:
-        cmd = np.column_stack([numeric(c) for c in ("cmd_x", "cmd_y", "cmd_z")])
-    opt = {name: numeric(name) if name in col else None for name in _OPTIONAL_FLOAT}
+    t.require([f"q{j + 1}" for j in range(N)] + ["x", "y", "z"],
+              f"the model has {N} joints: q1..q{N}, and x, y, z are required")
+    q = t.joints_deg(model, check_limits)
+    xyz = np.column_stack([t.numeric(c) for c in "xyz"])
+    pose_id = t.ids("pose_id")
+    cmd_cols = ["cmd_x", "cmd_y", "cmd_z"]
+    if any(c in t for c in cmd_cols) and not all(c in t for c in cmd_cols):
+        raise t.error("cmd_x, cmd_y, cmd_z must come together")
+    cmd = np.column_stack([t.numeric(c) for c in cmd_cols]) if "cmd_x" in t else None
+    opt = {name: t.numeric(name) if name in t else None for name in _OPTIONAL_FLOAT}
     if opt["sigma_mm"] is not None and (opt["sigma_mm"] <= 0).any():
         r = int(np.argmax(opt["sigma_mm"] <= 0))
-        raise DataError(f"{source}: line {lines[r]}, column sigma_mm: must be positive")
+        raise DataError(f"{source}: line {t.lines[r]}, column sigma_mm: must be positive")
 
     dirs = None
     dir_cols = [f"dir{j + 1}" for j in range(N)]
-    if any(c in col for c in dir_cols):
-        missing = [c for c in dir_cols if c not in col]
-        if missing:
-            raise DataError(
-                f"{source}: line {header_line}: direction columns need all of dir1..dir{N}; "
-                f"missing {', '.join(missing)}"
-            )
-        dirs = np.column_stack([numeric(c) for c in dir_cols])
+    if t.all_or_none(dir_cols, "direction columns"):
+        dirs = np.column_stack([t.numeric(c) for c in dir_cols])
         bad = ~np.isin(dirs, (-1.0, 0.0, 1.0))
         if bad.any():
             r, j = map(int, np.argwhere(bad)[0])
             raise DataError(
-                f"{source}: line {lines[r]}, column dir{j + 1}: {dirs[r, j]:g} is not -1, 0 or +1"
+                f"{source}: line {t.lines[r]}, column dir{j + 1}: {dirs[r, j]:g} is not -1, 0 "
+                "or +1"
             )
         dirs = dirs.astype(int)
 
-    is_valid = np.zeros(n, bool)
-    if "set" in col:
-        k = col["set"]
-        for r, (line_no, f) in enumerate(rows):
-            v = f[k]
+    is_valid = np.zeros(len(t), bool)
+    if "set" in t:
+        for r, v in enumerate(t.text("set")):
             if v not in ("calib", "valid", ""):
-                raise DataError(
-                    f"{source}: line {line_no}, column set: {v!r} is neither 'calib' nor 'valid'"
-                )
+                raise DataError(f"{source}: line {t.lines[r]}, column set: {v!r} is neither "
+                                "'calib' nor 'valid'")
             is_valid[r] = v == "valid"
 
+    meta = t.meta
     if "tracker_sigma_mm" in meta:
         try:
             s = float(meta["tracker_sigma_mm"])
@@ -362,15 +395,5 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
                 "positive number"
             ) from None
 
-    return Dataset(
-        q=np.radians(q),
-        xyz=xyz,
-        pose_id=pose_id,
-        cmd=cmd,
-        dirs=dirs,
-        is_valid=is_valid,
-        meta=meta,
-        source=source,
-        lines=lines,
-        **opt,
-    )
+    return Dataset(q=np.radians(q), xyz=xyz, pose_id=pose_id, cmd=cmd, dirs=dirs,
+                   is_valid=is_valid, meta=meta, source=source, lines=t.lines, **opt)

@@ -44,7 +44,7 @@ from pathlib import Path
 import numpy as np
 import scipy.stats
 
-from .dataset import DataError, Dataset, _float, _read_rows
+from .dataset import CsvTable, DataError, Dataset
 from .identifiability import analyse
 from .identify import covariance
 from .inverse import ChainFK, solve_ik_multistart, wrap_to_pi
@@ -117,69 +117,20 @@ class Postures:
 def load_postures(path: str | Path, model: RobotModel, *, check_limits: bool = True) -> Postures:
     """Read a zero-point postures CSV (FORMATS.md §1): ``pose_id, plane, q1..qN`` (deg),
     optional ``x, y, z`` (mm). Errors name the file, line and column; nothing is guessed."""
-    path = Path(path)
-    source = str(path)
-    meta, header, header_line, rows = _read_rows(path, source)
+    t = CsvTable(path)
     N = model.n_joints
-    dupes = {h for h in header if header.count(h) > 1}
-    if dupes:
-        raise DataError(f"{source}: line {header_line}: duplicated column(s) {sorted(dupes)}")
-    required = ["pose_id", "plane"] + [f"q{j + 1}" for j in range(N)]
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise DataError(f"{source}: line {header_line}: missing required column(s) "
-                        f"{', '.join(missing)} (pose_id, plane, q1..q{N} are required)")
-    extra_q = [h for h in header if h.startswith("q") and h[1:].isdigit() and int(h[1:]) > N]
-    if extra_q:
-        raise DataError(f"{source}: line {header_line}: column(s) {', '.join(extra_q)} but the "
-                        f"model has {N} joints")
-    xyz_cols = [c for c in "xyz" if c in header]
-    if xyz_cols and len(xyz_cols) != 3:
-        raise DataError(f"{source}: line {header_line}: x, y, z must come together")
-    if not rows:
-        raise DataError(f"{source}: no data rows")
-    col = {h: i for i, h in enumerate(header)}
-    for line_no, f in rows:
-        if len(f) != len(header):
-            raise DataError(f"{source}: line {line_no}: {len(f)} fields, the header has "
-                            f"{len(header)}")
-
-    def numeric(name: str) -> np.ndarray:
-        k = col[name]
-        out = np.empty(len(rows))
-        for r, (line_no, f) in enumerate(rows):
-            if f[k] == "":
-                raise DataError(f"{source}: line {line_no}, column {name}: empty value")
-            out[r] = _float(source, line_no, name, f[k])
-        return out
-
-    q = np.column_stack([numeric(f"q{j + 1}") for j in range(N)])
-    plane = numeric("plane")
-    lines = np.array([ln for ln, _ in rows])
+    t.require(["pose_id", "plane"] + [f"q{j + 1}" for j in range(N)],
+              f"pose_id, plane, q1..q{N} are required")
+    measured = t.all_or_none(["x", "y", "z"], "measured tips")
+    q = t.joints_deg(model, check_limits)
+    plane = t.numeric("plane")
     for r, v in enumerate(plane):
         if v not in (1.0, 2.0, 3.0, 4.0):
-            raise DataError(f"{source}: line {lines[r]}, column plane: {v:g} is not 1, 2, 3 or 4")
-    seen: dict[str, int] = {}
-    pose_id = []
-    for line_no, f in rows:
-        pid = f[col["pose_id"]]
-        if pid == "":
-            raise DataError(f"{source}: line {line_no}, column pose_id: empty value")
-        if pid in seen:
-            raise DataError(f"{source}: line {line_no}, column pose_id: {pid!r} already used on "
-                            f"line {seen[pid]}")
-        seen[pid] = line_no
-        pose_id.append(pid)
-    if check_limits:
-        lim = np.array([[j.min, j.max] for j in model.joints])
-        bad = (q < lim[:, 0] - 1e-9) | (q > lim[:, 1] + 1e-9)
-        if bad.any():
-            r, j = map(int, np.argwhere(bad)[0])
-            raise DataError(f"{source}: line {lines[r]}, column q{j + 1}: {q[r, j]:g} deg is "
-                            f"outside the model's limits [{lim[j, 0]:g}, {lim[j, 1]:g}] of "
-                            f"joint {j + 1}")
-    xyz = np.column_stack([numeric(c) for c in "xyz"]) if xyz_cols else None
-    return Postures(np.radians(q), plane.astype(int), pose_id, xyz, source, lines)
+            raise DataError(f"{t.source}: line {t.lines[r]}, column plane: {v:g} is not 1, 2, "
+                            "3 or 4")
+    pose_id = t.ids("pose_id")
+    xyz = np.column_stack([t.numeric(c) for c in "xyz"]) if measured else None
+    return Postures(np.radians(q), plane.astype(int), pose_id, xyz, t.source, t.lines)
 
 
 def postures_from_dataset(data: Dataset, plane: np.ndarray | None = None,
