@@ -17,7 +17,8 @@ def register(sub) -> None:
     p = sub.add_parser(
         "report",
         help="write an HTML report with plots: where the model fails, what fixed it",
-        description="Fit the uncalibrated robot (base only), the current model and, when the "
+        description="Fit the uncalibrated robot (nominal kinematics, best-fit base and tool), "
+        "the current model and, when the "
         "diagnosis finds a significant missing effect, the current model plus that effect; "
         "write one self-contained HTML page (plots embedded) with the before/after error "
         "statistics, residual plots, the candidate ranking and the parameters.",
