@@ -38,7 +38,7 @@ from .effects import Effect, EffectError, parse_effect
 from .effects.physical import derive_directions
 from .error_model import ErrorModel
 from .gravity import gravity_torques, has_mass_model
-from .identify import Fit, error_stats, identify
+from .identify import Fit, identify
 
 #: harmonic orders scanned on every joint
 HARMONIC_ORDERS = range(1, 61)
@@ -450,11 +450,3 @@ def where_it_fails(fit: Fit, calib: Dataset, G: np.ndarray, resid: np.ndarray,
             corr[name] = float(scipy.stats.spearmanr(err, v)[0])
     return WhereItFails(err, worst, jr, calib.q, order, calib.t_s, calib.temp_c, torque, corr,
                         periodogram)
-
-
-def fit_summary_rows(fits: list[tuple[str, Fit]]) -> list[dict]:
-    """Before/after statistics rows for tables and reports."""
-    rows = []
-    for label, f in fits:
-        rows.append({"label": label, "calib": f.calib, "valid": f.valid or error_stats([])})
-    return rows
