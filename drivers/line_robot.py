@@ -174,7 +174,11 @@ class SerialRobot:
             left = deadline - time.monotonic()
             if left <= 0:
                 raise CommandTimeout(self._dev, "wait_settled", f"not settled after {timeout} s")
-            st = self.status(timeout=left)
+            try:
+                st = self.status(timeout=left)
+            except CommandTimeout as e:  # the poll ran out of the caller's time
+                raise CommandTimeout(self._dev, "wait_settled",
+                                     f"not settled after {timeout} s ({e.detail})") from e
             if st.protective_stop or st.emergency_stop:
                 raise ProtectiveStop(self._dev, "wait_settled", st.message)
             if st.fault:

@@ -481,7 +481,11 @@ class ModbusRobot:
         while True:
             if time.monotonic() >= deadline:
                 raise CommandTimeout(self._dev, "wait_settled", f"not settled after {timeout} s")
-            st = self.status(timeout=max(deadline - time.monotonic(), 0.01))
+            try:
+                st = self.status(timeout=max(deadline - time.monotonic(), 0.01))
+            except CommandTimeout as e:  # the poll ran out of the caller's time
+                raise CommandTimeout(self._dev, "wait_settled",
+                                     f"not settled after {timeout} s ({e.detail})") from e
             if st.protective_stop or st.emergency_stop:
                 raise ProtectiveStop(self._dev, "wait_settled", st.message)
             if st.fault:
