@@ -19,13 +19,17 @@ def solve_lm(
     xtol: float = 1e-10,
     ftol: float = 1e-12,
     gtol: float = 1e-12,
-    lambda0: float = 1e-3,
+    lambda0: float = 1e-7,
     xf0: np.ndarray | None = None,
 ) -> SolverResult:
     """Minimise the sum of squared residuals of ``problem`` over its free parameters.
 
     Stops when the scaled step is below ``xtol``, the relative cost decrease below
-    ``ftol``, or the scaled gradient below ``gtol``.
+    ``ftol``, or the scaled gradient below ``gtol``. The initial damping ``lambda0``
+    (relative to the largest diagonal of the equilibrated normal matrix) is small: a
+    calibration starts close to linear (base from a rigid fit, nominal geometry), and
+    heavy damping would crawl along weakly determined directions; a step that does
+    not lower the cost raises it.
     """
     x = problem.xf0.copy() if xf0 is None else np.asarray(xf0, float).copy()
     if x.size == 0:
