@@ -19,6 +19,7 @@ from sim_drivers.faults import FaultInjector
 from sim_drivers.inprocess import default_truth
 from sim_drivers.modbus_server import ModbusRobotServer
 from sim_drivers.robot_server import RobotLineServer
+from sim_drivers.rtde_server import PortUnavailable, RtdeSimServer
 from sim_drivers.tracker_server import TrackerServer
 from sim_drivers.truth import TrueRobot
 
@@ -41,6 +42,8 @@ class ServeConfig:
     host: str = "127.0.0.1"
     ports: dict[str, int] = field(default_factory=lambda: dict(DEFAULT_PORTS))
     pty: bool = True
+    #: also serve RTDE (receive side) on the fixed port 30004 of ``host``, when it is free
+    rtde: bool = False
 
 
 class SimStack:
@@ -72,6 +75,8 @@ class SimStack:
             **cell_kw,
         )
         self.servers: list = []
+        #: what could not be served (said by ``cellcal sim serve`` on stderr)
+        self.notes: list[str] = []
 
     def _start_one(self, make, port: int):
         try:
@@ -105,6 +110,12 @@ class SimStack:
             )
             if c.pty:
                 self.servers.append(TrackerServer(cell, faults=f, transport="pty").start())
+            if c.rtde:
+                try:
+                    self.servers.append(
+                        RtdeSimServer(cell, host=c.host, fallback_hosts=()).start())
+                except PortUnavailable as e:  # a real controller or another sim has it
+                    self.notes.append(f"no RTDE server: {e}")
         except BaseException:
             self.stop()
             raise
@@ -123,5 +134,8 @@ class SimStack:
 
     @property
     def urls(self) -> list[str]:
-        """One driver URL per server, in start order."""
-        return [s.url for s in self.servers]
+        """One driver URL per server, in start order. The RTDE server's ``ur://`` URL is
+        read-only: moving a UR needs its script server, which the simulator does not have
+        (in-process tests drive it with :class:`~sim_drivers.fake_rtde_control.FakeRTDEControl`)."""
+        return [s.url + ("?read_only=1" if isinstance(s, RtdeSimServer) else "")
+                for s in self.servers]

@@ -31,6 +31,8 @@ def register(sub) -> None:
                    help="wall seconds per simulated second (0: instantaneous)")
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (default loopback)")
     s.add_argument("--no-pty", action="store_true", help="no tracker on a pseudo-terminal")
+    s.add_argument("--no-rtde", action="store_true",
+                   help="no RTDE receive server on port 30004 (ur://, read-only)")
     s.set_defaults(func=run)
 
 
@@ -40,7 +42,8 @@ def run(args) -> int:
     if args.time_scale < 0:
         raise UsageError(f"--time-scale must be >= 0, got {args.time_scale}")
     config = ServeConfig(seed=args.seed, hidden=args.hidden, faults=args.faults,
-                         time_scale=args.time_scale, host=args.host, pty=not args.no_pty)
+                         time_scale=args.time_scale, host=args.host, pty=not args.no_pty,
+                         rtde=not args.no_rtde)
     if args.model == "toy":
         from sim_drivers.inprocess import default_truth as factory
     else:
@@ -59,6 +62,8 @@ def run(args) -> int:
         with stack:
             for url in stack.urls:
                 print(url)
+            for note in stack.notes:
+                print(f"cellcal sim: {note}", file=sys.stderr)
             sys.stdout.flush()
             try:
                 while not stop.wait(0.2):

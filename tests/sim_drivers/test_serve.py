@@ -56,7 +56,7 @@ def test_cellcal_sim_serve_subprocess():
                 rob.move_joints(target, speed=0.5, wait=True, timeout=2.0)
                 assert np.allclose(rob.read_joints().q, target, atol=1e-4)
         points = []
-        for tracker_url in urls[2:]:
+        for tracker_url in urls[2:4]:
             with open_tracker(tracker_url) as trk:
                 trk.connect(2.0)
                 points.append(trk.measure(0.1, timeout=2.0).xyz)
@@ -101,3 +101,36 @@ def test_stack_falls_back_to_free_ports():
 def test_stack_rejects_bad_faults():
     with pytest.raises(ValueError, match="unknown fault"):
         SimStack(ServeConfig(faults="nope=1"))
+
+
+def test_sim_serve_ur10e_with_rtde_read_by_the_real_ur_client():
+    """The default truth (a UR10e with hidden errors) is also served over RTDE: the real
+    ur-rtde receive client sees the joints the Modbus robot was moved to."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "daq", "sim", "serve", "--seed", "1", "--no-pty"],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    )
+    try:
+        urls = _read_lines(proc, 3, timeout=20.0)
+        time.sleep(0.5)  # the RTDE line, if port 30004 was free, follows at once
+        more = _read_lines(proc, 1, timeout=5.0) if select.select(
+            [proc.stdout.fileno()], [], [], 0.5)[0] else []
+        ur = [u for u in urls + more if u.startswith("ur://")]
+        if not ur:
+            pytest.skip("port 30004 is taken on this machine: no RTDE server")
+        assert ur[0] == "ur://127.0.0.1?read_only=1"
+        target = np.radians([10.0, -70.0, 95.0, -110.0, -90.0, 5.0])
+        with open_robot(urls[0]) as rob:
+            rob.connect(2.0)
+            rob.move_joints(target, speed=1.0, wait=True, timeout=5.0)
+        with open_robot(ur[0]) as urrob:
+            urrob.connect(5.0)
+            assert np.allclose(urrob.read_joints(timeout=2.0).q, target, atol=1e-3)
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=15) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()
