@@ -137,8 +137,13 @@ class LineTransport:
             if left <= 0:
                 return None
             try:
+                # wait for one byte, then take everything that has arrived without waiting
+                # (pyserial's socket:// in_waiting says 1 for "some", not how many)
                 ser.timeout = min(left, 0.5)
-                chunk = ser.read(max(1, ser.in_waiting))
+                chunk = ser.read(1)
+                if chunk:
+                    ser.timeout = 0
+                    chunk += ser.read(MAX_LINE)
             except (serial.SerialException, OSError) as e:
                 self.close()
                 raise ConnectionLost(self.device, command, f"link closed: {e}") from e
