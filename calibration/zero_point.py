@@ -68,6 +68,9 @@ class Postures:
     xyz : (n, 3) measured tip, or None (frame: see :func:`rigorous_method`), mm
     source : where they came from
     lines : (n,) file line of each row (0 when not from a file)
+    xyz_frame : the frame of ``xyz``: ``"base"`` (the robot base frame, usable as
+        measured tips as they are) or ``"tracker"`` (the measurement frame: usable only
+        with the base's pose, e.g. a calibrated model's ``base``)
     """
 
     q: np.ndarray
@@ -76,6 +79,7 @@ class Postures:
     xyz: np.ndarray | None = None
     source: str = "<arrays>"
     lines: np.ndarray | None = None
+    xyz_frame: str = "base"
 
     def __post_init__(self) -> None:
         self.q = np.atleast_2d(np.asarray(self.q, float))
@@ -93,15 +97,23 @@ class Postures:
     def subset(self, keep: np.ndarray) -> Postures:
         idx = np.arange(self.n)[keep]
         return Postures(self.q[idx], self.plane[idx], [self.pose_id[i] for i in idx],
-                        None if self.xyz is None else self.xyz[idx], self.source, self.lines[idx])
+                        None if self.xyz is None else self.xyz[idx], self.source, self.lines[idx],
+                        self.xyz_frame)
 
-    def to_csv(self, path: str | Path | None = None) -> str:
-        """The postures CSV (deg); returns the text, writes it when a path is given."""
+    def to_csv(self, path: str | Path | None = None, meta: dict | None = None) -> str:
+        """The postures CSV (deg); returns the text, writes it when a path is given.
+
+        ``meta`` becomes ``# key: value`` comment lines before the header; with measured
+        tips in the tracker frame, ``xyz_frame: tracker`` is always written.
+        """
         N = self.q.shape[1]
         head = ["pose_id", "plane"] + [f"q{j + 1}" for j in range(N)]
+        meta = dict(meta or {})
         if self.xyz is not None:
             head += ["x", "y", "z"]
-        lines = [",".join(head)]
+            if self.xyz_frame != "base":
+                meta["xyz_frame"] = self.xyz_frame
+        lines = [f"# {k}: {v}" for k, v in meta.items()] + [",".join(head)]
         qd = np.degrees(self.q)
         for i in range(self.n):
             row = [self.pose_id[i], str(int(self.plane[i]))] + [repr(float(v)) for v in qd[i]]
@@ -116,7 +128,10 @@ class Postures:
 
 def load_postures(path: str | Path, model: RobotModel, *, check_limits: bool = True) -> Postures:
     """Read a zero-point postures CSV (FORMATS.md §1): ``pose_id, plane, q1..qN`` (deg),
-    optional ``x, y, z`` (mm). Errors name the file, line and column; nothing is guessed."""
+    optional ``x, y, z`` (mm). Errors name the file, line and column; nothing is guessed.
+
+    The tips are in the robot base frame unless a ``# xyz_frame: tracker`` comment says
+    they are in the measurement frame (as ``cellcal export --postures`` writes them)."""
     t = CsvTable(path)
     N = model.n_joints
     t.require(["pose_id", "plane"] + [f"q{j + 1}" for j in range(N)],
@@ -130,20 +145,24 @@ def load_postures(path: str | Path, model: RobotModel, *, check_limits: bool = T
                             "3 or 4")
     pose_id = t.ids("pose_id")
     xyz = np.column_stack([t.numeric(c) for c in "xyz"]) if measured else None
-    return Postures(np.radians(q), plane.astype(int), pose_id, xyz, t.source, t.lines)
+    frame = t.meta.get("xyz_frame", "base").strip().lower()
+    if frame not in ("base", "tracker"):
+        raise DataError(f"{t.source}: xyz_frame: {frame!r} is not base or tracker")
+    return Postures(np.radians(q), plane.astype(int), pose_id, xyz, t.source, t.lines, frame)
 
 
 def postures_from_dataset(data: Dataset, plane: np.ndarray | None = None,
-                          measured: bool = True) -> Postures:
+                          measured: bool = True, xyz_frame: str = "base") -> Postures:
     """Postures from a :class:`Dataset` (e.g. a ``zero20`` run from the store).
 
     ``plane`` (n,) defaults to 5 consecutive postures per plane; ``measured`` keeps the
-    data's ``xyz`` as measured tips.
+    data's ``xyz`` (mm) as measured tips, in the frame ``xyz_frame`` (``"base"`` or
+    ``"tracker"``, see :class:`Postures`).
     """
     if plane is None:
         plane = np.arange(data.n) // 5 % 4 + 1
     return Postures(data.q, plane, list(data.pose_id), data.xyz if measured else None,
-                    data.source, data.lines)
+                    data.source, data.lines, xyz_frame)
 
 
 def _frame_from_z(z: np.ndarray, x_hint: np.ndarray) -> np.ndarray:

@@ -70,6 +70,20 @@ class ExecutorOptions:
     zero_tol_mm: float = 0.01
     zero_max_iter: int = 25
     zero_damping_mm: float = 1.0
+    #: size of the three probe moves that measure the tracker's orientation for the
+    #: zero-point loop when the run has no measurement frame, mm
+    zero_probe_mm: float = 5.0
+    #: the loop also stops once the tip is within this many times the 3-D std of the
+    #: measurement (a tolerance below the tracker's noise cannot be confirmed)
+    zero_noise_k: float = 1.5
+    #: tracker measurements averaged per step of the zero-point loop (their mean's std is
+    #: taken as std/sqrt(n): independent measurements; a tracker whose noise is correlated
+    #: over seconds gains less)
+    zero_average: int = 1
+    #: the loop stops only after a correction that moved the tip by at most this (mm):
+    #: a large correction leaves a residual along its own direction (model Jacobian,
+    #: tracker rotation: ~1 %) that is systematic, not noise, and would bias the offsets
+    zero_confirm_step_mm: float = 0.5
     #: a joint moved by less than this (rad) approached with direction 0
     dir_deadband_rad: float = 1e-6
     extra: dict = field(default_factory=dict)
@@ -327,6 +341,18 @@ class Executor:
                            f"std {worst:.4f} mm above {o.max_std_mm} mm after "
                            f"{o.max_remeasure} measurements")
 
+    def _measure_zero(self, phase):
+        """The zero-point loop's measurement: the mean of ``zero_average`` measurements."""
+        k = max(1, int(self.o.zero_average))
+        ms = [self._measure(phase) for _ in range(k)]
+        if k == 1:
+            return ms[0]
+        from dataclasses import replace
+
+        std = np.sqrt(np.mean([m.std**2 for m in ms], axis=0) / k)
+        return replace(ms[-1], xyz=np.mean([m.xyz for m in ms], axis=0), std=std,
+                       n=int(sum(m.n for m in ms)))
+
     def _acquire(self, t: Target, attempt: int, phase) -> Sample:
         o = self.o
         if self._last_cmd_q is None:
@@ -378,33 +404,89 @@ class Executor:
             self.store.update_run(self.run_id, summary=summary)
         return np.asarray(summary["zero_target_tracker_mm"], float)
 
+    def _zero_rotation(self, jr, m, phase):
+        """Rotation tracker <- base (3x3) for the zero-point loop, and the current state.
+
+        From the run's measurement frame (``options['tracker_R_base']``, from a frame
+        run) when known; else from the run summary (``zero_tracker_R_base``, measured
+        earlier in this run); else measured now: three probe moves of
+        ``zero_probe_mm`` along the base axes (nominal model), their nominal tip
+        displacements matched to the measured ones (Kabsch). The tracker may stand in
+        any orientation: with a wrong rotation the corrections point the wrong way
+        (the loop diverges beyond 90 degrees).
+
+        Returns
+        -------
+        R : (3, 3) tracker_R_base
+        jr, m : the joints read and the measurement at the robot's current position
+        """
+        run = self.store.run(self.run_id)
+        if run.options.get("tracker_R_base") is not None:
+            return np.asarray(run.options["tracker_R_base"], float), jr, m
+        summary = dict(run.summary or {})
+        if "zero_tracker_R_base" in summary:
+            return np.asarray(summary["zero_tracker_R_base"], float), jr, m
+        from calibration.inverse import ChainFK
+
+        fk = ChainFK.from_model(self.model)
+        q0 = np.asarray(jr.q, float)
+        p0 = fk.point(q0[None])[0]
+        m0 = np.asarray(m.xyz, float)
+        A, B = [], []
+        for k in range(3):
+            dp = np.zeros(3)
+            dp[k] = self.o.zero_probe_mm
+            dq = np.linalg.lstsq(tool_jacobian(self.model, q0), dp, rcond=None)[0]
+            self._move_joints(q0 + dq, phase)
+            jr = self._read_q(phase)
+            m = self._measure_zero(phase)
+            A.append(fk.point(np.asarray(jr.q, float)[None])[0] - p0)
+            B.append(np.asarray(m.xyz, float) - m0)
+        R = kabsch_rotation(np.array(A), np.array(B))
+        summary["zero_tracker_R_base"] = R.tolist()
+        self.store.update_run(self.run_id, summary=summary)
+        return R, jr, m
+
     def _close_loop(self, t: Target, phase):
         """Damped-least-squares joint corrections until the tool tip is on the target.
 
         The tool Jacobian comes from the nominal model (base frame), turned into the
-        tracker frame with the run's frame rotation (``options['tracker_R_base']``,
-        identity when unknown: the loop still converges for moderate rotations).
+        tracker frame with the run's frame rotation (:meth:`_zero_rotation`). The loop
+        stops when the measured tip is within ``zero_tol_mm`` of the target, or within
+        ``zero_noise_k`` times the measurement's own 3-D std when that is larger, and the
+        last correction moved the tip by at most ``zero_confirm_step_mm`` (else one more
+        correction: after a large one, the tip's residual error is systematic).
         """
         if self.model is None:
             raise ValueError("zero targets need the robot model")
         o = self.o
-        R = np.asarray(self.store.run(self.run_id).options.get("tracker_R_base", np.eye(3)), float)
         jr = self._read_q(phase)
-        m = self._measure(phase)
+        m = self._measure_zero(phase)
         target = self._zero_target(m.xyz)
+        R, jr, m = self._zero_rotation(jr, m, phase)
         lam2 = o.zero_damping_mm**2
+        last_step = 0.0  # the tip motion of the last correction, mm
         for _ in range(o.zero_max_iter):
             e = target - m.xyz
-            if float(np.linalg.norm(e)) <= o.zero_tol_mm:
+            tol = max(o.zero_tol_mm, o.zero_noise_k * float(np.linalg.norm(m.std)))
+            if float(np.linalg.norm(e)) <= tol and last_step <= o.zero_confirm_step_mm:
                 return jr, m
             J = R @ tool_jacobian(self.model, jr.q)
             dq = J.T @ np.linalg.solve(J @ J.T + lam2 * np.eye(3), e)
+            last_step = float(np.linalg.norm(J @ dq))
             self._move_joints(jr.q + dq, phase)
             jr = self._read_q(phase)
-            m = self._measure(phase)
+            m = self._measure_zero(phase)
         raise ZeroNotReached(f"robot {getattr(self.robot, 'url', '')}", "zero",
                              f"tip {np.linalg.norm(target - m.xyz):.4f} mm from the target after "
                              f"{o.zero_max_iter} corrections")
+
+
+def kabsch_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The rotation R (3x3) minimising sum |R a_i - b_i|^2 (a, b: (n, 3) displacements, mm)."""
+    U, _, Vt = np.linalg.svd(np.asarray(b, float).T @ np.asarray(a, float))
+    d = np.sign(np.linalg.det(U @ Vt)) or 1.0
+    return U @ np.diag([1.0, 1.0, d]) @ Vt
 
 
 class ZeroNotReached(DriverError):

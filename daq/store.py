@@ -449,3 +449,50 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std"):
         sigma_mm=sigma, dirs=s["dirs"], is_valid=np.array([v == "valid" for v in s["set"]]),
         meta=meta, source=f"{store.path} run {run_id}",
     )
+
+
+def latest_run(store: RunStore, routine: str, status: str = "completed") -> Run:
+    """The latest run of ``routine`` with ``status``; :class:`StoreError` when there is none."""
+    for r in reversed(store.runs()):
+        if r.routine == routine and r.status == status:
+            return r
+    raise StoreError(f"{store.path}: no {status} {routine} run")
+
+
+def postures_from_run(store: RunStore, run_id: int | None = None, *, to_base: bool = True):
+    """The zero-point postures of a ``zero20`` run (default: the latest completed one).
+
+    Built with :func:`calibration.zero_point.postures_from_dataset`: the joints read
+    (rad), the plane of every posture from the plan's targets (``info.plane``) and the
+    measured tips (mm). The tips are in the tracker frame (``xyz_frame="tracker"``),
+    or, with ``to_base`` and a run that knows its measurement frame
+    (``tracker_T_base`` from a frame run, in its options), in the robot base frame.
+
+    Returns
+    -------
+    postures : Postures
+    run : Run
+        The run they come from.
+    """
+    from calibration.zero_point import postures_from_dataset
+
+    run = latest_run(store, "zero20") if run_id is None else store.run(run_id)
+    if run.routine != "zero20":
+        raise StoreError(f"{store.path}: run {run.id} is a {run.routine} run, not zero20")
+    n = store.n_samples(run.id)
+    if n != run.n_points:
+        raise StoreError(f"{store.path}: run {run.id} has {n}/{run.n_points} postures stored "
+                         f"(status {run.status}); finish it with `cellcal resume {run.id}`")
+    data = dataset_from_run(store, run.id)
+    targets = store.samples(run.id)["target"]
+    try:
+        plane = np.array([int(t["info"]["plane"]) for t in targets])
+    except (TypeError, KeyError) as e:
+        raise StoreError(f"{store.path}: run {run.id}: a target has no plane ({e})") from None
+    post = postures_from_dataset(data, plane, measured=True, xyz_frame="tracker")
+    T = run.options.get("tracker_T_base")
+    if to_base and T is not None:
+        T = np.asarray(T, float)
+        post.xyz = (post.xyz - T[:3, 3]) @ T[:3, :3]
+        post.xyz_frame = "base"
+    return post, run

@@ -24,7 +24,10 @@ EXEC_FLAGS = [
      "remeasure when the tracker's per-axis std exceeds this, mm (default 0.05)"),
     ("--max-retries", "max_retries", int, "retries per point after transient faults (default 8)"),
     ("--io-timeout", "io_timeout_s", float, "timeout of reads, s (default 1)"),
-    ("--zero-tol-mm", "zero_tol_mm", float, "zero20: tip-on-target tolerance, mm (default 0.01)"),
+    ("--zero-tol-mm", "zero_tol_mm", float, "zero20: tip-on-target tolerance, mm (default 0.01; "
+     "the loop also stops within 1.5x the measurement's 3-D std)"),
+    ("--zero-average", "zero_average", int,
+     "zero20: tracker measurements averaged per step of the closed loop (default 1)"),
 ]
 
 

@@ -8,6 +8,12 @@ reported it for every point), ``temp_c``, ``t_s``, ``sigma_mm``, ``dir1..dirN``
 of the tracker's reported per-axis std (``--sigma-mode std``, default) or
 that divided by sqrt(n) (``--sigma-mode mean``). The result is read directly
 by ``cellcal calibrate`` and ``cellcal diagnose``.
+
+``--postures`` (a ``zero20`` run) writes the zero-point postures CSV instead
+(FORMATS.md §1): ``pose_id``, ``plane`` (from the plan), ``q1..qN`` (deg, as
+read), ``x y z`` (the measured tips, mm: in the robot base frame when the run
+knows its measurement frame, else in the tracker frame, said by a
+``# xyz_frame: tracker`` comment), read by ``cellcal zero``.
 """
 
 from __future__ import annotations
@@ -24,6 +30,9 @@ def register(sub) -> None:
                    help="run id (default: the latest)")
     p.add_argument("--db", required=True, metavar="cell.db")
     p.add_argument("--out", required=True, metavar="data.csv", help="CSV to write ('-': stdout)")
+    p.add_argument("--postures", action="store_true",
+                   help="a zero20 run: write the zero-point postures CSV (pose_id, plane, "
+                   "q1..qN, x, y, z) for `cellcal zero`")
     p.add_argument("--sigma-mode", choices=("std", "mean"), default="std",
                    help="sigma_mm from the tracker's std (default) or std/sqrt(n)")
     p.set_defaults(func=run)
@@ -41,6 +50,8 @@ def run(args) -> int:
     except StoreError as e:
         raise UsageError(str(e)) from None
     try:
+        if args.postures:
+            return _postures(store, args)
         try:
             r = store.run(args.run_id)
             data = dataset_from_run(store, r.id, sigma_mode=args.sigma_mode)
@@ -56,3 +67,22 @@ def run(args) -> int:
         return 0
     finally:
         store.close()
+
+
+def _postures(store, args) -> int:
+    """Write a zero20 run's postures CSV (FORMATS.md §1)."""
+    from ..store import StoreError, postures_from_run
+
+    try:
+        post, r = postures_from_run(store, args.run_id)  # default: the latest zero20
+    except StoreError as e:
+        raise UsageError(str(e)) from None
+    meta = {"run": r.id, "routine": r.routine, "plan_hash": r.plan_hash, "model": r.model or "",
+            "robot": r.robot_url or "", "tracker": r.tracker_url or ""}
+    text = post.to_csv(None if args.out == "-" else args.out, meta=meta)
+    if args.out == "-":
+        sys.stdout.write(text)
+    else:
+        print(f"run {r.id}: {post.n} postures written to {args.out} (tips in the "
+              f"{post.xyz_frame} frame)", file=sys.stderr)
+    return 0

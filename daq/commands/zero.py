@@ -1,5 +1,21 @@
 """``cellcal zero``: zero-point recalibration from 20 postures on one fixed point.
 
+The postures come from a postures CSV (FORMATS.md §1) or straight from the run
+store (``--db cell.db [--run N]``: a ``zero20`` capture, default the latest
+completed one; planes from the plan, joints as read, tips as measured).
+
+Two-pass flow of the seed method (a second, fine pass after a manual adjustment)::
+
+    cellcal capture zero20 --target-xyz X,Y,Z ... --db cell.db      # run 1
+    cellcal zero --db cell.db --json > first_pass.json              # first pass
+    # apply first_pass.json's offsets at the controller (its joint zeros)
+    cellcal capture zero20 --replay 1 ... --db cell.db              # the same 20 postures
+    cellcal zero --db cell.db --replay first_pass.json              # fine pass
+
+The fine pass starts from the first pass's offsets and reports what remains to
+correct relative to the adjusted controller's readings: about 0 when the
+adjustment took.
+
 Exit codes: 0 the recalibration is decided (within tolerance), 3 the data are too
 poor to decide (an offset that matters is undetermined, the uncertainty exceeds the
 tolerance, the residual is far above the tip scatter, or no convergence), 2 bad input.
@@ -7,6 +23,7 @@ tolerance, the residual is far above the tip scatter, or no convergence), 2 bad 
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 from pathlib import Path
@@ -27,6 +44,14 @@ from calibration.zero_point import (
 from ..cli import UsageError
 from .common import fmt, print_json, table, wrap_errors
 
+_EPILOG = """two-pass flow (seed method: a second, fine pass after a manual adjustment):
+  cellcal capture zero20 --target-xyz X,Y,Z ... --db cell.db    # run 1
+  cellcal zero --db cell.db --json > first_pass.json            # first pass
+  (apply first_pass.json's offsets to the controller's joint zeros)
+  cellcal capture zero20 --replay 1 ... --db cell.db            # same postures, loop again
+  cellcal zero --db cell.db --replay first_pass.json            # fine pass: remaining ~0
+"""
+
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -34,12 +59,24 @@ def register(sub) -> None:
         help="recalibrate joint zero offsets from 20 postures on one point",
         description="Estimate joint zero corrections (true = reported + offset) from "
         "postures that all put the tool tip on one fixed point (FORMATS.md §1, zero-point "
-        "postures CSV): the published seed method and a rigorous least-squares method. "
+        "postures CSV, or a zero20 run in the store with --db): the published seed method "
+        "and a rigorous least-squares method. Fine pass after a manual adjustment: apply "
+        "the first pass's offsets at the controller, recapture the same postures with "
+        "`cellcal capture zero20 --replay RUN`, then `cellcal zero --db cell.db --replay "
+        "first_pass.json`: the remaining offsets should be about 0. "
         "Exit 0 when decided, 3 when the data are too poor to decide, 2 for bad input.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=_EPILOG,
     )
-    p.add_argument("postures", metavar="POSTURES.csv", help="zero-point postures CSV")
-    p.add_argument("--model", required=True, metavar="NAME|PATH",
-                   help="built-in model name or a model YAML file")
+    p.add_argument("postures", metavar="POSTURES.csv", nargs="?", default=None,
+                   help="zero-point postures CSV (or --db)")
+    p.add_argument("--db", metavar="cell.db",
+                   help="read the postures from a zero20 run in this run store instead of a CSV")
+    p.add_argument("--run", type=int, default=None, metavar="N",
+                   help="with --db: the zero20 run (default: the latest completed one)")
+    p.add_argument("--model", default=None, metavar="NAME|PATH",
+                   help="built-in model name or a model YAML file (default with --db: the "
+                   "run's model)")
     p.add_argument("--params", metavar="params.json",
                    help="a calibrated model (geometric deltas, base for measured x,y,z)")
     p.add_argument("--method", choices=("seed", "rigorous", "both"), default="both",
@@ -52,7 +89,10 @@ def register(sub) -> None:
                    help=f"tip scatter per axis (teaching repeatability), mm "
                    f"(default {DEFAULT_SIGMA_MM})")
     p.add_argument("--replay", metavar="previous.json",
-                   help="fine pass: start from a previous `zero --json` result")
+                   help="fine pass: start from a previous `zero --json` result (after "
+                   "applying its offsets at the controller and recapturing the same postures "
+                   "with `capture zero20 --replay RUN`, the result is the remaining "
+                   "correction, about 0)")
     p.add_argument("--keep-outliers", action="store_true",
                    help="do not leave out postures with improbable residuals")
     p.add_argument("--seed", type=int, default=0, help="random seed of the resampling")
@@ -117,11 +157,28 @@ def run(args) -> int:
         raise UsageError("--sigma must be a positive number of mm")
     if not (args.tolerance_deg > 0 and math.isfinite(args.tolerance_deg)):
         raise UsageError("--tolerance-deg must be a positive number")
-    model = wrap_errors(lambda: load_model(args.model))
-    postures = wrap_errors(lambda: load_postures(args.postures, model))
+    if (args.postures is None) == (args.db is None):
+        raise UsageError("give a postures CSV or --db cell.db (not both)")
+    if args.run is not None and args.db is None:
+        raise UsageError("--run needs --db")
+    notes = []
+    if args.db is not None:
+        model, postures = _from_store(args)
+        source = f"{args.db} run {postures.run_id}"
+    else:
+        if args.model is None:
+            raise UsageError("--model is required with a postures CSV")
+        model = wrap_errors(lambda: load_model(args.model))
+        postures = wrap_errors(lambda: load_postures(args.postures, model))
+        source = args.postures
+    if postures.xyz is not None and postures.xyz_frame != "base" and not args.params:
+        notes.append("measured tips are in the tracker frame and the base pose is unknown "
+                     "(no frame run, no --params): not used")
+        postures.xyz = None
     out = None
     if args.out:
-        out = _check_out(args.out, args.model, args.params, args.postures, args.replay)
+        out = _check_out(args.out, args.model, args.params, args.postures, args.replay,
+                         args.db)
         if out.suffix == ".json" and not args.params:
             raise UsageError("--out *.json updates a params file: give --params")
     fk, base = _chain(model, args.params)
@@ -152,6 +209,8 @@ def run(args) -> int:
         doc["max_difference_deg"] = float(diff.max()) if diff.size else None
     doc["pose_ids"] = postures.pose_id
     doc["residuals_mm"] = [round(float(v), 6) for v in np.linalg.norm(main.residuals, axis=1)]
+    doc["source"] = source
+    doc["notes"] = notes
     doc["out_file"] = None
     if out is not None and doc["status"] == "ok":
         _write_out(out, model, args.params, main)
@@ -161,6 +220,29 @@ def run(args) -> int:
     else:
         _print(doc, main, results, args, out)
     return 0 if doc["status"] == "ok" else 3
+
+
+def _from_store(args):
+    """(model, postures) of a zero20 run in the store; ``postures.run_id`` set."""
+    from ..store import RunStore, StoreError, postures_from_run
+
+    if not Path(args.db).exists():
+        raise UsageError(f"{args.db}: no such run store")
+    try:
+        with RunStore(args.db) as store:
+            # tips stay in the tracker frame when --params gives the base pose
+            postures, r = postures_from_run(store, args.run, to_base=not args.params)
+    except StoreError as e:
+        raise UsageError(str(e)) from None
+    name = args.model or r.model
+    if not name:
+        raise UsageError(f"run {r.id} records no model: give --model")
+    model = wrap_errors(lambda: load_model(name))
+    if postures.q.shape[1] != model.n_joints:
+        raise UsageError(f"run {r.id} has {postures.q.shape[1]} joints, model {model.name} "
+                         f"has {model.n_joints}")
+    postures.run_id = r.id
+    return model, postures
 
 
 def _write_out(out: Path, model, params_path, result) -> None:
@@ -185,7 +267,7 @@ def _write_out(out: Path, model, params_path, result) -> None:
 
 
 def _print(doc, main, results, args, out) -> None:
-    print(f"postures  {args.postures}: {doc['n_poses']} postures; model {doc['model']}")
+    print(f"postures  {doc['source']}: {doc['n_poses']} postures; model {doc['model']}")
     for name, r in results.items():
         print(f"{name:9s} {r.reason}; rms {r.rms_mm:.4f} mm; {r.solve_s * 1000:.1f} ms")
     if main.outliers:
@@ -208,6 +290,8 @@ def _print(doc, main, results, args, out) -> None:
     print(f"target    {', '.join(f'{v:.3f}' for v in main.target)} mm (base frame)")
     for name, why in main.fixed.items():
         print(f"note      {name}: {why}")
+    for why in doc["notes"]:
+        print(f"note      {why}")
     print(f"status    {doc['status']}" + (": " + "; ".join(doc["reasons"]) if doc["reasons"]
                                            else ""))
     if out is not None:
