@@ -56,6 +56,7 @@ def finalize(plan: Plan, samples: dict, run) -> dict:
     """RP (and AP when the frame is known) per cube point, mm."""
     pts = np.array([(t or {}).get("info", {}).get("point", 0) for t in samples["target"]])
     T = (run.options or {}).get("tracker_T_base")
+    T = None if T is None else np.asarray(T, float)
     out = {}
     for k in range(1, 6):
         X = samples["xyz"][pts == k]
@@ -66,11 +67,10 @@ def finalize(plan: Plan, samples: dict, run) -> dict:
         s = float(np.std(ell, ddof=1)) if len(ell) > 1 else 0.0
         entry = {"n": len(X), "RP_mm": float(ell.mean() + 3 * s)}
         if T is not None:
-            T = np.asarray(T, float)
             xc = T[:3, :3] @ np.asarray(plan.targets[k - 1].xyz) + T[:3, 3]
             entry["AP_mm"] = float(np.linalg.norm(mean - xc))
         out[f"P{k}"] = entry
-    return {"summary": {"iso9283": out}}
+    return {"summary": {**(run.summary or {}), "iso9283": out}}
 
 
 def add_args(p) -> None:

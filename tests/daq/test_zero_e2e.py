@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 
 import numpy as np
-import pytest
 
 from calibration import ErrorModel, load_model
 from calibration.simulate import realistic_truth
@@ -105,7 +104,6 @@ def test_zero_db_refuses_what_it_cannot_use(tmp_path, capsys):
     assert main(["export", "--db", str(db), "--postures", "--out", "-"]) == 2
 
 
-@pytest.mark.slow
 def test_two_pass_flow_with_replay(tmp_path, capsys):
     db = tmp_path / "cell.db"
     first = tmp_path / "first_pass.json"
