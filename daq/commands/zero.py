@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -57,14 +58,14 @@ def register(sub) -> None:
     p = sub.add_parser(
         "zero",
         help="recalibrate joint zero offsets from 20 postures on one point",
-        description="Estimate joint zero corrections (true = reported + offset) from "
+        description=textwrap.fill("Estimate joint zero corrections (true = reported + offset) from "
         "postures that all put the tool tip on one fixed point (FORMATS.md §1, zero-point "
         "postures CSV, or a zero20 run in the store with --db): the published seed method "
         "and a rigorous least-squares method. Fine pass after a manual adjustment: apply "
         "the first pass's offsets at the controller, recapture the same postures with "
         "`cellcal capture zero20 --replay RUN`, then `cellcal zero --db cell.db --replay "
         "first_pass.json`: the remaining offsets should be about 0. "
-        "Exit 0 when decided, 3 when the data are too poor to decide, 2 for bad input.",
+        "Exit 0 when decided, 3 when the data are too poor to decide, 2 for bad input.", 79),
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=_EPILOG,
     )

@@ -144,3 +144,15 @@ def test_two_pass_flow_with_replay(tmp_path, capsys):
     assert np.abs(left).max() < TOL_DEG
     assert np.abs(left - remaining[1:5]).max() < TOL_DEG
     assert np.abs(np.array(fine["seed"]["offsets_deg"][1:5])).max() < TOL_DEG
+
+
+def test_zero_help_documents_the_two_pass_flow(capsys):
+    import pytest
+
+    with pytest.raises(SystemExit):
+        main(["zero", "--help"])
+    text = capsys.readouterr().out
+    assert "capture zero20 --replay" in text and "--replay first_pass.json" in text
+    with pytest.raises(SystemExit):
+        main(["capture", "zero20", "--help"])
+    assert "--replay RUN" in capsys.readouterr().out
