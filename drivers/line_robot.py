@@ -13,7 +13,6 @@ import numpy as np
 
 from drivers.errors import (
     CommandRejected,
-    CommandTimeout,
     DriverError,
     LimitError,
     NotReady,
@@ -21,6 +20,7 @@ from drivers.errors import (
     ProtocolError,
 )
 from drivers.protocols import JointReading, RobotStatus
+from drivers.settle import poll_until_settled
 from drivers.transport import LineSession, LineTransport, parse_kv
 
 #: ERR name → error class
@@ -169,23 +169,7 @@ class SerialRobot:
         Raises ProtectiveStop on a protective/emergency stop, CommandRejected on
         a controller fault, CommandTimeout when ``timeout`` passes first.
         """
-        deadline = time.monotonic() + timeout
-        while True:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                raise CommandTimeout(self._dev, "wait_settled", f"not settled after {timeout} s")
-            try:
-                st = self.status(timeout=left)
-            except CommandTimeout as e:  # the poll ran out of the caller's time
-                raise CommandTimeout(self._dev, "wait_settled",
-                                     f"not settled after {timeout} s ({e.detail})") from e
-            if st.protective_stop or st.emergency_stop:
-                raise ProtectiveStop(self._dev, "wait_settled", st.message)
-            if st.fault:
-                raise CommandRejected(self._dev, "wait_settled", f"fault: {st.message}")
-            if st.in_position and not st.moving:
-                return
-            time.sleep(min(self.poll_s, max(deadline - time.monotonic(), 0.0)))
+        poll_until_settled(lambda t: self.status(timeout=t), self._dev, timeout, self.poll_s)
 
     def stop(self, timeout: float = 2.0) -> None:
         """``STOP``: halt any motion."""

@@ -38,6 +38,7 @@ from drivers.errors import (
     ProtocolError,
 )
 from drivers.protocols import JointReading, RobotStatus
+from drivers.settle import poll_until_settled
 
 # pymodbus reports every failure through logging as well as by its return
 # values; we turn those into exceptions, so keep its lines out of stderr unless
@@ -477,22 +478,7 @@ class ModbusRobot:
 
     def wait_settled(self, timeout: float = 30.0) -> None:
         """Poll the status block until in position and steady; raise on stops or faults."""
-        deadline = time.monotonic() + timeout
-        while True:
-            if time.monotonic() >= deadline:
-                raise CommandTimeout(self._dev, "wait_settled", f"not settled after {timeout} s")
-            try:
-                st = self.status(timeout=max(deadline - time.monotonic(), 0.01))
-            except CommandTimeout as e:  # the poll ran out of the caller's time
-                raise CommandTimeout(self._dev, "wait_settled",
-                                     f"not settled after {timeout} s ({e.detail})") from e
-            if st.protective_stop or st.emergency_stop:
-                raise ProtectiveStop(self._dev, "wait_settled", st.message)
-            if st.fault:
-                raise CommandRejected(self._dev, "wait_settled", f"fault: {st.message}")
-            if st.in_position and not st.moving:
-                return
-            time.sleep(min(self.poll_s, max(deadline - time.monotonic(), 0.0)))
+        poll_until_settled(lambda t: self.status(timeout=t), self._dev, timeout, self.poll_s)
 
     def stop(self, timeout: float = 2.0) -> None:
         """Command STOP."""
