@@ -88,3 +88,16 @@ def table(rows: list[list[str]], header: list[str]) -> str:
             for i, (c, w) in enumerate(zip(r, widths, strict=True))
         ))
     return "\n".join(lines)
+
+
+def open_store(path, synchronous: str = "FULL"):
+    """An existing run store; a missing file or an unreadable store is a UsageError (never
+    create an empty store for a mistyped path)."""
+    from ..store import RunStore, StoreError
+
+    if not Path(path).exists():
+        raise UsageError(f"{path}: no such run store")
+    try:
+        return RunStore(path, synchronous=synchronous)
+    except (StoreError, OSError) as e:
+        raise UsageError(str(e)) from None

@@ -39,16 +39,10 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from pathlib import Path
+    from ..store import StoreError, dataset_from_run
+    from .common import open_store
 
-    from ..store import RunStore, StoreError, dataset_from_run
-
-    if not Path(args.db).exists():
-        raise UsageError(f"{args.db}: no such run store")
-    try:
-        store = RunStore(args.db)
-    except StoreError as e:
-        raise UsageError(str(e)) from None
+    store = open_store(args.db)
     try:
         if args.postures:
             return _postures(store, args)

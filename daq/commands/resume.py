@@ -38,12 +38,10 @@ def run(args) -> int:
     from calibration import ModelError, load_model
 
     from ..plans import Plan
-    from ..store import RunStore, StoreError
+    from ..store import StoreError
+    from .common import open_store
 
-    try:
-        store = RunStore(args.db, synchronous=args.synchronous)
-    except (StoreError, OSError) as e:
-        raise UsageError(str(e)) from None
+    store = open_store(args.db, synchronous=args.synchronous)
     try:
         try:
             r = store.run(args.run_id)

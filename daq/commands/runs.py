@@ -30,17 +30,10 @@ def _run_dict(store, r) -> dict:
 
 
 def run(args) -> int:
-    from pathlib import Path
+    from ..store import StoreError
+    from .common import open_store, print_json, table
 
-    from ..store import RunStore, StoreError
-    from .common import print_json, table
-
-    if not Path(args.db).exists():
-        raise UsageError(f"{args.db}: no such run store")
-    try:
-        store = RunStore(args.db)
-    except StoreError as e:
-        raise UsageError(str(e)) from None
+    store = open_store(args.db)
     try:
         if args.run_id is not None:
             try:

@@ -43,7 +43,7 @@ from calibration.zero_point import (
 )
 
 from ..cli import UsageError
-from .common import fmt, print_json, table, wrap_errors
+from .common import fmt, open_store, print_json, table, wrap_errors
 
 _EPILOG = """two-pass flow (seed method: a second, fine pass after a manual adjustment):
   cellcal capture zero20 --target-xyz X,Y,Z ... --db cell.db    # run 1
@@ -225,12 +225,10 @@ def run(args) -> int:
 
 def _from_store(args):
     """(model, postures) of a zero20 run in the store; ``postures.run_id`` set."""
-    from ..store import RunStore, StoreError, postures_from_run
+    from ..store import StoreError, postures_from_run
 
-    if not Path(args.db).exists():
-        raise UsageError(f"{args.db}: no such run store")
     try:
-        with RunStore(args.db) as store:
+        with open_store(args.db) as store:
             # tips stay in the tracker frame when --params gives the base pose
             postures, r = postures_from_run(store, args.run, to_base=not args.params)
     except StoreError as e:
