@@ -663,22 +663,26 @@ def _candidate_overlay(diag: Diagnosis, stages: list[Stage]):
     return None
 
 
-def _fig_joints(diag: Diagnosis, overlay) -> Figure:
+def _fig_residual_grid(diag: Diagnosis, overlay, joints: list[int], x_full: np.ndarray,
+                       xlabel: str, compliance_overlay: bool) -> Figure:
+    """Small multiples: each joint's equivalent residual (µrad) against ``x_full[:, j]``,
+    with a binned median, and the recommended joint effect's correction in orange on its
+    joint (compliance only on the torque grid, every other joint effect only on the angle
+    grid, where each reads as a clean curve)."""
     w = diag.where
-    N = w.q.shape[1]
-    fig, axes = _grid(N)
+    fig, axes = _grid(len(joints))
     idx = _subsample(len(w.q))
     s = _marker_size(len(idx))
-    for j in range(N):
-        ax = axes[j]
-        x = np.degrees(w.q[idx, j])
+    for ax, j in zip(axes, joints, strict=False):
+        x = x_full[idx, j]
         y = w.joint_residual_rad[idx, j] * 1e6
         ax.scatter(x, y, s=s, color=_STAGE_COLOURS[1], alpha=0.55, linewidths=0)
-        bx, by = _binned_median(np.degrees(w.q[:, j]), w.joint_residual_rad[:, j] * 1e6)
+        bx, by = _binned_median(x_full[:, j], w.joint_residual_rad[:, j] * 1e6)
         ax.plot(bx, by, color="black", lw=1.4)
         ys = [y]
         title = f"joint {j + 1}"
-        if overlay is not None and overlay[0] == j and diag.best.family != "compliance":
+        if (overlay is not None and overlay[0] == j
+                and (diag.best.family == "compliance") == compliance_overlay):
             yc = overlay[1][idx] * 1e6
             ax.scatter(x, yc, s=s * 0.7, color=_CANDIDATE_COLOUR, alpha=0.8, linewidths=0)
             ys.append(yc)
@@ -686,9 +690,15 @@ def _fig_joints(diag: Diagnosis, overlay) -> Figure:
         ax.axhline(0, color="#666", lw=0.6)
         ax.set_ylim(*_robust_ylim(*ys))
         ax.set_title(title)
-        ax.set_xlabel(f"q{j + 1}, deg")
+        ax.set_xlabel(xlabel.format(j=j + 1))
         ax.set_ylabel("equivalent joint error, µrad")
     return fig
+
+
+def _fig_joints(diag: Diagnosis, overlay) -> Figure:
+    q = diag.where.q
+    return _fig_residual_grid(diag, overlay, list(range(q.shape[1])), np.degrees(q),
+                              "q{j}, deg", compliance_overlay=False)
 
 
 def _torque_joints(diag: Diagnosis) -> list[int]:
@@ -701,30 +711,8 @@ def _torque_joints(diag: Diagnosis) -> list[int]:
 
 
 def _fig_torque(diag: Diagnosis, overlay) -> Figure:
-    w = diag.where
-    joints = _torque_joints(diag)
-    fig, axes = _grid(len(joints))
-    idx = _subsample(len(w.q))
-    s = _marker_size(len(idx))
-    for ax, j in zip(axes, joints, strict=False):
-        x = w.torque_nm[idx, j]
-        y = w.joint_residual_rad[idx, j] * 1e6
-        ax.scatter(x, y, s=s, color=_STAGE_COLOURS[1], alpha=0.55, linewidths=0)
-        bx, by = _binned_median(w.torque_nm[:, j], w.joint_residual_rad[:, j] * 1e6)
-        ax.plot(bx, by, color="black", lw=1.4)
-        ys = [y]
-        title = f"joint {j + 1}"
-        if overlay is not None and overlay[0] == j and diag.best.family == "compliance":
-            yc = overlay[1][idx] * 1e6
-            ax.scatter(x, yc, s=s * 0.7, color=_CANDIDATE_COLOUR, alpha=0.8, linewidths=0)
-            ys.append(yc)
-            title += f"  (orange: {diag.best.effect})"
-        ax.axhline(0, color="#666", lw=0.6)
-        ax.set_ylim(*_robust_ylim(*ys))
-        ax.set_title(title)
-        ax.set_xlabel(f"gravity torque on joint {j + 1}, N·m")
-        ax.set_ylabel("equivalent joint error, µrad")
-    return fig
+    return _fig_residual_grid(diag, overlay, _torque_joints(diag), diag.where.torque_nm,
+                              "gravity torque on joint {j}, N·m", compliance_overlay=True)
 
 
 def _fig_time(diag: Diagnosis) -> Figure:
