@@ -125,7 +125,7 @@ class FaultInjector:
         self.spec = spec if isinstance(spec, FaultSpec) else FaultSpec.parse(spec)
         self._rng = np.random.default_rng(seed)
         self._lock = threading.Lock()
-        self._armed: dict[str, int] = {}
+        self._armed: dict[str, float] = {}
         self.command_index = 0
         #: (command index, fault name) of every fault that fired
         self.log: list[tuple[int, str]] = []
@@ -135,11 +135,19 @@ class FaultInjector:
         """How long a ``slow`` reply is held back (s)."""
         return self.spec.delay_s
 
-    def arm(self, name: str, times: int = 1) -> None:
-        """Fire ``name`` on the next ``times`` commands to which it applies."""
+    def arm(self, name: str, times: int | None = 1) -> None:
+        """Fire ``name`` on the next ``times`` commands to which it applies.
+
+        ``times=None`` keeps it firing on every such command until :meth:`disarm`
+        (a fault that a test needs to last "until the client notices" fires by state,
+        never by a count a fast machine can use up).
+        """
         FaultSpec._check_name(name, name, name)
         with self._lock:
-            self._armed[name] = self._armed.get(name, 0) + times
+            if times is None:
+                self._armed[name] = float("inf")
+            else:
+                self._armed[name] = self._armed.get(name, 0) + times
 
     def disarm(self, name: str | None = None) -> None:
         """Forget armed faults (all of them when ``name`` is None)."""

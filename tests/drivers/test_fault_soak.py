@@ -37,7 +37,7 @@ def _soak(call, reconnect, n=40):
             if not e.transient or "not connected" in str(e):
                 reconnect()
         dt = time.monotonic() - t0
-        assert dt < 3 * TIMEOUT + MARGIN, f"call {i} took {dt:.2f} s"
+        assert dt < 3 * TIMEOUT + MARGIN, f"call {i} took {dt:.2f} s (a hang, not a slow call)"
     return ok, errors
 
 
