@@ -59,7 +59,13 @@ class Measurement:
     ``xyz`` in mm in the tracker frame, ``std`` the per-axis standard deviation
     of the samples (mm), ``timestamp`` the time of the measurement (epoch s),
     ``env`` whatever the instrument knows about its environment, e.g.
-    ``{"temp_c": 20.3, "pressure_hpa": 1013.2, "humidity_pct": 41.0}``.
+    ``{"temp_c": 20.3, "pressure_hpa": 1013.2, "humidity_pct": 41.0}``
+    (also readable as :attr:`temp_c`, :attr:`pressure_hpa`, :attr:`humidity_pct`).
+
+    Optional, when the instrument reports them: ``cov`` the 3×3 covariance of
+    ``xyz`` (mm², its diagonal ``std**2``), ``reflector`` the name of the
+    reflector the tracker measured with, ``face`` the tracker face (1 or 2; 0
+    unknown).
     """
 
     xyz: np.ndarray
@@ -67,6 +73,24 @@ class Measurement:
     n: int
     timestamp: float
     env: dict[str, float] = field(default_factory=dict)
+    cov: np.ndarray | None = None
+    reflector: str = ""
+    face: int = 0
+
+    @property
+    def temp_c(self) -> float | None:
+        """Air temperature (°C) the tracker used, if reported."""
+        return self.env.get("temp_c")
+
+    @property
+    def pressure_hpa(self) -> float | None:
+        """Air pressure (hPa) the tracker used, if reported."""
+        return self.env.get("pressure_hpa")
+
+    @property
+    def humidity_pct(self) -> float | None:
+        """Relative humidity (%) the tracker used, if reported."""
+        return self.env.get("humidity_pct")
 
 
 @runtime_checkable
@@ -121,4 +145,114 @@ class CommandedPosition(Protocol):
 
     def read_tcp(self, timeout: float = 1.0) -> np.ndarray:
         """Nominal TCP position (mm, robot base frame) as the controller computes it."""
+        ...
+
+
+# ---------------------------------------------------------------------------
+# Optional tracker capabilities: small protocols a capture routine checks with
+# ``isinstance(tracker, ReadyGate)`` before it relies on them.
+
+
+@dataclass(frozen=True)
+class Readiness:
+    """The result of a tracker's ready gate: each check, and what failed in words.
+
+    ``initialised``: the tracker was homed/initialised since power-up.
+    ``warmed_up``: the laser is stable (warm-up over).
+    ``weather_station``: a weather station reports the air (temperature, pressure,
+    humidity) to the tracker; without one the environment must be set by hand
+    (:class:`EnvironmentSensor`). ``target``: the beam is on a reflector.
+    """
+
+    initialised: bool
+    warmed_up: bool
+    weather_station: bool
+    target: bool = True
+    problems: tuple[str, ...] = ()
+
+    @property
+    def ok(self) -> bool:
+        """All checks passed."""
+        return not self.problems
+
+
+@runtime_checkable
+class ReadyGate(Protocol):
+    """Capability: say whether the tracker is fit to measure, and why not."""
+
+    def ready(self, timeout: float = 2.0) -> Readiness: ...
+
+    def check_ready(self, timeout: float = 2.0) -> Readiness:
+        """:meth:`ready`, raising :class:`~drivers.errors.NotReady` naming every failed check."""
+        ...
+
+
+@dataclass(frozen=True)
+class Environment:
+    """Air as the tracker uses it for refraction: °C, hPa, %RH.
+
+    ``source`` is ``"station"`` when a weather station feeds these values,
+    ``"manual"`` when they were set by a client (or are the tracker's defaults).
+    """
+
+    temp_c: float
+    pressure_hpa: float
+    humidity_pct: float
+    source: str = "manual"
+
+
+@runtime_checkable
+class EnvironmentSensor(Protocol):
+    """Capability: read the tracker's environment values and set them by hand."""
+
+    def environment(self, timeout: float = 2.0) -> Environment: ...
+
+    def set_environment(
+        self, temp_c: float, pressure_hpa: float, humidity_pct: float, timeout: float = 2.0
+    ) -> None: ...
+
+
+@dataclass(frozen=True)
+class Reflector:
+    """A reflector the tracker knows: its name, the tracker's id for it, its type and
+    surface offset (mm, sphere centre to contact surface)."""
+
+    name: str
+    id: int
+    target_type: str = ""
+    surface_offset_mm: float = 0.0
+
+
+@runtime_checkable
+class ReflectorSelect(Protocol):
+    """Capability: list the reflectors and choose one by name."""
+
+    def reflectors(self, timeout: float = 2.0) -> list[Reflector]: ...
+
+    def reflector(self, timeout: float = 2.0) -> Reflector:
+        """The reflector the tracker measures with now."""
+        ...
+
+    def set_reflector(self, name: str, timeout: float = 2.0) -> Reflector:
+        """Select the reflector called ``name``; CommandRejected naming the known ones."""
+        ...
+
+
+@runtime_checkable
+class TwoFace(Protocol):
+    """Capability: measure in both tracker faces (front and back sight)."""
+
+    def face(self, timeout: float = 2.0) -> int:
+        """The current face, 1 or 2."""
+        ...
+
+    def change_face(self, timeout: float = 30.0) -> int:
+        """Turn the tracker head to the other face; returns the new face."""
+        ...
+
+    def measure_faces(
+        self, duration_s: float = 0.5, timeout: float = 60.0
+    ) -> tuple[Measurement, Measurement]:
+        """Measure the stationary target in the current face, change face, measure
+        again; returns ``(face-1 measurement, face-2 measurement)``."""
         ...
