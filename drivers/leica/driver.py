@@ -191,7 +191,7 @@ class EmsconTracker:
     # ------------------------------------------------------------- plumbing
     def _send(self, packet: codec.Packet, name: str, deadline: float) -> None:
         try:
-            self._send(packet, name, deadline)
+            self._link.send(packet, name, deadline)
         except ConnectionLost:
             self._dirty = True
             raise
