@@ -10,10 +10,13 @@ in seconds; a call that cannot finish in time raises
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+
+from drivers.errors import NotReady, ProtocolError
 
 
 @dataclass(frozen=True)
@@ -175,6 +178,33 @@ class Readiness:
         """All checks passed."""
         return not self.problems
 
+    @classmethod
+    def of(cls, initialised: bool, warmed_up: bool, weather_station: bool, target: bool = True,
+           detail: dict[str, str] | None = None) -> Readiness:
+        """The checks with the standard words for each failure (``detail``: the device's
+        own words per check, e.g. ``{"initialised": "ES_TPS_CompensationSet"}``)."""
+        detail = detail or {}
+        words = {
+            "initialised": "not initialised: initialise it (connect with auto_init)",
+            "warmed_up": "still warming up: wait until the laser is stable",
+            "weather_station": "no weather station reports the air: connect one, or set the "
+                               "air by hand (set_environment)",
+            "target": "no reflector in the beam: put the SMR back in the beam",
+        }
+        ok = {"initialised": initialised, "warmed_up": warmed_up,
+              "weather_station": weather_station, "target": target}
+        problems = tuple(
+            words[k] + (f" ({detail[k]})" if detail.get(k) else "") for k, v in ok.items() if not v
+        )
+        return cls(bool(initialised), bool(warmed_up), bool(weather_station), bool(target),
+                   problems)
+
+    def raise_if_not_ok(self, device: str) -> Readiness:
+        """Self when every check passed, else NotReady naming the failures."""
+        if self.problems:
+            raise NotReady(device, "ready", "; ".join(self.problems))
+        return self
+
 
 @runtime_checkable
 class ReadyGate(Protocol):
@@ -256,3 +286,21 @@ class TwoFace(Protocol):
         """Measure the stationary target in the current face, change face, measure
         again; returns ``(face-1 measurement, face-2 measurement)``."""
         ...
+
+
+def measure_both_faces(tracker, duration_s: float, timeout: float):
+    """:meth:`TwoFace.measure_faces` for any tracker with ``measure``, ``change_face``
+    and measurements that carry their ``face``: measure, change face, measure;
+    returns ``(face 1, face 2)``. The tracker stays in the second face."""
+    deadline = time.monotonic() + timeout
+
+    def left() -> float:
+        return max(deadline - time.monotonic(), 0.01)
+
+    first = tracker.measure(duration_s, left())
+    tracker.change_face(left())
+    second = tracker.measure(duration_s, left())
+    if sorted((first.face, second.face)) != [1, 2]:
+        raise ProtocolError(getattr(tracker, "url", "tracker"), "change_face",
+                            f"measured in faces {first.face} then {second.face}, expected both")
+    return (first, second) if first.face == 1 else (second, first)

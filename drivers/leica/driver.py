@@ -59,6 +59,7 @@ from drivers.protocols import (
     Readiness,
     Reflector,
     TrackerStatus,
+    measure_both_faces,
 )
 
 RS = ES_ResultStatus
@@ -418,31 +419,20 @@ class EmsconTracker:
         self._resync(deadline)
         st = self._call(codec.GetSystemStatusCT(), deadline)[0]
         info = self._call(codec.GetMeasurementStatusInfoCT(), deadline)[0].lMeasurementStatusInfo
-        init = st.trackerProcessorStatus == ES_TrackerProcessorStatus.ES_TPS_Initialized
-        warm = st.laserStatus == ES_LaserProcessorStatus.ES_LPS_LaserReady
-        station = st.weatherMonitorStatus != ES_WeatherMonitorStatus.ES_WMS_NotConnected
-        target = bool(info & ES_MeasurementStatusInfo.ES_MSI_ReflectorFound)
-        problems = []
-        if not init:
-            problems.append("not initialised "
-                            f"({name_of(ES_TrackerProcessorStatus, st.trackerProcessorStatus)}): "
-                            "run Initialize (connect with auto_init)")
-        if not warm:
-            problems.append(f"not warmed up ({name_of(ES_LaserProcessorStatus, st.laserStatus)}):"
-                            " wait until the laser is stable")
-        if not station:
-            problems.append("no weather station: connect it, or set the air by hand "
-                            "(set_environment)")
-        if not target:
-            problems.append("no reflector in the beam: put the SMR in the beam")
-        return Readiness(init, warm, station, target, tuple(problems))
+        return Readiness.of(
+            initialised=st.trackerProcessorStatus == ES_TrackerProcessorStatus.ES_TPS_Initialized,
+            warmed_up=st.laserStatus == ES_LaserProcessorStatus.ES_LPS_LaserReady,
+            weather_station=st.weatherMonitorStatus != ES_WeatherMonitorStatus.ES_WMS_NotConnected,
+            target=bool(info & ES_MeasurementStatusInfo.ES_MSI_ReflectorFound),
+            detail={"initialised": name_of(ES_TrackerProcessorStatus, st.trackerProcessorStatus),
+                    "warmed_up": name_of(ES_LaserProcessorStatus, st.laserStatus),
+                    "weather_station": name_of(ES_WeatherMonitorStatus,
+                                               st.weatherMonitorStatus)},
+        )
 
     def check_ready(self, timeout: float = 2.0) -> Readiness:
         """:meth:`ready`, raising NotReady naming every failed check."""
-        r = self.ready(timeout)
-        if not r.ok:
-            raise NotReady(self._dev, "ready", "; ".join(r.problems))
-        return r
+        return self.ready(timeout).raise_if_not_ok(self._dev)
 
     def environment(self, timeout: float = 2.0) -> Environment:
         """GetEnvironmentParams (°C, hPa, %RH) and whether a weather station supplies them."""
@@ -541,15 +531,7 @@ class EmsconTracker:
     def measure_faces(self, duration_s: float = 0.5,
                       timeout: float = 60.0) -> tuple[Measurement, Measurement]:
         """Measure in this face, ChangeFace, measure again: ``(face 1, face 2)``."""
-        deadline = time.monotonic() + timeout
-        first = self.measure(duration_s, max(deadline - time.monotonic(), 0.01))
-        self.change_face(max(deadline - time.monotonic(), 0.01))
-        second = self.measure(duration_s, max(deadline - time.monotonic(), 0.01))
-        pair = sorted((first, second), key=lambda m: m.face)
-        if [m.face for m in pair] != [1, 2]:
-            raise ProtocolError(self._dev, "ES_C_ChangeFace",
-                                f"faces {first.face} then {second.face}, expected both")
-        return pair[0], pair[1]
+        return measure_both_faces(self, duration_s, timeout)
 
     # --------------------------------------------------------------- events
     def events(self, poll_s: float = 0.0) -> list[tuple[float, str]]:

@@ -18,7 +18,7 @@ from sim_drivers.serve import ServeConfig, SimStack
 DATA = Path(__file__).parent / "data"
 TOY = str(DATA / "toyarm.yaml")
 ROOT = Path(__file__).resolve().parents[2]
-FREE_PORTS = {"modbus": 0, "line_robot": 0, "tracker": 0}
+FREE_PORTS = {"modbus": 0, "line_robot": 0, "tracker": 0, "emscon": 0}
 
 
 def ur10e_controller_model():
