@@ -7,8 +7,9 @@ per reflector), measurement results and status changes sent when they happen.
 
 Like a real server it keeps its settings for every client, and they persist
 across connections: units, coordinate system type, measurement mode,
-stationary measuring time. A client that changes one changes it for all; the
-others are told by a ``SystemStatusChangeT``. A fresh server reports in metres,
+stationary measuring time. A client that changes one changes it for all, and
+every client (itself included) is told by a ``SystemStatusChangeT``, sent
+before the answer to the change. A fresh server reports in metres,
 degrees, °C, mbar (``units=`` to start otherwise).
 
 Commands: GetSystemStatus, GetTrackerStatus, Initialize, Set/GetUnits,
@@ -154,11 +155,11 @@ class EmsconSession:
         if self.server.chatter:
             replies = [self.server.status_packet(SSC.ES_SSC_EnvironmentParamsChanged), *replies]
         self.server.remember_status(replies)
-        if changes:  # the answer first, then everybody hears of the change
-            self.server.send(self.conn, replies)
-            for change in changes:
-                self.server.status_change(change)
-            return []
+        # every client hears of a change before the answer goes out: a client that
+        # learns of it (through another one's answer) and then measures cannot get
+        # its result before the announcement
+        for change in changes:
+            self.server.status_change(change)
         return replies
 
     @staticmethod
@@ -330,7 +331,8 @@ class EmsconSession:
             if srv.faults.fires("beam"):
                 srv.status_change(SSC.ES_SSC_MeasStatus_NotReady)
                 srv.send(self.conn, [error.pack()])
-                return [], [SSC.ES_SSC_MeasStatus_Ready]
+                srv.status_change(SSC.ES_SSC_MeasStatus_Ready)
+                return [], []
             try:
                 r = c.tracker_measure(srv.stationary[0] / 1000.0)
             except CellRefused as e:
