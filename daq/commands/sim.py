@@ -2,8 +2,8 @@
 
 Prints one driver URL per line (Modbus robot, line robot, tracker over TCP,
 tracker over a pty, emScon tracker ``emscon://127.0.0.1:PORT``, then the
-read-only RTDE robot when port 30004 was free), then serves until Ctrl-C or SIGTERM and stops cleanly
-(exit code 0).
+read-only RTDE robot when port 30004 was free), then serves until Ctrl-C or
+SIGTERM and stops cleanly (exit code 0).
 """
 
 from __future__ import annotations

@@ -55,7 +55,7 @@ HEADER_SIZES = {
 
 @pytest.mark.parametrize("name,size", sorted(HEADER_SIZES.items()))
 def test_struct_sizes_match_the_header(name, size):
-    assert getattr(codec, name).SIZE == size
+    assert size == getattr(codec, name).SIZE
 
 
 def test_enum_values_match_the_header():

@@ -12,17 +12,17 @@ import pytest
 from drivers.errors import BeamBroken, CommandRejected, CommandTimeout, NotReady, ProtocolError
 from drivers.leica import codec
 from drivers.leica.driver import EmsconTracker
-from drivers.leica.enums import ES_CoordinateSystemType as CS
 from drivers.leica.enums import (
     ES_AngleUnit,
     ES_LengthUnit,
     ES_PressureUnit,
     ES_TemperatureUnit,
 )
+from drivers.leica.enums import ES_CoordinateSystemType as CS
 from drivers.protocols import EnvironmentSensor, ReadyGate, ReflectorSelect, TrackerDriver, TwoFace
 from drivers.urls import open_tracker
-from sim_drivers.tracker_optics import refractive_index
 from sim_drivers.emscon_server import EmsconServer
+from sim_drivers.tracker_optics import refractive_index
 from tests.sim_drivers.helpers import MARGIN, elapsed_below, make_cell
 
 
