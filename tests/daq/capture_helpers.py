@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import contextlib
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -67,3 +70,20 @@ def run_plan(store: RunStore, plan, robot, tracker, model=None, options=None, ru
     ex = Executor(store, run_id, plan, robot, tracker, options or ExecutorOptions(),
                   model=model, finalize=getattr(get(plan.routine), "finalize", None))
     return run_id, ex.run()
+
+
+@contextlib.contextmanager
+def sim_serve(*args: str):
+    """``cellcal sim serve ARGS`` as a subprocess (stdout piped); SIGTERM on exit."""
+    serve = subprocess.Popen([sys.executable, "-m", "daq", "sim", "serve", *args], cwd=ROOT,
+                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    try:
+        yield serve
+    finally:
+        serve.send_signal(signal.SIGTERM)
+        try:
+            serve.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            serve.kill()
+            serve.wait()
+        serve.stdout.close()

@@ -8,7 +8,6 @@ unchanged: the tracker is just another URL).
 from __future__ import annotations
 
 import json
-import signal
 import subprocess
 import sys
 
@@ -17,16 +16,14 @@ import pytest
 
 from daq.store import RunStore
 
-from .capture_helpers import ROOT
+from .capture_helpers import ROOT, sim_serve
 from .test_capture_e2e import _read_lines
 
 
 @pytest.mark.slow
 def test_capture_poses_over_emscon_matches_the_line_tracker(tmp_path):
     cli = [sys.executable, "-m", "daq"]
-    serve = subprocess.Popen([*cli, "sim", "serve", "--no-pty", "--no-rtde", "--seed", "4"],
-                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
-    try:
+    with sim_serve("--no-pty", "--no-rtde", "--seed", "4") as serve:
         urls = _read_lines(serve, 4, timeout=30)
         robot, line_tracker, emscon = urls[1], urls[2], urls[3]
         assert emscon.startswith("emscon://127.0.0.1:")
@@ -44,14 +41,6 @@ def test_capture_poses_over_emscon_matches_the_line_tracker(tmp_path):
             with RunStore(db) as store:
                 runs[name] = store.samples(1)
                 assert store.run(1).tracker_url == tracker
-    finally:
-        serve.send_signal(signal.SIGTERM)
-        try:
-            serve.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            serve.kill()
-            serve.wait()
-        serve.stdout.close()
     e, line = runs["emscon"], runs["line"]
     assert np.array_equal(e["point_index"], line["point_index"])
     diff = np.linalg.norm(e["xyz"] - line["xyz"], axis=1)

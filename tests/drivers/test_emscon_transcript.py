@@ -1,16 +1,11 @@
 """EmsconTracker against a scripted emScon peer: the exact packets of connect and measure.
 
-The peer follows a transcript of (expected command packet, [reply packets]) on a
-real TCP socket and fails on a packet it did not expect or an exchange that
-never happened.
+The peer (the line-protocol transcript peer, speaking packets) follows a
+transcript of (expected command packet, [reply packets]) on a real TCP socket and
+fails on a packet it did not expect or an exchange that never happened.
 """
 
 from __future__ import annotations
-
-import select
-import socket
-import threading
-import time
 
 import numpy as np
 import pytest
@@ -19,60 +14,20 @@ from drivers.leica import codec
 from drivers.leica.enums import ES_SystemStatusChange, ES_TrackerProcessorStatus
 from drivers.leica.framing import FrameReader
 from drivers.urls import open_tracker
+from tests.sim_drivers.helpers import ScriptedPeer
 
 
-class ScriptedEmscon:
-    """An emScon stand-in on a real TCP socket that follows a transcript."""
+class ScriptedEmscon(ScriptedPeer):
+    """:class:`ScriptedPeer` speaking emScon: requests are decoded command packets
+    (compared field by field), replies are packets."""
 
-    def __init__(self, exchanges: list[tuple[codec.Packet, list[codec.Packet]]]) -> None:
-        self.exchanges = list(exchanges)
-        self.errors: list[str] = []
-        self.used = 0
-        self._ls = socket.create_server(("127.0.0.1", 0))
-        self.port = self._ls.getsockname()[1]
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-
-    def __enter__(self) -> ScriptedEmscon:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self._stop.set()
-        self._thread.join(5.0)
-        self._ls.close()
-
-    def _run(self) -> None:
-        conn = None
-        while not self._stop.is_set() and conn is None:
-            if select.select([self._ls], [], [], 0.05)[0]:
-                conn, _ = self._ls.accept()
-        if conn is None:
-            return
+    def _splitter(self):
         frames = FrameReader()
-        with conn:
-            while not self._stop.is_set():
-                if not select.select([conn], [], [], 0.05)[0]:
-                    continue
-                data = conn.recv(4096)
-                if not data:
-                    return
-                for frame in frames.feed(data):
-                    got = codec.decode(frame, "server")
-                    if self.used >= len(self.exchanges):
-                        self.errors.append(f"unexpected {got!r} after the transcript")
-                        continue
-                    want, replies = self.exchanges[self.used]
-                    if got != want:
-                        self.errors.append(f"exchange {self.used}: expected {want!r}, got {got!r}")
-                    self.used += 1
-                    conn.sendall(b"".join(r.pack() for r in replies))
+        return lambda data: [codec.decode(f, "server") for f in frames.feed(data)]
 
-    def check(self) -> None:
-        time.sleep(0.05)
-        assert not self.errors, self.errors
-        unused = self.exchanges[self.used:]
-        assert not unused, f"expected exchanges never happened: {unused}"
+    @staticmethod
+    def _encode(reply: codec.Packet) -> bytes:
+        return reply.pack()
 
 
 def _reflector(k: int, name: str) -> codec.GetReflectorsRT:
