@@ -415,7 +415,11 @@ class EmsconTracker(EmsconCapabilities):
         if poll_s > 0 and self._link.is_open and not self._dirty:
             deadline = time.monotonic() + poll_s
             while True:
-                p = self._link.read(deadline, "poll")
+                try:
+                    p = self._link.read(deadline, "poll")
+                except (ProtocolError, ConnectionLost):
+                    self._dirty = True
+                    raise
                 if p is None:
                     break
                 self._unsolicited(p)
