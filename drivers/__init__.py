@@ -22,12 +22,19 @@ from drivers.errors import (
 )
 from drivers.protocols import (
     CommandedPosition,
+    Environment,
+    EnvironmentSensor,
     JointReading,
     Measurement,
+    Readiness,
+    ReadyGate,
+    Reflector,
+    ReflectorSelect,
     RobotDriver,
     RobotStatus,
     TrackerDriver,
     TrackerStatus,
+    TwoFace,
 )
 from drivers.urls import open_robot, open_tracker, register_scheme, unregister_scheme
 
@@ -36,6 +43,7 @@ _LAZY = {
     "RegisterMap": "drivers.modbus_robot",
     "SerialRobot": "drivers.line_robot",
     "LineTracker": "drivers.line_tracker",
+    "EmsconTracker": "drivers.leica.driver",
     "UrRtdeRobot": "drivers.ur_rtde",
 }
 
@@ -46,16 +54,23 @@ __all__ = [
     "CommandedPosition",
     "ConnectionLost",
     "DriverError",
+    "Environment",
+    "EnvironmentSensor",
     "JointReading",
     "LimitError",
     "Measurement",
     "NotReady",
     "ProtectiveStop",
     "ProtocolError",
+    "Readiness",
+    "ReadyGate",
+    "Reflector",
+    "ReflectorSelect",
     "RobotDriver",
     "RobotStatus",
     "TrackerDriver",
     "TrackerStatus",
+    "TwoFace",
     "open_robot",
     "open_tracker",
     "register_scheme",

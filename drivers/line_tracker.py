@@ -5,6 +5,11 @@
 sz=… n=… T=… P=… H=… t=…`` (mm, °C, hPa, %, epoch s). Errors
 ``ERR <code> <NAME> [text]`` become typed errors; unsolicited ``EVT …`` lines
 are queued apart (:meth:`LineTracker.events`).
+
+Capabilities (:mod:`drivers.protocols`): a ready gate from ``STATUS?``
+(:class:`~drivers.protocols.ReadyGate`), the air with ``ENV?`` / ``SET ENV``
+(:class:`~drivers.protocols.EnvironmentSensor`), two-face measurement with
+``FACE?`` / ``CHANGE FACE`` (:class:`~drivers.protocols.TwoFace`).
 """
 
 from __future__ import annotations
@@ -20,7 +25,13 @@ from drivers.errors import (
     NotReady,
     ProtocolError,
 )
-from drivers.protocols import Measurement, TrackerStatus
+from drivers.protocols import (
+    Environment,
+    Measurement,
+    Readiness,
+    TrackerStatus,
+    measure_both_faces,
+)
 from drivers.transport import LineSession, LineTransport, parse_kv
 
 #: ERR name → error class
@@ -156,6 +167,7 @@ class LineTracker:
             std = np.array([float(kv["sx"]), float(kv["sy"]), float(kv["sz"])])
             n = int(kv["n"])
             ts = float(kv["t"])
+            face = int(kv.get("face", "0"))
             env = {}
             for key, name in (("T", "temp_c"), ("P", "pressure_hpa"), ("H", "humidity_pct")):
                 if key in kv:
@@ -164,7 +176,68 @@ class LineTracker:
             raise ProtocolError(dev, "MEAS", f"bad measurement reply: {e}") from e
         if not (np.all(np.isfinite(xyz)) and np.all(np.isfinite(std))):
             raise ProtocolError(dev, "MEAS", "non-finite values")
-        return Measurement(xyz=xyz, std=std, n=n, timestamp=ts, env=env)
+        return Measurement(xyz=xyz, std=std, n=n, timestamp=ts, env=env, face=face)
+
+    # ------------------------------------------------------- capabilities
+    def ready(self, timeout: float = 2.0) -> Readiness:
+        """The ready gate from ``STATUS?``: ``init``, ``warm``, ``ws`` (weather station;
+        assumed present when the tracker reports ``T`` without ``ws``), ``target``."""
+        deadline = time.monotonic() + timeout
+        tok = self._session.exchange("STATUS?", "STATUS", deadline, retry=True)
+        kv = parse_kv(tok, self._transport.device, "STATUS?")
+        station = kv.get("ws", "1" if "T" in kv else "0") == "1"
+        return Readiness.of(
+            initialised=kv.get("init") == "1", warmed_up=kv.get("warm") == "1",
+            weather_station=station,
+            target=kv.get("beam") == "1" and kv.get("target", "1") == "1",
+        )
+
+    def check_ready(self, timeout: float = 2.0) -> Readiness:
+        """:meth:`ready`, raising NotReady naming every failed check."""
+        return self.ready(timeout).raise_if_not_ok(self._transport.device)
+
+    def _environment(self, tok: list[str], command: str) -> Environment:
+        kv = parse_kv(tok, self._transport.device, command)
+        try:
+            return Environment(float(kv["T"]), float(kv["P"]), float(kv["H"]),
+                               "station" if kv.get("src") == "station" else "manual")
+        except (KeyError, ValueError) as e:
+            raise ProtocolError(self._transport.device, command, f"bad ENV reply: {e}") from e
+
+    def environment(self, timeout: float = 2.0) -> Environment:
+        """``ENV?``: the air the tracker corrects with (°C, hPa, %RH) and its source."""
+        tok = self._session.exchange("ENV?", "ENV", time.monotonic() + timeout, retry=True)
+        return self._environment(tok, "ENV?")
+
+    def set_environment(self, temp_c: float, pressure_hpa: float, humidity_pct: float,
+                        timeout: float = 2.0) -> None:
+        """``SET ENV T=… P=… H=…``: the air by hand (used while no weather station reports)."""
+        vals = np.array([temp_c, pressure_hpa, humidity_pct], float)
+        if not np.all(np.isfinite(vals)):
+            raise CommandRejected(self._transport.device, "SET ENV", "non-finite value")
+        line = f"SET ENV T={vals[0]:.3f} P={vals[1]:.3f} H={vals[2]:.2f}"
+        self._session.exchange(line, "ENV", time.monotonic() + timeout, retry=True)
+
+    def face(self, timeout: float = 2.0) -> int:
+        """``FACE?``: 1 or 2."""
+        tok = self._session.exchange("FACE?", "FACE", time.monotonic() + timeout, retry=True)
+        return self._face(tok, "FACE?")
+
+    def _face(self, tok: list[str], command: str) -> int:
+        kv = parse_kv(tok, self._transport.device, command)
+        if kv.get("face") not in ("1", "2"):
+            raise ProtocolError(self._transport.device, command, f"bad face {kv.get('face')!r}")
+        return int(kv["face"])
+
+    def change_face(self, timeout: float = 30.0) -> int:
+        """``CHANGE FACE``: turn to the other face; returns the new one (not retried)."""
+        tok = self._session.exchange("CHANGE FACE", "FACE", time.monotonic() + timeout)
+        return self._face(tok, "CHANGE FACE")
+
+    def measure_faces(self, duration_s: float = 0.5,
+                      timeout: float = 60.0) -> tuple[Measurement, Measurement]:
+        """Measure, ``CHANGE FACE``, measure: ``(face 1, face 2)``."""
+        return measure_both_faces(self, duration_s, timeout)
 
     # --------------------------------------------------------------- events
     def events(self, poll_s: float = 0.0) -> list[tuple[float, str]]:

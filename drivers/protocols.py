@@ -10,10 +10,13 @@ in seconds; a call that cannot finish in time raises
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+
+from drivers.errors import NotReady, ProtocolError
 
 
 @dataclass(frozen=True)
@@ -59,7 +62,13 @@ class Measurement:
     ``xyz`` in mm in the tracker frame, ``std`` the per-axis standard deviation
     of the samples (mm), ``timestamp`` the time of the measurement (epoch s),
     ``env`` whatever the instrument knows about its environment, e.g.
-    ``{"temp_c": 20.3, "pressure_hpa": 1013.2, "humidity_pct": 41.0}``.
+    ``{"temp_c": 20.3, "pressure_hpa": 1013.2, "humidity_pct": 41.0}``
+    (also readable as :attr:`temp_c`, :attr:`pressure_hpa`, :attr:`humidity_pct`).
+
+    Optional, when the instrument reports them: ``cov`` the 3×3 covariance of
+    ``xyz`` (mm², its diagonal ``std**2``), ``reflector`` the name of the
+    reflector the tracker measured with, ``face`` the tracker face (1 or 2; 0
+    unknown).
     """
 
     xyz: np.ndarray
@@ -67,6 +76,24 @@ class Measurement:
     n: int
     timestamp: float
     env: dict[str, float] = field(default_factory=dict)
+    cov: np.ndarray | None = None
+    reflector: str = ""
+    face: int = 0
+
+    @property
+    def temp_c(self) -> float | None:
+        """Air temperature (°C) the tracker used, if reported."""
+        return self.env.get("temp_c")
+
+    @property
+    def pressure_hpa(self) -> float | None:
+        """Air pressure (hPa) the tracker used, if reported."""
+        return self.env.get("pressure_hpa")
+
+    @property
+    def humidity_pct(self) -> float | None:
+        """Relative humidity (%) the tracker used, if reported."""
+        return self.env.get("humidity_pct")
 
 
 @runtime_checkable
@@ -122,3 +149,158 @@ class CommandedPosition(Protocol):
     def read_tcp(self, timeout: float = 1.0) -> np.ndarray:
         """Nominal TCP position (mm, robot base frame) as the controller computes it."""
         ...
+
+
+# ---------------------------------------------------------------------------
+# Optional tracker capabilities: small protocols a capture routine checks with
+# ``isinstance(tracker, ReadyGate)`` before it relies on them.
+
+
+@dataclass(frozen=True)
+class Readiness:
+    """The result of a tracker's ready gate: each check, and what failed in words.
+
+    ``initialised``: the tracker was homed/initialised since power-up.
+    ``warmed_up``: the laser is stable (warm-up over).
+    ``weather_station``: a weather station reports the air (temperature, pressure,
+    humidity) to the tracker; without one the environment must be set by hand
+    (:class:`EnvironmentSensor`). ``target``: the beam is on a reflector.
+    """
+
+    initialised: bool
+    warmed_up: bool
+    weather_station: bool
+    target: bool = True
+    problems: tuple[str, ...] = ()
+
+    @property
+    def ok(self) -> bool:
+        """All checks passed."""
+        return not self.problems
+
+    @classmethod
+    def of(cls, initialised: bool, warmed_up: bool, weather_station: bool, target: bool = True,
+           detail: dict[str, str] | None = None) -> Readiness:
+        """The checks with the standard words for each failure (``detail``: the device's
+        own words per check, e.g. ``{"initialised": "ES_TPS_CompensationSet"}``)."""
+        detail = detail or {}
+        words = {
+            "initialised": "not initialised: initialise it (connect with auto_init)",
+            "warmed_up": "still warming up: wait until the laser is stable",
+            "weather_station": "no weather station reports the air: connect one, or set the "
+                               "air by hand (set_environment)",
+            "target": "no reflector in the beam: put the SMR back in the beam",
+        }
+        ok = {"initialised": initialised, "warmed_up": warmed_up,
+              "weather_station": weather_station, "target": target}
+        problems = tuple(
+            words[k] + (f" ({detail[k]})" if detail.get(k) else "") for k, v in ok.items() if not v
+        )
+        return cls(bool(initialised), bool(warmed_up), bool(weather_station), bool(target),
+                   problems)
+
+    def raise_if_not_ok(self, device: str) -> Readiness:
+        """Self when every check passed, else NotReady naming the failures."""
+        if self.problems:
+            raise NotReady(device, "ready", "; ".join(self.problems))
+        return self
+
+
+@runtime_checkable
+class ReadyGate(Protocol):
+    """Capability: say whether the tracker is fit to measure, and why not."""
+
+    def ready(self, timeout: float = 2.0) -> Readiness: ...
+
+    def check_ready(self, timeout: float = 2.0) -> Readiness:
+        """:meth:`ready`, raising :class:`~drivers.errors.NotReady` naming every failed check."""
+        ...
+
+
+@dataclass(frozen=True)
+class Environment:
+    """Air as the tracker uses it for refraction: °C, hPa, %RH.
+
+    ``source`` is ``"station"`` when a weather station feeds these values,
+    ``"manual"`` when they were set by a client (or are the tracker's defaults).
+    """
+
+    temp_c: float
+    pressure_hpa: float
+    humidity_pct: float
+    source: str = "manual"
+
+
+@runtime_checkable
+class EnvironmentSensor(Protocol):
+    """Capability: read the tracker's environment values and set them by hand."""
+
+    def environment(self, timeout: float = 2.0) -> Environment: ...
+
+    def set_environment(
+        self, temp_c: float, pressure_hpa: float, humidity_pct: float, timeout: float = 2.0
+    ) -> None: ...
+
+
+@dataclass(frozen=True)
+class Reflector:
+    """A reflector the tracker knows: its name, the tracker's id for it, its type and
+    surface offset (mm, sphere centre to contact surface)."""
+
+    name: str
+    id: int
+    target_type: str = ""
+    surface_offset_mm: float = 0.0
+
+
+@runtime_checkable
+class ReflectorSelect(Protocol):
+    """Capability: list the reflectors and choose one by name."""
+
+    def reflectors(self, timeout: float = 2.0) -> list[Reflector]: ...
+
+    def reflector(self, timeout: float = 2.0) -> Reflector:
+        """The reflector the tracker measures with now."""
+        ...
+
+    def set_reflector(self, name: str, timeout: float = 2.0) -> Reflector:
+        """Select the reflector called ``name``; CommandRejected naming the known ones."""
+        ...
+
+
+@runtime_checkable
+class TwoFace(Protocol):
+    """Capability: measure in both tracker faces (front and back sight)."""
+
+    def face(self, timeout: float = 2.0) -> int:
+        """The current face, 1 or 2."""
+        ...
+
+    def change_face(self, timeout: float = 30.0) -> int:
+        """Turn the tracker head to the other face; returns the new face."""
+        ...
+
+    def measure_faces(
+        self, duration_s: float = 0.5, timeout: float = 60.0
+    ) -> tuple[Measurement, Measurement]:
+        """Measure the stationary target in the current face, change face, measure
+        again; returns ``(face-1 measurement, face-2 measurement)``."""
+        ...
+
+
+def measure_both_faces(tracker, duration_s: float, timeout: float):
+    """:meth:`TwoFace.measure_faces` for any tracker with ``measure``, ``change_face``
+    and measurements that carry their ``face``: measure, change face, measure;
+    returns ``(face 1, face 2)``. The tracker stays in the second face."""
+    deadline = time.monotonic() + timeout
+
+    def left() -> float:
+        return max(deadline - time.monotonic(), 0.01)
+
+    first = tracker.measure(duration_s, left())
+    tracker.change_face(left())
+    second = tracker.measure(duration_s, left())
+    if sorted((first.face, second.face)) != [1, 2]:
+        raise ProtocolError(getattr(tracker, "url", "tracker"), "change_face",
+                            f"measured in faces {first.face} then {second.face}, expected both")
+    return (first, second) if first.face == 1 else (second, first)

@@ -12,6 +12,7 @@ Trackers (:func:`open_tracker`)::
 
     tracker+tcp://host:port                       LineTracker over TCP
     tracker+serial:///dev/ttyUSB1?baud=115200     LineTracker over a serial port
+    emscon://host[:700]?reflector=NAME            EmsconTracker (Leica emScon TPI, port 700)
     sim://...                                     registered scheme
 
 The returned driver is not yet connected: call ``connect(timeout)``. Extra
@@ -129,6 +130,16 @@ def open_tracker(url: str, **kw):
         from drivers.line_tracker import LineTracker
 
         return LineTracker(url, _serial_path(url), baudrate=_baud(url, q), **kw)
+    if scheme == "emscon":
+        from drivers.leica.driver import DEFAULT_PORT, EmsconTracker
+
+        host, port = _host_port(url, DEFAULT_PORT)
+        unknown = set(q) - {"reflector"}
+        if unknown:
+            raise ValueError(f"bad URL {url!r}: unknown parameter(s) {sorted(unknown)}")
+        if "reflector" in q:
+            kw.setdefault("reflector", q["reflector"])
+        return EmsconTracker(url, host, port, **kw)
     if scheme in _REGISTRY:
         return _REGISTRY[scheme](url, "tracker", **kw)
     raise ValueError(f"bad tracker URL {url!r}: unknown scheme {scheme!r}")

@@ -19,6 +19,20 @@ Tracker
     no target. Optional occlusions: spheres ``(centre_xyz_mm, radius_mm)`` in the
     tracker frame that break the beam when the line of sight passes through
     them.
+
+Tracker metrology
+    Refraction: the tracker turns optical path into distance with the air it is
+    given, read from its weather station (``weather_station=True``: the cell's
+    true air, no error) or set by hand (:meth:`SimCell.set_tracker_environment`,
+    used only without a station). Distances scale by ``n_true / n_used``
+    (:func:`refractive_index`, the NIST shop-floor equation): 1 °C too warm
+    reads ~0.93 µm/m long. Face: the head can measure in face 1 or 2
+    (:meth:`SimCell.tracker_change_face`); a collimation error
+    ``tracker_collimation_rad`` turns the point by ``+c`` about the vertical (z)
+    axis in face 1 and ``-c`` in face 2, so the mean of both faces is free of
+    it. Reflectors: :data:`TRACKER_REFLECTORS` (names and constants invented
+    for the simulator); measuring with one selected that is not the mounted one
+    shifts the distance by the difference of their distance constants.
 """
 
 from __future__ import annotations
@@ -30,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim_drivers.tracker_optics import TRACKER_REFLECTORS, SimReflector, tracker_reads
 from sim_drivers.truth import PoseContext, TrueRobot
 
 
@@ -81,6 +96,8 @@ class TrackerReading:
     pressure_hpa: float
     humidity_pct: float
     timestamp: float
+    face: int = 1
+    reflector: str = ""
 
 
 #: error codes the controller reports (shared by every robot protocol)
@@ -122,6 +139,14 @@ class SimCell:
         Spheres (mm, tracker frame) that block the line of sight.
     warmup_s : float
         Simulated seconds after start before the tracker is warmed up.
+    tracker_initialised : bool
+        Whether the tracker starts initialised.
+    weather_station : bool
+        Whether a weather station feeds the tracker the true air.
+    tracker_collimation_rad : float
+        The tracker's two-face (collimation) error, rad.
+    reflector : str
+        Name of the reflector mounted on the robot (and selected at start).
     """
 
     def __init__(
@@ -142,6 +167,9 @@ class SimCell:
         occlusions: Sequence[tuple[Sequence[float], float]] = (),
         warmup_s: float = 0.0,
         tracker_initialised: bool = False,
+        weather_station: bool = True,
+        tracker_collimation_rad: float = 0.0,
+        reflector: str = "RRR 1.5in",
     ) -> None:
         if time_scale < 0:
             raise ValueError(f"time_scale must be >= 0, got {time_scale}")
@@ -181,6 +209,12 @@ class SimCell:
         self.tracker_initialised = bool(tracker_initialised)
         self.tracker_mode_ms = 500
         self.beam_ok = True
+        self.weather_station = bool(weather_station)
+        self.manual_environment = (20.0, 1013.25, 50.0)
+        self.tracker_collimation_rad = float(tracker_collimation_rad)
+        self.tracker_face = 1
+        self.mounted_reflector = self.find_reflector(reflector)
+        self.tracker_reflector = self.mounted_reflector
         self.n_moves = 0
         self.n_measurements = 0
 
@@ -365,6 +399,70 @@ class SimCell:
                 return False
         return True
 
+    # ---------------------------------------------------- tracker metrology
+    @staticmethod
+    def find_reflector(name_or_id: str | int) -> SimReflector:
+        """The reflector of :data:`TRACKER_REFLECTORS` with this name or id (KeyError)."""
+        for r in TRACKER_REFLECTORS:
+            if r.id == name_or_id or r.name == name_or_id:
+                return r
+        raise KeyError(f"no reflector {name_or_id!r}")
+
+    def select_reflector(self, name_or_id: str | int) -> SimReflector:
+        """Make the tracker measure with this reflector (CellRefused BAD_ARGUMENT if unknown)."""
+        try:
+            r = self.find_reflector(name_or_id)
+        except KeyError as e:
+            raise CellRefused("BAD_ARGUMENT", str(e)) from None
+        with self._lock:
+            self.tracker_reflector = r
+        return r
+
+    def tracker_environment(self) -> tuple[float, float, float, str]:
+        """The air the tracker corrects with: (°C, hPa, %RH, "station" or "manual")."""
+        with self._lock:
+            if self.weather_station:
+                return self.temperature(), self.pressure_hpa, self.humidity_pct, "station"
+            return (*self.manual_environment, "manual")
+
+    def set_tracker_environment(self, temp_c: float, pressure_hpa: float,
+                                humidity_pct: float) -> None:
+        """Set the air by hand (used while no weather station is connected)."""
+        vals = (float(temp_c), float(pressure_hpa), float(humidity_pct))
+        if not (np.all(np.isfinite(vals)) and -50 < vals[0] < 100 and 300 < vals[1] < 1300
+                and 0 <= vals[2] <= 100):
+            raise CellRefused("BAD_ARGUMENT", f"environment out of range: {vals}")
+        with self._lock:
+            self.manual_environment = vals
+
+    def tracker_change_face(self, duration_s: float = 3.0) -> int:
+        """Turn the head to the other face (takes ``duration_s`` simulated s); the new face."""
+        with self._lock:
+            if not self.tracker_initialised:
+                raise CellRefused("NOT_INITIALISED", "send INIT first")
+            self.tracker_face = 2 if self.tracker_face == 1 else 1
+            face = self.tracker_face
+        self.advance(duration_s)
+        return face
+
+    def _tracker_reads(self, p: np.ndarray) -> np.ndarray:
+        """Where the tracker puts the true point ``p``: refraction, reflector, face."""
+        t, pr, h, _ = self.tracker_environment()
+        return tracker_reads(
+            p, used_air=(t, pr, h),
+            true_air=(self.temperature(), self.pressure_hpa, self.humidity_pct),
+            constant_mm=self.mounted_reflector.constant_mm - self.tracker_reflector.constant_mm,
+            collimation_rad=self.tracker_collimation_rad * (1 if self.tracker_face == 1 else -1),
+        )
+
+    def tracker_target_visible(self) -> bool:
+        """Whether the beam can lock on the target now (beam fault, range, line of sight)."""
+        with self._lock:
+            p = self.true_point()
+            lo, hi = self.tracker_range_mm
+            return (self.beam_ok and lo <= float(np.linalg.norm(p)) <= hi
+                    and self._line_of_sight(p))
+
     def tracker_init(self) -> None:
         """Initialise the tracker (home, find the target)."""
         with self._lock:
@@ -396,9 +494,12 @@ class SimCell:
                 raise CellRefused("BEAM_BROKEN", "line of sight blocked")
             sigma = self.tracker_sigma(p)
             n = max(1, int(round(duration_s * 1000.0)))
-            xyz = p + self._rng.normal(0.0, sigma, 3)
+            xyz = self._tracker_reads(p) + self._rng.normal(0.0, sigma, 3)
             std = sigma * (1.0 + 0.05 * self._rng.standard_normal(3)).clip(0.5)
-            temp = self.temperature() + 0.01 * float(self._rng.standard_normal())
+            temp_noise = 0.01 * float(self._rng.standard_normal())
+            env_t, env_p, env_h, source = self.tracker_environment()
+            temp = env_t + temp_noise if source == "station" else env_t
+            face, reflector = self.tracker_face, self.tracker_reflector.name
             self.n_measurements += 1
         self.advance(duration_s)
         return TrackerReading(
@@ -406,7 +507,9 @@ class SimCell:
             std=std,
             n=n,
             temp_c=temp,
-            pressure_hpa=self.pressure_hpa,
-            humidity_pct=self.humidity_pct,
+            pressure_hpa=env_p,
+            humidity_pct=env_h,
             timestamp=time.time(),
+            face=face,
+            reflector=reflector,
         )

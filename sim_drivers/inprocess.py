@@ -25,7 +25,16 @@ from drivers import urls
 from drivers.errors import CommandRejected, CommandTimeout, ProtectiveStop
 from drivers.line_robot import ROBOT_ERRORS
 from drivers.line_tracker import TRACKER_ERRORS
-from drivers.protocols import JointReading, Measurement, RobotStatus, TrackerStatus
+from drivers.protocols import (
+    Environment,
+    JointReading,
+    Measurement,
+    Readiness,
+    Reflector,
+    RobotStatus,
+    TrackerStatus,
+    measure_both_faces,
+)
 from sim_drivers.cell import CellRefused, SimCell
 from sim_drivers.faults import FaultInjector
 from sim_drivers.truth import ToyArm, TrueRobot
@@ -156,7 +165,8 @@ class SimRobot:
 
 
 class SimTracker:
-    """TrackerDriver acting directly on a :class:`SimCell` (initialises on connect)."""
+    """TrackerDriver acting directly on a :class:`SimCell` (initialises on connect), with
+    the ready gate, environment, reflector and two-face capabilities."""
 
     def __init__(self, url: str, cell: SimCell) -> None:
         self.url = url
@@ -206,7 +216,55 @@ class SimTracker:
                 "pressure_hpa": r.pressure_hpa,
                 "humidity_pct": r.humidity_pct,
             },
+            reflector=r.reflector,
+            face=r.face,
         )
+
+    def ready(self, timeout: float = 2.0) -> Readiness:
+        c = self.cell
+        return Readiness.of(c.tracker_initialised, c.tracker_warmed_up(), c.weather_station,
+                            c.tracker_target_visible())
+
+    def check_ready(self, timeout: float = 2.0) -> Readiness:
+        return self.ready(timeout).raise_if_not_ok(self._dev)
+
+    def environment(self, timeout: float = 2.0) -> Environment:
+        return Environment(*self.cell.tracker_environment())
+
+    def set_environment(self, temp_c, pressure_hpa, humidity_pct, timeout: float = 2.0) -> None:
+        try:
+            self.cell.set_tracker_environment(temp_c, pressure_hpa, humidity_pct)
+        except CellRefused as e:
+            raise _refused(e, self._dev, "set_environment", TRACKER_ERRORS) from e
+
+    def reflectors(self, timeout: float = 2.0) -> list[Reflector]:
+        from sim_drivers.tracker_optics import TRACKER_REFLECTORS
+
+        return [Reflector(r.name, r.id, r.target_type, r.surface_offset_mm)
+                for r in TRACKER_REFLECTORS]
+
+    def reflector(self, timeout: float = 2.0) -> Reflector:
+        r = self.cell.tracker_reflector
+        return Reflector(r.name, r.id, r.target_type, r.surface_offset_mm)
+
+    def set_reflector(self, name: str, timeout: float = 2.0) -> Reflector:
+        try:
+            self.cell.select_reflector(name)
+        except CellRefused as e:
+            raise _refused(e, self._dev, "set_reflector", TRACKER_ERRORS) from e
+        return self.reflector()
+
+    def face(self, timeout: float = 2.0) -> int:
+        return self.cell.tracker_face
+
+    def change_face(self, timeout: float = 30.0) -> int:
+        try:
+            return self.cell.tracker_change_face()
+        except CellRefused as e:
+            raise _refused(e, self._dev, "change_face", TRACKER_ERRORS) from e
+
+    def measure_faces(self, duration_s: float = 0.5, timeout: float = 60.0):
+        return measure_both_faces(self, duration_s, timeout)
 
 
 def open_sim(url: str, kind: str, **kw):

@@ -7,6 +7,11 @@ it consults the :class:`~sim_drivers.faults.FaultInjector` for ``drop`` (close
 the connection, TCP only), ``slow`` (hold the reply back) and ``garbage``
 (random bytes instead of the reply).
 
+A binary protocol reuses the transport by overriding :meth:`LineServer._framer`
+(what cuts the byte stream into requests) and :attr:`LineServer.GARBAGE`; its
+sessions return ``bytes`` replies, sent as they are. ``chunk_bytes`` > 0
+sends every reply in pieces of that many bytes (a slow or fragmenting link).
+
 ``start()``/``stop()`` (or ``with``) leave no thread, socket or fd behind.
 """
 
@@ -67,6 +72,24 @@ class _Conn:
                 self.sock.close()
 
 
+class LineFramer:
+    """Cuts a byte stream into stripped, non-empty ASCII lines."""
+
+    def __init__(self) -> None:
+        self._buf = bytearray()
+
+    def feed(self, data: bytes) -> list[str]:
+        self._buf.extend(data)
+        out = []
+        while (nl := self._buf.find(b"\n")) >= 0:
+            raw = bytes(self._buf[:nl])
+            del self._buf[: nl + 1]
+            line = raw.decode("ascii", "replace").strip()
+            if line:
+                out.append(line)
+        return out
+
+
 class LineServer:
     """Serve a line protocol on loopback TCP (``transport="tcp"``) or a pty (``"pty"``).
 
@@ -83,6 +106,9 @@ class LineServer:
     name : str
         Thread-name prefix.
     """
+
+    #: what a ``garbage`` fault sends instead of the reply
+    GARBAGE = GARBAGE
 
     def __init__(
         self,
@@ -109,6 +135,8 @@ class LineServer:
         self._listener: socket.socket | None = None
         self._master = self._slave = -1
         self._rng = np.random.default_rng(0)
+        #: > 0: send replies in pieces of this many bytes (tests of reassembly)
+        self.chunk_bytes = 0
 
     # ------------------------------------------------------------- lifecycle
     def start(self) -> LineServer:
@@ -180,7 +208,7 @@ class LineServer:
             conns = list(self._conns)
         for c in conns:
             with contextlib.suppress(OSError):
-                c.send(line.encode("ascii") + b"\n")
+                self.send(c, [line])
 
     def drop_all(self) -> None:
         """Close every client connection now (TCP), as a crashing server would."""
@@ -200,6 +228,8 @@ class LineServer:
                 sock, _ = ls.accept()
             except (OSError, ValueError):
                 return
+            # replies may go out in several sends (an answer, then a result): no Nagle delay
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             conn = _Conn(sock=sock)
             with self._lock:
                 self._conns = [c for c in self._conns if not c.closed]
@@ -211,7 +241,7 @@ class LineServer:
         session = self.session_factory()
         if hasattr(session, "bind"):
             session.bind(self, conn)
-        buf = bytearray()
+        framer = self._framer()
         try:
             while not self._stop.is_set() and not conn.closed:
                 try:
@@ -232,19 +262,36 @@ class LineServer:
                         self._stop.wait(0.05)
                         continue
                     return
-                buf.extend(data)
-                while (nl := buf.find(b"\n")) >= 0:
-                    raw = bytes(buf[:nl])
-                    del buf[: nl + 1]
-                    line = raw.decode("ascii", "replace").strip()
-                    if line and not self._command(conn, session, line):
+                try:
+                    requests = framer.feed(data)
+                except ValueError:  # the client's stream cannot be cut into requests
+                    return
+                for request in requests:
+                    if not self._command(conn, session, request):
                         return
         finally:
             if conn.sock is not None:
                 conn.close()
 
-    def _command(self, conn: _Conn, session, line: str) -> bool:
-        """Handle one line; False when the connection must end."""
+    def _framer(self):
+        """A fresh per-connection object whose ``feed(bytes)`` returns whole requests."""
+        return LineFramer()
+
+    def send(self, conn: _Conn, replies: list) -> None:
+        """Send replies (str lines get a newline, bytes go as they are) as one buffer,
+        in ``chunk_bytes`` pieces when set. Raises OSError when the link is gone."""
+        data = b"".join(r if isinstance(r, bytes) else r.encode("ascii", "replace") + b"\n"
+                        for r in replies)
+        if self.chunk_bytes <= 0:
+            conn.send(data)
+            return
+        for k in range(0, len(data), self.chunk_bytes):
+            conn.send(data[k:k + self.chunk_bytes])
+            if self._stop.wait(0.001):
+                return
+
+    def _command(self, conn: _Conn, session, line) -> bool:
+        """Handle one request; False when the connection must end."""
         f = self.faults
         f.begin_command()
         if conn.sock is not None and f.fires("drop"):
@@ -253,15 +300,18 @@ class LineServer:
         if f.fires("slow") and self._stop.wait(f.delay_s):
             return False
         if f.fires("garbage"):
-            conn.send(GARBAGE)
+            conn.send(self.GARBAGE)
             return True
         try:
             replies = session.handle(line)
         except Exception as e:  # a bug in a session must not kill the server silently
-            replies = [f"ERR 99 INTERNAL {type(e).__name__}: {e}"]
+            replies = [self._internal_error(line, e)]
         try:
-            for r in replies:
-                conn.send(r.encode("ascii", "replace") + b"\n")
+            self.send(conn, replies)
         except OSError:
             return False
         return True
+
+    def _internal_error(self, request, e: Exception):
+        """The reply to a request whose handling raised (a simulator bug)."""
+        return f"ERR 99 INTERNAL {type(e).__name__}: {e}"

@@ -1,8 +1,9 @@
 """Run the whole simulated cell behind its wire protocols (``cellcal sim serve``).
 
 :class:`SimStack` builds one :class:`~sim_drivers.cell.SimCell` and serves it as
-a Modbus TCP robot, a line-protocol robot over TCP, and the line-protocol
-tracker over TCP and over a pty, all on loopback. Preferred ports are tried
+a Modbus TCP robot, a line-protocol robot over TCP, the line-protocol
+tracker over TCP and over a pty, and an emScon (Leica TPI) tracker over TCP,
+all on loopback. Preferred ports are tried
 first (:data:`DEFAULT_PORTS`); a busy one falls back to a free port.
 
 The truth is one parameter: ``truth_factory(seed, hidden) -> TrueRobot``
@@ -15,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from sim_drivers.cell import SimCell
+from sim_drivers.emscon_server import EmsconServer
 from sim_drivers.faults import FaultInjector
 from sim_drivers.inprocess import default_truth
 from sim_drivers.modbus_server import ModbusRobotServer
@@ -23,8 +25,9 @@ from sim_drivers.rtde_server import PortUnavailable, RtdeSimServer
 from sim_drivers.tracker_server import TrackerServer
 from sim_drivers.truth import TrueRobot
 
-#: preferred ports: Modbus robot, line robot, tracker
-DEFAULT_PORTS = {"modbus": 15020, "line_robot": 15021, "tracker": 15700}
+#: preferred ports: Modbus robot, line robot, line tracker, emScon tracker (a real
+#: emScon server listens on 700, a privileged port)
+DEFAULT_PORTS = {"modbus": 15020, "line_robot": 15021, "tracker": 15700, "emscon": 15701}
 
 
 @dataclass
@@ -110,6 +113,12 @@ class SimStack:
             )
             if c.pty:
                 self.servers.append(TrackerServer(cell, faults=f, transport="pty").start())
+            self.servers.append(
+                self._start_one(
+                    lambda p: EmsconServer(cell, faults=f, host=c.host, port=p),
+                    c.ports.get("emscon", 0),
+                )
+            )
             if c.rtde:
                 try:
                     self.servers.append(

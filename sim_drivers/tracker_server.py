@@ -62,9 +62,20 @@ class TrackerSession:
             c = self.cell
             return [
                 f"OK STATUS init={int(c.tracker_initialised)} warm={int(c.tracker_warmed_up())} "
-                f"beam={int(c.beam_ok)} target=1 busy={int(self.busy.locked())} "
-                f"T={c.temperature():.2f} P={c.pressure_hpa:.2f} H={c.humidity_pct:.1f}"
+                f"beam={int(c.beam_ok)} target={int(c.tracker_target_visible())} "
+                f"busy={int(self.busy.locked())} ws={int(c.weather_station)} "
+                f"face={c.tracker_face} {self._env()}"
             ]
+        if cmd == "ENV?" and len(words) == 1:
+            return [f"OK ENV {self._env()}"]
+        if cmd == "FACE?" and len(words) == 1:
+            return [f"OK FACE face={self.cell.tracker_face}"]
+        if cmd == "CHANGE" and len(words) == 2 and words[1].upper() == "FACE":
+            try:
+                face = self.cell.tracker_change_face()
+            except CellRefused as e:
+                return [err(e.name, e.detail)]
+            return [f"OK FACE face={face}"]
         if cmd == "INIT" and len(words) == 1:
             self.cell.tracker_init()
             return ["OK INIT"]
@@ -74,7 +85,27 @@ class TrackerSession:
             return self._meas()
         return [err("BAD_COMMAND", f"unknown command {line[:40]!r}")]
 
+    def _env(self) -> str:
+        t, p, h, source = self.cell.tracker_environment()
+        return f"T={t:.2f} P={p:.2f} H={h:.1f} src={source}"
+
+    def _set_env(self, words: list[str]) -> list[str]:
+        try:
+            kv = dict(w.split("=", 1) for w in words[2:])
+            t, p, h = float(kv.pop("T")), float(kv.pop("P")), float(kv.pop("H"))
+        except (ValueError, KeyError):
+            kv = {"bad": ""}
+        if kv or len(words) != 5:
+            return [err("BAD_ARGUMENT", "expected SET ENV T=<degC> P=<hPa> H=<%>")]
+        try:
+            self.cell.set_tracker_environment(t, p, h)
+        except CellRefused as e:
+            return [err("BAD_ARGUMENT", e.detail)]
+        return [f"OK ENV {self._env()}"]
+
     def _set(self, words: list[str]) -> list[str]:
+        if len(words) >= 2 and words[1].upper() == "ENV":
+            return self._set_env(words)
         if len(words) != 4 or words[1].upper() != "MODE" or words[2].upper() != "STATIONARY":
             return [err("BAD_COMMAND", "expected SET MODE STATIONARY time_ms=N")]
         key, _, val = words[3].partition("=")
@@ -106,7 +137,7 @@ class TrackerSession:
         return [
             f"OK MEAS x={x:.5f} y={y:.5f} z={z:.5f} sx={sx:.5f} sy={sy:.5f} sz={sz:.5f} "
             f"n={r.n} T={r.temp_c:.2f} P={r.pressure_hpa:.2f} H={r.humidity_pct:.1f} "
-            f"t={r.timestamp:.3f}"
+            f"face={r.face} t={r.timestamp:.3f}"
         ]
 
 

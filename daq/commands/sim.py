@@ -1,8 +1,9 @@
 """``cellcal sim serve``: run the simulated cell behind its wire protocols until stopped.
 
 Prints one driver URL per line (Modbus robot, line robot, tracker over TCP,
-tracker over a pty), then serves until Ctrl-C or SIGTERM and stops cleanly
-(exit code 0).
+tracker over a pty, emScon tracker ``emscon://127.0.0.1:PORT``, then the
+read-only RTDE robot when port 30004 was free), then serves until Ctrl-C or
+SIGTERM and stops cleanly (exit code 0).
 """
 
 from __future__ import annotations

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import contextlib
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +21,7 @@ from sim_drivers.serve import ServeConfig, SimStack
 DATA = Path(__file__).parent / "data"
 TOY = str(DATA / "toyarm.yaml")
 ROOT = Path(__file__).resolve().parents[2]
-FREE_PORTS = {"modbus": 0, "line_robot": 0, "tracker": 0}
+FREE_PORTS = {"modbus": 0, "line_robot": 0, "tracker": 0, "emscon": 0}
 
 
 def ur10e_controller_model():
@@ -67,3 +70,20 @@ def run_plan(store: RunStore, plan, robot, tracker, model=None, options=None, ru
     ex = Executor(store, run_id, plan, robot, tracker, options or ExecutorOptions(),
                   model=model, finalize=getattr(get(plan.routine), "finalize", None))
     return run_id, ex.run()
+
+
+@contextlib.contextmanager
+def sim_serve(*args: str):
+    """``cellcal sim serve ARGS`` as a subprocess (stdout piped); SIGTERM on exit."""
+    serve = subprocess.Popen([sys.executable, "-m", "daq", "sim", "serve", *args], cwd=ROOT,
+                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    try:
+        yield serve
+    finally:
+        serve.send_signal(signal.SIGTERM)
+        try:
+            serve.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            serve.kill()
+            serve.wait()
+        serve.stdout.close()

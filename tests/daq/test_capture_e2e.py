@@ -29,6 +29,7 @@ from .capture_helpers import (
     connected,
     run_plan,
     served_cell,
+    sim_serve,
     ur10e_controller_model,
 )
 
@@ -121,9 +122,7 @@ def test_sigkill_three_times_then_resume(tmp_path):
     db = tmp_path / "cell.db"
     rng = np.random.default_rng(7)
     cli = [sys.executable, "-m", "daq"]
-    serve = subprocess.Popen([*cli, "sim", "serve", "--no-pty", "--seed", "5"], cwd=ROOT,
-                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
-    try:
+    with sim_serve("--no-pty", "--seed", "5") as serve:
         urls = _read_lines(serve, 3, timeout=30)
         robot, tracker = urls[1], urls[2]
         capture = [*cli, "capture", "poses", "--count", "150", "--seed", "2", "--model",
@@ -147,14 +146,6 @@ def test_sigkill_three_times_then_resume(tmp_path):
         out = subprocess.run(resume, cwd=ROOT, capture_output=True, timeout=120)
         assert out.returncode == 0, out.stderr.decode()
         summary = json.loads(out.stdout)
-    finally:
-        serve.send_signal(signal.SIGTERM)
-        try:
-            serve.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            serve.kill()
-            serve.wait()
-        serve.stdout.close()
     assert summary["status"] == "completed" and summary["samples"] == 150
     with RunStore(db) as store:
         s = store.samples(1)

@@ -252,3 +252,45 @@ def test_transcript_garbage_and_unknown_error():
         finally:
             trk.close()
         peer.check()
+
+
+# ------------------------------------------------------------ capabilities
+def test_line_tracker_capabilities(cell, server, tracker):
+    from drivers.protocols import EnvironmentSensor, ReadyGate, TwoFace
+
+    assert isinstance(tracker, ReadyGate) and isinstance(tracker, EnvironmentSensor)
+    assert isinstance(tracker, TwoFace)
+    assert tracker.check_ready().ok
+    env = tracker.environment()
+    assert (env.temp_c, env.pressure_hpa, env.source) == (20.0, 1013.25, "station")
+    assert tracker.face() == 1
+    a, b = tracker.measure_faces(0.05, 5.0)
+    assert (a.face, b.face) == (1, 2) and tracker.face() == 2
+    assert np.linalg.norm(a.xyz - b.xyz) < 0.1  # no collimation error in this cell
+
+
+def test_line_tracker_environment_by_hand():
+    from sim_drivers.tracker_optics import refractive_index
+
+    cell = make_cell(seed=4, weather_station=False)
+    cell.manual_environment = (20.0, 1013.25, 45.0)
+    with TrackerServer(cell) as srv:
+        trk = open_tracker(srv.url)
+        trk.connect(2.0)
+        try:
+            r = trk.ready()
+            assert not r.weather_station and "set_environment" in r.problems[0]
+            with pytest.raises(NotReady, match="weather station"):
+                trk.check_ready()
+            base = np.mean([np.linalg.norm(trk.measure(0.01, 2.0).xyz) for _ in range(40)])
+            trk.set_environment(20.0, 1063.25, 45.0)  # 50 hPa too high
+            env = trk.environment()
+            assert (env.pressure_hpa, env.source) == (1063.25, "manual")
+            high = np.mean([np.linalg.norm(trk.measure(0.01, 2.0).xyz) for _ in range(40)])
+            with pytest.raises(CommandRejected, match="BAD_ARGUMENT"):
+                trk.set_environment(20.0, 5000.0, 45.0)
+        finally:
+            trk.close()
+    L = np.linalg.norm(cell.true_point())
+    expected = L * (refractive_index(20, 1013.25, 45) / refractive_index(20, 1063.25, 45) - 1)
+    assert expected < 0 and high - base == pytest.approx(expected, abs=0.006)

@@ -71,17 +71,14 @@ class ScriptedPeer:
                     break
             if conn is None:
                 return
-            buf = b""
+            split = self._splitter()
             while not self._stop.is_set():
                 if not select.select([conn], [], [], 0.05)[0]:
                     continue
                 data = conn.recv(4096)
                 if not data:
                     return
-                buf += data
-                while b"\n" in buf:
-                    raw, buf = buf.split(b"\n", 1)
-                    line = raw.decode().strip()
+                for line in split(data):
                     if self.used >= len(self.exchanges):
                         self.errors.append(f"unexpected line {line!r} after the transcript")
                         continue
@@ -89,11 +86,28 @@ class ScriptedPeer:
                     if line != want:
                         self.errors.append(f"exchange {self.used}: expected {want!r}, got {line!r}")
                     self.used += 1
-                    for r in replies:
-                        conn.sendall(r.encode() + b"\n")
+                    conn.sendall(b"".join(self._encode(r) for r in replies))
         finally:
             if conn is not None:
                 conn.close()
+
+    def _splitter(self):
+        """A per-connection ``feed(bytes) -> requests``: here stripped text lines."""
+        buf = bytearray()
+
+        def feed(data: bytes) -> list[str]:
+            buf.extend(data)
+            out = []
+            while (nl := buf.find(b"\n")) >= 0:
+                out.append(bytes(buf[:nl]).decode().strip())
+                del buf[: nl + 1]
+            return out
+
+        return feed
+
+    @staticmethod
+    def _encode(reply) -> bytes:
+        return reply.encode() + b"\n"
 
     def check(self) -> None:
         """Fail on unexpected lines or unused exchanges."""

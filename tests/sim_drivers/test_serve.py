@@ -44,11 +44,12 @@ def test_cellcal_sim_serve_subprocess():
         stderr=subprocess.PIPE,
     )
     try:
-        urls = _read_lines(proc, 4, timeout=20.0)
+        urls = _read_lines(proc, 5, timeout=20.0)
         assert urls[0].startswith("modbus+tcp://127.0.0.1:")
         assert urls[1].startswith("socket://127.0.0.1:")
         assert urls[2].startswith("tracker+tcp://127.0.0.1:")
         assert urls[3].startswith("tracker+serial:///dev/")
+        assert urls[4].startswith("emscon://127.0.0.1:")
         target = np.array([0.2, 0.3, -0.1])
         for robot_url in urls[:2]:
             with open_robot(robot_url) as rob:
@@ -56,11 +57,13 @@ def test_cellcal_sim_serve_subprocess():
                 rob.move_joints(target, speed=0.5, wait=True, timeout=2.0)
                 assert np.allclose(rob.read_joints().q, target, atol=1e-4)
         points = []
-        for tracker_url in urls[2:4]:
+        for tracker_url in urls[2:5]:
             with open_tracker(tracker_url) as trk:
                 trk.connect(2.0)
                 points.append(trk.measure(0.1, timeout=2.0).xyz)
-        assert np.linalg.norm(points[0] - points[1]) < 0.1  # same cell, same target
+        # same cell, same target, whatever the protocol
+        assert np.linalg.norm(points[0] - points[1]) < 0.1
+        assert np.linalg.norm(points[0] - points[2]) < 0.1
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=10) == 0
         assert b"stopped" in proc.stderr.read()
@@ -84,14 +87,16 @@ def test_bad_fault_spec_is_a_usage_error():
 
 
 def test_stack_falls_back_to_free_ports():
-    with SimStack(ServeConfig(pty=False, ports={"modbus": 0, "line_robot": 0, "tracker": 0})) as a:
+    free = {"modbus": 0, "line_robot": 0, "tracker": 0, "emscon": 0}
+    with SimStack(ServeConfig(pty=False, ports=free)) as a:
         taken = {
             "modbus": a.servers[0].port,
             "line_robot": a.servers[1].port,
             "tracker": a.servers[2].port,
+            "emscon": a.servers[3].port,
         }
         with SimStack(ServeConfig(pty=False, ports=taken)) as b:
-            assert len(b.urls) == 3
+            assert len(b.urls) == 4
             assert [s.port for s in b.servers] != list(taken.values())
             with open_tracker(b.urls[2]) as trk:
                 trk.connect(1.0)
@@ -111,7 +116,7 @@ def test_sim_serve_ur10e_with_rtde_read_by_the_real_ur_client():
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
     )
     try:
-        urls = _read_lines(proc, 3, timeout=20.0)
+        urls = _read_lines(proc, 4, timeout=20.0)
         time.sleep(0.5)  # the RTDE line, if port 30004 was free, follows at once
         more = _read_lines(proc, 1, timeout=5.0) if select.select(
             [proc.stdout.fileno()], [], [], 0.5)[0] else []
