@@ -57,28 +57,17 @@ class CalibratedFK:
 
     def chain(self, q: np.ndarray, rows: np.ndarray | None = None):
         """The :class:`~calibration.kinematics.ChainResult` of the calibrated robot."""
-        em, x = self.em, self.x
+        em = self.em
         q = np.atleast_2d(np.asarray(q, float))
-        cols = {k: (v if rows is None else np.asarray(v)[rows]) for k, v in self.columns.items()}
-        qc = q.copy()
-        table = em.model.dh_table()
-        tool = em.model.tool_mm()
-        scale = None
-        stages = {e.stage for e in em.effects}
-        data = None
-        if stages & {"joint", "length"}:
-            data = Dataset(q=q, xyz=np.zeros((len(q), 3)), source="compensation", **cols)
-            bound = em.bind(data)
-        for k, (e, sl) in enumerate(zip(em.effects, em.slices, strict=True)):
-            if e.stage == "joint":
-                qc[:, e.joint - 1] += e.delta(x[sl], data, bound.states[k])[0]
-            elif e.stage == "table":
-                table = table + e.table_delta(x[sl])[0]
-            elif e.stage == "length":
-                scale = e.length_scale(x[sl], data, bound.states[k])[0]
-            elif e.stage == "tool":
-                tool = e.tool_point(x[sl])[0]
-        return run_chain(em.model.convention, table, qc, tool, scale, jacobian=False)
+        bound = None
+        if any(e.stage in ("joint", "length") for e in em.effects):
+            cols = {k: (v if rows is None else np.asarray(v)[rows])
+                    for k, v in self.columns.items()}
+            bound = em.bind(Dataset(q=q, xyz=np.zeros((len(q), 3)), source="compensation",
+                                    **cols))
+        c = em.perturb(self.x, bound)
+        return run_chain(em.model.convention, c.table, q if c.q is None else c.q, c.tool,
+                         c.length_scale, jacobian=False)
 
     def __call__(self, q: np.ndarray, rows: np.ndarray | None = None):
         r = self.chain(q, rows)

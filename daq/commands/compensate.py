@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from calibration.compensation import compensate, load_targets
-from calibration.export import calibrated_model, write_model_yaml, write_ur_conf
+from calibration.model_export import calibrated_model, write_model_yaml, write_ur_conf
 from calibration.params_io import load_params
 from calibration.transforms import matrix_to_rotvec
 

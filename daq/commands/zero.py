@@ -106,23 +106,15 @@ def register(sub) -> None:
 
 def _chain(model, params_path):
     """The chain to recalibrate and the base transform (R, t) or None."""
-    table = model.dh_table()
-    tool = model.tool_mm()
-    base = None
-    if params_path:
-        em, x, _ = wrap_errors(lambda: load_params(params_path))
-        if em.model.n_joints != model.n_joints:
-            raise UsageError(f"{params_path}: its model has {em.model.n_joints} joints, "
-                             f"{model.name} has {model.n_joints}")
-        table = em.model.dh_table()
-        for e, sl in zip(em.effects, em.slices, strict=True):
-            if e.family == "geometric":
-                table = table + e.table_delta(x[sl])[0]
-            elif e.family == "tool":
-                tool = x[sl]
-            elif e.family == "base":
-                base = e.transform(x[sl])
-    return ChainFK(model.convention, table, tool), base
+    if not params_path:
+        return ChainFK.from_model(model), None
+    em, x, _ = wrap_errors(lambda: load_params(params_path))
+    if em.model.n_joints != model.n_joints:
+        raise UsageError(f"{params_path}: its model has {em.model.n_joints} joints, "
+                         f"{model.name} has {model.n_joints}")
+    c = em.perturb(x)
+    tool = c.tool if "tool" in c.applied else model.tool_mm()
+    return ChainFK(model.convention, c.table, tool), c.tracker_T_base
 
 
 def _replay_start(path, n_joints):

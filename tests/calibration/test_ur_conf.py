@@ -5,8 +5,8 @@ import pytest
 import yaml
 
 from calibration import ErrorModel, load_model
-from calibration.export import calibrated_model, calibrated_table, ur_deltas, write_ur_conf
 from calibration.kinematics import run_chain
+from calibration.model_export import calibrated_model, calibrated_table, ur_deltas, write_ur_conf
 from calibration.ur_conf import (
     URConfError,
     deltas_from_table,
