@@ -12,7 +12,7 @@ from __future__ import annotations
 from .anneal import solve_besa, solve_besa_lm, solve_sa
 from .common import Problem, SolverResult
 from .lm import solve_lm
-from .ridge import igg3_weights, plot_ridge, solve_ridge
+from .ridge import igg3_weights, solve_ridge
 
 SOLVERS = {
     "lm": solve_lm,
@@ -27,7 +27,6 @@ __all__ = [
     "Problem",
     "SolverResult",
     "igg3_weights",
-    "plot_ridge",
     "solve_besa",
     "solve_besa_lm",
     "solve_lm",

@@ -36,7 +36,7 @@ simulate     simulate_postures: hand-taught postures of a robot whose zeros move
 Lengths mm, angles rad; degrees only in files.
 """
 
-from .assess import assess, expected_undetermined, summary
+from .assess import assess, expected_undetermined
 from .postures import zero20_directions, zero20_postures
 from .postures_io import Postures, load_postures, postures_from_dataset
 from .simulate import simulate_postures
@@ -54,7 +54,6 @@ __all__ = [
     "rigorous_method",
     "seed_method",
     "simulate_postures",
-    "summary",
     "zero20_directions",
     "zero20_postures",
 ]

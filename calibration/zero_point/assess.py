@@ -47,38 +47,3 @@ def assess(result: ZeroResult, *, tolerance_deg: float, sigma_mm: float,
         reasons.append(f"residual RMS {result.rms_mm:.4f} mm is far above the "
                        f"{expected:.4f} mm the tip scatter explains")
     return ("poor" if reasons else "ok"), reasons
-
-
-def summary(result: ZeroResult, model_name: str, n_poses: int, *, tolerance_deg: float,
-            sigma_mm: float, measured: bool = False) -> dict:
-    """The ``zero --json`` object (FORMATS.md §4) plus extra keys."""
-    status, reasons = assess(result, tolerance_deg=tolerance_deg, sigma_mm=sigma_mm,
-                             measured=measured)
-    det = result.determined
-    off = [round(math.degrees(v), 6) if d else None
-           for v, d in zip(result.offsets, det, strict=True)]
-    std = [round(math.degrees(s), 6) if d and np.isfinite(s) else None
-           for s, d in zip(result.std, det, strict=True)]
-    changed = [f"j{j + 1}" for j in range(len(det))
-               if det[j] and abs(math.degrees(result.offsets[j])) > tolerance_deg]
-    return {
-        "model": model_name,
-        "n_poses": n_poses,
-        "offsets_deg": off,
-        "std_deg": std,
-        "unidentifiable": result.unidentifiable,
-        "tool_mm": [round(float(v), 6) for v in result.tool],
-        "target_mm": [round(float(v), 6) for v in result.target],
-        "rms_mm": round(result.rms_mm, 6),
-        "status": status,
-        "method": result.method,
-        "changed": changed,
-        "tolerance_deg": tolerance_deg,
-        "reasons": reasons,
-        "outliers": result.outliers,
-        "converged": result.converged,
-        "reason": result.reason,
-        "iterations": result.iterations,
-        "solve_s": round(result.solve_s, 6),
-        "offsets_rad": [float(v) for v in result.offsets],
-    }

@@ -6,8 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from calibration import DEFAULT_EFFECTS
-from calibration.report import ReportError, build_report
 from calibration.solvers import SOLVERS
+from presentation.html_report import ReportError, build_report
 
 from ..cli import UsageError
 from .common import add_model_args, load_inputs, print_json, wrap_errors

@@ -39,8 +39,8 @@ from calibration.zero_point import (
     load_postures,
     rigorous_method,
     seed_method,
-    summary,
 )
+from presentation.summaries import zero_summary
 
 from ..cli import UsageError
 from .common import fmt, open_store, print_json, table, wrap_errors
@@ -188,11 +188,11 @@ def run(args) -> int:
                                               measured_base=measured, sigma_mm=args.sigma,
                                               reject_outliers=not args.keep_outliers)
     main = results.get("rigorous", results.get("seed"))
-    doc = summary(main, model.name, postures.n, tolerance_deg=args.tolerance_deg,
+    doc = zero_summary(main, model.name, postures.n, tolerance_deg=args.tolerance_deg,
                   sigma_mm=args.sigma, measured=measured is not None and main.method != "seed")
     if "seed" in results and main is not results["seed"]:
         s = results["seed"]
-        sdoc = summary(s, model.name, postures.n, tolerance_deg=args.tolerance_deg,
+        sdoc = zero_summary(s, model.name, postures.n, tolerance_deg=args.tolerance_deg,
                        sigma_mm=args.sigma)
         doc["seed"] = {k: sdoc[k] for k in ("offsets_deg", "tool_mm", "target_mm", "rms_mm",
                                             "status", "reasons", "converged", "reason",
