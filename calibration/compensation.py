@@ -63,7 +63,7 @@ class CalibratedFK:
         if any(e.stage in ("joint", "length") for e in em.effects):
             cols = {k: (v if rows is None else np.asarray(v)[rows])
                     for k, v in self.columns.items()}
-            bound = em.bind(Dataset(q=q, xyz=np.zeros((len(q), 3)), source="compensation",
+            bound = em.bind(Dataset(q=q, tracker_p_smr=np.zeros((len(q), 3)), source="compensation",
                                     **cols))
         c = em.perturb(self.x, bound)
         return run_chain(em.model.convention, c.table, q if c.q is None else c.q, c.tool,
@@ -71,12 +71,12 @@ class CalibratedFK:
 
     def __call__(self, q: np.ndarray, rows: np.ndarray | None = None):
         r = self.chain(q, rows)
-        Jp = cross(r.joint_axes, r.point[:, None, :] - r.joint_origins).transpose(0, 2, 1)
-        return r.point, r.flange_R, Jp, r.joint_axes.transpose(0, 2, 1)
+        Jp = cross(r.joint_axes, r.base_p_tcp[:, None, :] - r.joint_origins).transpose(0, 2, 1)
+        return r.base_p_tcp, r.base_R_flange, Jp, r.joint_axes.transpose(0, 2, 1)
 
     def point(self, q: np.ndarray) -> np.ndarray:
         """Calibrated tool point (base frame) for commanded joints q (rad), (n, 3) mm."""
-        return self.chain(q).point
+        return self.chain(q).base_p_tcp
 
 
 @dataclass
@@ -181,7 +181,7 @@ def compensate(
         res.reason += f"; {len(bad)} solved for position only (orientation not held)"
     P_cmd, R_cmd, _, _ = nominal(q)
     P_nom = nominal.point(q_nominal)
-    residual = np.linalg.norm(fk.chain(q).point - target, axis=1)
+    residual = np.linalg.norm(fk.chain(q).base_p_tcp - target, axis=1)
     return Compensation(target, q_nominal, q, P_cmd, R_cmd, residual,
                         np.linalg.norm(P_cmd - P_nom, axis=1), res.success, kept,
                         res.iterations, res.reason)
@@ -193,13 +193,13 @@ class Targets:
 
     Attributes
     ----------
-    xyz : (n, 3) desired tool points, robot base frame, mm
+    base_p_tcp : (n, 3) desired tool points in the robot base frame, mm
     q : (n, N) nominal joints, rad, or None
     pose_id : n labels
     columns : optional per-target data (``temp_c``, ``payload_kg``), arrays (n,)
     """
 
-    xyz: np.ndarray
+    base_p_tcp: np.ndarray
     q: np.ndarray | None
     pose_id: list[str]
     columns: dict

@@ -145,7 +145,7 @@ class ErrorModel:
         if base and tool and bound.data.n >= 4:
             sb, st_ = self.slices[base[0]], self.slices[tool[0]]
             nom = bound.nominal
-            Rf, pf, meas = nom.flange_R, nom.flange_p, bound.data.xyz
+            Rf, pf, meas = nom.base_R_flange, nom.base_p_flange, bound.data.tracker_p_smr
             t = x[st_].copy()
             for _ in range(8):
                 R, c = fit_rigid(pf + Rf @ t, meas)
@@ -223,7 +223,7 @@ class ErrorModel:
         table, tool, scale = c.table, c.tool, c.length_scale
         jacobian = jacobian or joints
         r = run_chain(self.model.convention, table, c.q, tool, scale, jacobian=jacobian)
-        P = r.point
+        P = r.base_p_tcp
         G = r.dP_dtable[:, :, :, 0] if joints else None
         if jacobian:
             dP = r.dP_dtable
@@ -238,11 +238,11 @@ class ErrorModel:
                 J[:, :, sls[i]] = block.reshape(-1, 3, n).transpose(2, 1, 0)
             grow = None if scale is None else (1.0 + scale)[:, None, None]
             for i in self._by_stage["tool"]:
-                cols = r.flange_R @ c.partials[i]
+                cols = r.base_R_flange @ c.partials[i]
                 J[:, :, sls[i]] = cols if grow is None else cols * grow
             for i in self._by_stage["length"]:
                 lengths = dP[:, :, :, D] * table[:, D] + dP[:, :, :, A] * table[:, A]
-                dP_ds = lengths.sum(axis=2) / (1.0 + scale)[:, None] + r.flange_R @ tool
+                dP_ds = lengths.sum(axis=2) / (1.0 + scale)[:, None] + r.base_R_flange @ tool
                 J[:, :, sls[i]] = dP_ds[:, :, None] * c.partials[i][:, None, :]
         for i in self._by_stage["base"]:
             P, R, Jb = eff[i].apply(x[sls[i]], P)
@@ -285,7 +285,7 @@ class ErrorModel:
 
     def residuals(self, x: np.ndarray, bound: Bound) -> np.ndarray:
         """Measured minus predicted target centres, (n, 3) mm."""
-        return bound.data.xyz - self.evaluate(x, bound, jacobian=False)[0]
+        return bound.data.tracker_p_smr - self.evaluate(x, bound, jacobian=False)[0]
 
     def numeric_jacobian(self, x: np.ndarray, bound: Bound, rel: float = 1e-3) -> np.ndarray:
         """Central finite differences of :meth:`evaluate` (for tests), (n, 3, n_params)."""

@@ -230,7 +230,7 @@ def identify(
     result = SOLVERS[solver](problem, **(solver_options or {}))
     x = problem.full(result.xf)
     P, J = error_model.evaluate(x, bound, jacobian=True)
-    resid = calib.xyz - P
+    resid = calib.tracker_p_smr - P
     weights = result.info.get("weights")
     r_w = resid if weights is None else resid * np.sqrt(weights)[:, None]
     J_w = J if weights is None else J * np.sqrt(weights)[:, None, None]
@@ -256,7 +256,7 @@ def identify(
     for e, st in zip(error_model.effects, bound.states, strict=True):
         fit.notes.extend(e.describe(st))
     if held is not None and held.n:
-        vres = held.xyz - error_model.evaluate(x, error_model.bind(held), False)[0]
+        vres = held.tracker_p_smr - error_model.evaluate(x, error_model.bind(held), False)[0]
         fit.valid_data, fit.valid_residuals, fit.valid = held, vres, error_stats(vres)
     fit.solve_s = time.perf_counter() - t0
     return fit

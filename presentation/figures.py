@@ -217,9 +217,9 @@ def fig_hist(stages: list[Stage], floor: float | None) -> Figure:
 
 
 def fig_workspace(fit: Fit) -> tuple[Figure, float, float]:
-    pts = [(fit.data.xyz, fit.residuals, "o")]
+    pts = [(fit.data.tracker_p_smr, fit.residuals, "o")]
     if fit.valid_data is not None and fit.valid_residuals is not None:
-        pts.append((fit.valid_data.xyz, fit.valid_residuals, "^"))
+        pts.append((fit.valid_data.tracker_p_smr, fit.valid_residuals, "^"))
     xyz = np.vstack([p for p, _, _ in pts])
     res = np.vstack([r for _, r, _ in pts])
     mag = np.linalg.norm(res, axis=1)

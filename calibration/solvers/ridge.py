@@ -335,7 +335,7 @@ def _unweighted(problem: Problem, xf: np.ndarray) -> tuple[np.ndarray, np.ndarra
     """Residuals (n, 3) and their Jacobian d r / d xf (n, 3, m), without problem weights."""
     x = problem.full(xf)
     P, J = problem.error_model.evaluate(x, problem.bound, jacobian=True)
-    return problem.bound.data.xyz - P, -J[:, :, problem.free]
+    return problem.bound.data.tracker_p_smr - P, -J[:, :, problem.free]
 
 
 def _penalty(problem: Problem, xf: np.ndarray):

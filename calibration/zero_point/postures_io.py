@@ -25,26 +25,29 @@ class Postures:
     q : (n, N) joint readings of the controller, rad
     plane : (n,) plane number 1..4 of each posture
     pose_id : n labels
-    xyz : (n, 3) measured tip, or None (frame: see :func:`rigorous_method`), mm
+    base_p_tip : (n, 3) measured tip in the robot base frame, mm (usable as measured tips
+        as they are, see :func:`~calibration.zero_point.rigorous_method`), or None
+    tracker_p_tip : (n, 3) measured tip in the tracker (measurement) frame, mm, or None:
+        usable only with the base's pose (e.g. a calibrated model's ``base``), see
+        :meth:`tips_in_base`. At most one of ``base_p_tip`` and ``tracker_p_tip`` is given.
     source : where they came from
     lines : (n,) file line of each row (0 when not from a file)
-    xyz_frame : the frame of ``xyz``: ``"base"`` (the robot base frame, usable as
-        measured tips as they are) or ``"tracker"`` (the measurement frame: usable only
-        with the base's pose, e.g. a calibrated model's ``base``)
     """
 
     q: np.ndarray
     plane: np.ndarray
     pose_id: list[str] = field(default_factory=list)
-    xyz: np.ndarray | None = None
+    base_p_tip: np.ndarray | None = None
+    tracker_p_tip: np.ndarray | None = None
     source: str = "<arrays>"
     lines: np.ndarray | None = None
-    xyz_frame: str = "base"
 
     def __post_init__(self) -> None:
         self.q = np.atleast_2d(np.asarray(self.q, float))
         n = len(self.q)
         self.plane = np.asarray(self.plane, int)
+        if self.base_p_tip is not None and self.tracker_p_tip is not None:
+            raise ValueError("measured tips are either in the base or in the tracker frame")
         if not self.pose_id:
             self.pose_id = [str(i + 1) for i in range(n)]
         if self.lines is None:
@@ -54,11 +57,29 @@ class Postures:
     def n(self) -> int:
         return len(self.q)
 
+    @property
+    def tip_frame(self) -> str | None:
+        """``"base"`` or ``"tracker"``: the frame of the measured tips (None without)."""
+        if self.base_p_tip is not None:
+            return "base"
+        return "tracker" if self.tracker_p_tip is not None else None
+
     def subset(self, keep: np.ndarray) -> Postures:
         idx = np.arange(self.n)[keep]
+
+        def pick(a):
+            return None if a is None else a[idx]
+
         return Postures(self.q[idx], self.plane[idx], [self.pose_id[i] for i in idx],
-                        None if self.xyz is None else self.xyz[idx], self.source, self.lines[idx],
-                        self.xyz_frame)
+                        base_p_tip=pick(self.base_p_tip), tracker_p_tip=pick(self.tracker_p_tip),
+                        source=self.source, lines=self.lines[idx])
+
+    def tips_in_base(self, tracker_R_base: np.ndarray, tracker_p_base: np.ndarray) -> Postures:
+        """These postures with the tracker-frame tips mapped into the base frame, given the
+        base's pose in the tracker frame (rotation (3, 3), origin (3,) mm)."""
+        tips = (self.tracker_p_tip - tracker_p_base) @ tracker_R_base
+        return Postures(self.q, self.plane, self.pose_id, base_p_tip=tips, source=self.source,
+                        lines=self.lines)
 
     def to_csv(self, path: str | Path | None = None, meta: dict | None = None) -> str:
         """The postures CSV (deg); returns the text, writes it when a path is given.
@@ -69,16 +90,17 @@ class Postures:
         N = self.q.shape[1]
         head = ["pose_id", "plane"] + [f"q{j + 1}" for j in range(N)]
         meta = dict(meta or {})
-        if self.xyz is not None:
+        tips = self.base_p_tip if self.base_p_tip is not None else self.tracker_p_tip
+        if tips is not None:
             head += ["x", "y", "z"]
-            if self.xyz_frame != "base":
-                meta["xyz_frame"] = self.xyz_frame
+            if self.tip_frame != "base":
+                meta["xyz_frame"] = self.tip_frame
         lines = [f"# {k}: {v}" for k, v in meta.items()] + [",".join(head)]
         qd = np.degrees(self.q)
         for i in range(self.n):
             row = [self.pose_id[i], str(int(self.plane[i]))] + [repr(float(v)) for v in qd[i]]
-            if self.xyz is not None:
-                row += [repr(float(v)) for v in self.xyz[i]]
+            if tips is not None:
+                row += [repr(float(v)) for v in tips[i]]
             lines.append(",".join(row))
         text = "\n".join(lines) + "\n"
         if path is not None:
@@ -104,22 +126,26 @@ def load_postures(path: str | Path, model: RobotModel, *, check_limits: bool = T
             raise DataError(f"{t.source}: line {t.lines[r]}, column plane: {v:g} is not 1, 2, "
                             "3 or 4")
     pose_id = t.ids("pose_id")
-    xyz = np.column_stack([t.numeric(c) for c in "xyz"]) if measured else None
+    tips = np.column_stack([t.numeric(c) for c in "xyz"]) if measured else None
     frame = t.meta.get("xyz_frame", "base").strip().lower()
     if frame not in ("base", "tracker"):
         raise DataError(f"{t.source}: xyz_frame: {frame!r} is not base or tracker")
-    return Postures(np.radians(q), plane.astype(int), pose_id, xyz, t.source, t.lines, frame)
+    in_base = frame == "base"
+    return Postures(np.radians(q), plane.astype(int), pose_id,
+                    base_p_tip=tips if in_base else None,
+                    tracker_p_tip=None if in_base else tips, source=t.source, lines=t.lines)
 
 
 def postures_from_dataset(data: Dataset, plane: np.ndarray | None = None,
-                          measured: bool = True, xyz_frame: str = "base") -> Postures:
+                          measured: bool = True) -> Postures:
     """Postures from a :class:`Dataset` (e.g. a ``zero20`` run from the store).
 
     ``plane`` (n,) defaults to 5 consecutive postures per plane; ``measured`` keeps the
-    data's ``xyz`` (mm) as measured tips, in the frame ``xyz_frame`` (``"base"`` or
-    ``"tracker"``, see :class:`Postures`).
+    data's ``tracker_p_smr`` (mm) as measured tips, in the tracker frame
+    (``tracker_p_tip``; see :meth:`Postures.tips_in_base`).
     """
     if plane is None:
         plane = np.arange(data.n) // 5 % 4 + 1
-    return Postures(data.q, plane, list(data.pose_id), data.xyz if measured else None,
-                    data.source, data.lines, xyz_frame)
+    return Postures(data.q, plane, list(data.pose_id),
+                    tracker_p_tip=data.tracker_p_smr if measured else None, source=data.source,
+                    lines=data.lines)

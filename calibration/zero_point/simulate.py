@@ -38,7 +38,7 @@ def simulate_postures(
     Parameters
     ----------
     tracker_sigma_mm : when given, the tip is also "measured" with this noise per axis
-        (``xyz``, base frame)
+        (``base_p_tip``)
 
     Returns
     -------
@@ -55,8 +55,8 @@ def simulate_postures(
     _, _, Jp, _ = fk(q_true)
     dp = rng.normal(0.0, scatter_mm, size=(len(q_true), 3))
     q_true = q_true + (np.linalg.pinv(Jp) @ dp[..., None])[..., 0]
-    xyz = None
+    tips = None
     if tracker_sigma_mm is not None:
-        xyz = fk.point(q_true) + rng.normal(0.0, tracker_sigma_mm, size=(len(q_true), 3))
+        tips = fk.point(q_true) + rng.normal(0.0, tracker_sigma_mm, size=(len(q_true), 3))
     q_reported = q_true - np.asarray(hidden_offsets, float)
-    return Postures(q_reported, plane, xyz=xyz, source="simulated"), q_true
+    return Postures(q_reported, plane, base_p_tip=tips, source="simulated"), q_true

@@ -119,7 +119,7 @@ def _identify_free(fk: ChainFK, postures: Postures, offsets, tool, target, measu
     r = run_chain(fk.convention, fk.table, postures.q + offsets, tool, jacobian=False)
     n = postures.n
     Jq = cross(r.joint_axes, np.asarray(target, float) - r.joint_origins).transpose(0, 2, 1)
-    R = r.flange_R
+    R = r.base_R_flange
     J = np.concatenate([Jq, R, -np.broadcast_to(np.eye(3), (n, 3, 3))], axis=2)
     if measured:  # tip measured: rows tip - measured (target does not enter)
         Jm = np.concatenate([Jq, R, np.zeros((n, 3, 3))], axis=2)

@@ -164,10 +164,6 @@ def run(args) -> int:
         model = wrap_errors(lambda: load_model(args.model))
         postures = wrap_errors(lambda: load_postures(args.postures, model))
         source = args.postures
-    if postures.xyz is not None and postures.xyz_frame != "base" and not args.params:
-        notes.append("measured tips are in the tracker frame and the base pose is unknown "
-                     "(no frame run, no --params): not used")
-        postures.xyz = None
     out = None
     if args.out:
         out = _check_out(args.out, args.model, args.params, args.postures, args.replay,
@@ -176,9 +172,14 @@ def run(args) -> int:
             raise UsageError("--out *.json updates a params file: give --params")
     fk, base = _chain(model, args.params)
     offsets0 = _replay_start(args.replay, model.n_joints) if args.replay else None
-    measured = None
-    if postures.xyz is not None:
-        measured = postures.xyz if base is None else (postures.xyz - base[1]) @ base[0]
+    measured = postures.base_p_tip
+    if postures.tracker_p_tip is not None:
+        if base is not None:  # the calibrated model's base: tracker_T_base
+            measured = postures.tips_in_base(*base).base_p_tip
+        else:
+            notes.append("measured tips are in the tracker frame and the base pose is unknown "
+                         + ("(no base in --params)" if args.params else
+                            "(no frame run, no --params)") + ": not used")
     results = {}
     if args.method in ("seed", "both"):
         results["seed"] = seed_method(fk, postures, offsets0=offsets0,

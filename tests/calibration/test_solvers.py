@@ -22,7 +22,7 @@ def _data(seed, n_cal=200, n_val=300, n_outliers=0):
     bad = np.sort(rng.choice(n_cal, n_outliers, replace=False))
     direction = rng.normal(size=(n_outliers, 3))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
-    data.xyz[bad] += direction * rng.uniform(1.0, 3.0, (n_outliers, 1))
+    data.tracker_p_smr[bad] += direction * rng.uniform(1.0, 3.0, (n_outliers, 1))
     return em, data, [data.pose_id[i] for i in bad]
 
 
