@@ -29,6 +29,10 @@ from .robot_model import RobotModel
 UNCALIBRATED_EFFECTS = "base,tool"
 UNCALIBRATED_LABEL = "uncalibrated (best-fit base and tool)"
 
+#: where the current model's parameters come from: a params.json path, or
+#: (error model, values in internal units)
+ParamsSource = str | Path | tuple[ErrorModel, np.ndarray]
+
 
 def fit_uncalibrated(model: RobotModel, data: Dataset, **kw) -> Fit:
     """The nominal robot's accuracy: only the base and tool fitted (see
@@ -36,13 +40,8 @@ def fit_uncalibrated(model: RobotModel, data: Dataset, **kw) -> Fit:
     return identify(ErrorModel(model, UNCALIBRATED_EFFECTS), data, **kw)
 
 
-def current_fit(
-    model: RobotModel,
-    data: Dataset,
-    effects: str = DEFAULT_EFFECTS,
-    params: str | Path | tuple[ErrorModel, np.ndarray] | None = None,
-    solver: str = "lm",
-) -> Fit:
+def current_fit(model: RobotModel, data: Dataset, effects: str = DEFAULT_EFFECTS,
+                params: ParamsSource | None = None, solver: str = "lm") -> Fit:
     """The current model's fit: at given parameters, else identified.
 
     Parameters
@@ -50,8 +49,8 @@ def current_fit(
     model : the nominal robot of the data
     data : the measured poses (calibration and ``set=valid`` rows)
     effects : the current model's effects (ignored with ``params``)
-    params : a params.json path, or (error model, values): the current model's parameters
-        are taken from there instead of fitted (:func:`~calibration.identify.fit_at`)
+    params : the current model's parameters are taken from there instead of fitted
+        (:func:`~calibration.identify.fit_at`), see :data:`ParamsSource`
     solver : identification method
 
     Raises :class:`~calibration.params_io.ParamsError` when the parameters' model has
@@ -94,15 +93,9 @@ class StagedFit:
         return None if self.improved is None else self.diagnosis.best.effect
 
 
-def staged_fit(
-    data: Dataset,
-    model: RobotModel,
-    effects: str = DEFAULT_EFFECTS,
-    params: str | Path | tuple[ErrorModel, np.ndarray] | None = None,
-    *,
-    solver: str = "lm",
-    refit: bool = True,
-) -> StagedFit:
+def staged_fit(data: Dataset, model: RobotModel, effects: str = DEFAULT_EFFECTS,
+               params: ParamsSource | None = None, *, solver: str = "lm",
+               refit: bool = True) -> StagedFit:
     """Uncalibrated → current → current plus the recommended effect.
 
     Parameters are those of :func:`current_fit`; ``refit`` adds the recommended effect

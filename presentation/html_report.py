@@ -26,10 +26,9 @@ import numpy as np
 from calibration.dataset import Dataset
 from calibration.diagnosis import Diagnosis, describe_effect
 from calibration.effects import DEFAULT_EFFECTS
-from calibration.error_model import ErrorModel
 from calibration.identify import Fit, error_stats
 from calibration.robot_model import RobotModel
-from calibration.workflow import staged_fit
+from calibration.workflow import ParamsSource, staged_fit
 
 from .figures import (
     STAGE_COLOURS,
@@ -83,31 +82,16 @@ class Report:
 
 
 # ---- computing the stages ------------------------------------------------------------
-def build_report(
-    data: Dataset,
-    model: RobotModel,
-    effects: str = DEFAULT_EFFECTS,
-    params: str | Path | tuple[ErrorModel, np.ndarray] | None = None,
-    *,
-    solver: str = "lm",
-    title: str | None = None,
-    refit: bool = True,
-) -> Report:
+def build_report(data: Dataset, model: RobotModel, effects: str = DEFAULT_EFFECTS,
+                 params: ParamsSource | None = None, *, solver: str = "lm",
+                 title: str | None = None, refit: bool = True) -> Report:
     """Fit, diagnose and render the report for one data set.
 
-    Parameters
-    ----------
-    data : the measured poses (calibration and ``set=valid`` rows)
-    model : the nominal robot
-    effects : the current model's effects (ignored with ``params``)
-    params : a params.json path, or (error model, values): the current model's parameters
-        are taken from there instead of fitted
-    solver : identification method for the fits
-    title : the page's heading (default: from the data's source)
-    refit : add the recommended effect (when significant) and refit, as the third stage
-
-    The fits are :func:`calibration.workflow.staged_fit`'s; its errors (``ParamsError``
-    for parameters of another robot, ``EffectError``...) pass through.
+    The fits are :func:`calibration.workflow.staged_fit`'s (the measured poses, the
+    nominal robot, the current effects or given parameters, the solver, and whether to
+    refit with the recommended effect); its errors (``ParamsError`` for parameters of
+    another robot, ``EffectError``...) pass through. ``title`` is the page's heading
+    (default: from the data's source).
     """
     t0 = time.perf_counter()
     sf = staged_fit(data, model, effects, params, solver=solver, refit=refit)

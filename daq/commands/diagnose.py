@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
-from calibration import DEFAULT_EFFECTS
 from calibration.diagnosis import Diagnosis, diagnose
 from calibration.workflow import current_fit
 
-from .common import add_model_args, fmt, load_inputs, print_json, table, wrap_errors
+from .common import (
+    add_current_model_args,
+    add_model_args,
+    fmt,
+    load_inputs,
+    print_json,
+    table,
+    wrap_errors,
+)
 
 
 def register(sub) -> None:
@@ -18,11 +25,7 @@ def register(sub) -> None:
         "significance test against the noise and a held-out check; say which effect to add.",
     )
     add_model_args(p)
-    p.add_argument("--effects", default=DEFAULT_EFFECTS, metavar="LIST",
-                   help=f"the current model's effects (default {DEFAULT_EFFECTS})")
-    p.add_argument("--params", metavar="params.json",
-                   help="use these parameters (and their model) instead of fitting")
-    p.add_argument("--solver", default="lm")
+    add_current_model_args(p, "use these parameters (and their model) instead of fitting")
     p.add_argument("--top", type=int, default=12, help="rows of the ranking to print")
     p.set_defaults(func=run)
 
