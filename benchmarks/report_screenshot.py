@@ -53,8 +53,8 @@ def make_report(workdir: Path) -> Path:
     import numpy as np
 
     from calibration import DEFAULT_EFFECTS, ErrorModel, load_model
-    from calibration.report import build_report
     from calibration.simulate import random_joints, realistic_truth, simulate
+    from presentation.html_report import build_report
 
     model = load_model("ur5e")
     em = ErrorModel(model, DEFAULT_EFFECTS + ",compliance:3")

@@ -42,11 +42,11 @@ def cases(seed: int) -> tuple[ErrorModel, Dataset, dict]:
     valid = simulate(em, x_true, random_joints(m, N_VAL, rng), SIGMA, rng)
     clean = simulate(em, x_true, random_joints(m, N_CAL, rng), SIGMA, rng)
     dirty = simulate(em, x_true, clean.q, SIGMA, rng)
-    dirty.xyz = clean.xyz.copy()
+    dirty.tracker_p_smr = clean.tracker_p_smr.copy()
     bad = np.sort(rng.choice(N_CAL, N_CAL // 20, replace=False))
     direction = rng.normal(size=(bad.size, 3))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
-    dirty.xyz[bad] += direction * rng.uniform(1.0, 3.0, (bad.size, 1))
+    dirty.tracker_p_smr[bad] += direction * rng.uniform(1.0, 3.0, (bad.size, 1))
     lim = m.limits_rad()
     centre = random_joints(m, 1, rng, max_abs_deg=150.0)
     q_small = np.clip(centre + rng.uniform(-1, 1, (N_CAL, m.n_joints)) * np.radians(20.0),

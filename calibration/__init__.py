@@ -1,6 +1,32 @@
 """cellcal's calibration core: models, kinematics, effects, identification.
 
-Numbers only; imports nothing from the other cellcal packages.
+Numbers only: imports nothing from the other cellcal packages, draws nothing, prints
+nothing (figures, the HTML report and the command line's JSON live in ``presentation``).
+Lengths mm, angles rad inside.
+
+Modules
+-------
+robot_model     RobotModel: the nominal robot from the model YAML (FORMATS.md §2), built-ins
+kinematics      run_chain: forward kinematics vectorised over poses, exact Jacobians
+transforms      rotations and rigid transforms on arrays; fit_rigid / fit_rotation (Kabsch)
+inverse         batched damped-Newton inverse kinematics (ChainFK, solve_ik)
+gravity         gravity torques at every joint from the mass model
+dataset         Dataset and the measurement CSV (FORMATS.md §1), CsvTable for every table
+effects/        the physical causes of error (geometric, base, tool, compliance, ...)
+error_model     ErrorModel: a model plus effects; perturb (the one apply chain), evaluate
+identifiability which parameters a data set determines (QR with column pivoting)
+solvers/        lm, ridge, besa, sa: the least-squares solvers identify uses
+identify        identify -> Fit (values, uncertainties, residuals, statistics), fit_at
+uncertainty     correlations, Monte-Carlo re-identification, position uncertainty
+diagnosis       diagnose: where a fit fails and which missing effect explains it
+workflow        staged_fit: uncalibrated -> current -> current + the recommended effect
+params_io       params.json: a fit's parameters written and read back
+compensation    compensated joints and corrected targets from a calibration
+model_export    the calibrated model as model YAML and UR calibration.conf deltas
+ur_conf         UR calibration.conf deltas and the exact conversion to pure DH
+zero_point/     zero-point recalibration from 20 postures on one fixed point
+frame_fit       circle, line and measurement-frame fits of the frame routine
+simulate        synthetic measurements with a known truth
 """
 
 from .dataset import DataError, Dataset, load_csv

@@ -57,37 +57,26 @@ class CalibratedFK:
 
     def chain(self, q: np.ndarray, rows: np.ndarray | None = None):
         """The :class:`~calibration.kinematics.ChainResult` of the calibrated robot."""
-        em, x = self.em, self.x
+        em = self.em
         q = np.atleast_2d(np.asarray(q, float))
-        cols = {k: (v if rows is None else np.asarray(v)[rows]) for k, v in self.columns.items()}
-        qc = q.copy()
-        table = em.model.dh_table()
-        tool = em.model.tool_mm()
-        scale = None
-        stages = {e.stage for e in em.effects}
-        data = None
-        if stages & {"joint", "length"}:
-            data = Dataset(q=q, xyz=np.zeros((len(q), 3)), source="compensation", **cols)
-            bound = em.bind(data)
-        for k, (e, sl) in enumerate(zip(em.effects, em.slices, strict=True)):
-            if e.stage == "joint":
-                qc[:, e.joint - 1] += e.delta(x[sl], data, bound.states[k])[0]
-            elif e.stage == "table":
-                table = table + e.table_delta(x[sl])[0]
-            elif e.stage == "length":
-                scale = e.length_scale(x[sl], data, bound.states[k])[0]
-            elif e.stage == "tool":
-                tool = e.tool_point(x[sl])[0]
-        return run_chain(em.model.convention, table, qc, tool, scale, jacobian=False)
+        bound = None
+        if any(e.stage in ("joint", "length") for e in em.effects):
+            cols = {k: (v if rows is None else np.asarray(v)[rows])
+                    for k, v in self.columns.items()}
+            bound = em.bind(Dataset(q=q, tracker_p_smr=np.zeros((len(q), 3)), source="compensation",
+                                    **cols))
+        c = em.perturb(self.x, bound)
+        return run_chain(em.model.convention, c.table, q if c.q is None else c.q, c.tool,
+                         c.length_scale, jacobian=False)
 
     def __call__(self, q: np.ndarray, rows: np.ndarray | None = None):
         r = self.chain(q, rows)
-        Jp = cross(r.joint_axes, r.point[:, None, :] - r.joint_origins).transpose(0, 2, 1)
-        return r.point, r.flange_R, Jp, r.joint_axes.transpose(0, 2, 1)
+        Jp = cross(r.joint_axes, r.base_p_tcp[:, None, :] - r.joint_origins).transpose(0, 2, 1)
+        return r.base_p_tcp, r.base_R_flange, Jp, r.joint_axes.transpose(0, 2, 1)
 
     def point(self, q: np.ndarray) -> np.ndarray:
         """Calibrated tool point (base frame) for commanded joints q (rad), (n, 3) mm."""
-        return self.chain(q).point
+        return self.chain(q).base_p_tcp
 
 
 @dataclass
@@ -192,7 +181,7 @@ def compensate(
         res.reason += f"; {len(bad)} solved for position only (orientation not held)"
     P_cmd, R_cmd, _, _ = nominal(q)
     P_nom = nominal.point(q_nominal)
-    residual = np.linalg.norm(fk.chain(q).point - target, axis=1)
+    residual = np.linalg.norm(fk.chain(q).base_p_tcp - target, axis=1)
     return Compensation(target, q_nominal, q, P_cmd, R_cmd, residual,
                         np.linalg.norm(P_cmd - P_nom, axis=1), res.success, kept,
                         res.iterations, res.reason)
@@ -204,13 +193,13 @@ class Targets:
 
     Attributes
     ----------
-    xyz : (n, 3) desired tool points, robot base frame, mm
+    base_p_tcp : (n, 3) desired tool points in the robot base frame, mm
     q : (n, N) nominal joints, rad, or None
     pose_id : n labels
     columns : optional per-target data (``temp_c``, ``payload_kg``), arrays (n,)
     """
 
-    xyz: np.ndarray
+    base_p_tcp: np.ndarray
     q: np.ndarray | None
     pose_id: list[str]
     columns: dict

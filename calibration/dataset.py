@@ -30,7 +30,8 @@ class Dataset:
     Attributes
     ----------
     q : (n, N) joint positions reported by the controller, rad
-    xyz : (n, 3) measured target centre in the tracker frame, mm
+    tracker_p_smr : (n, 3) measured target (SMR) centre in the tracker frame, mm
+        (the CSV's ``x, y, z``)
     pose_id : list of n labels
     cmd : (n, 3) controller's nominal TCP position (base frame, mm), or None
     temp_c, t_s, payload_kg, sigma_mm : (n,) or None
@@ -42,7 +43,7 @@ class Dataset:
     """
 
     q: np.ndarray
-    xyz: np.ndarray
+    tracker_p_smr: np.ndarray
     pose_id: list[str] = field(default_factory=list)
     cmd: np.ndarray | None = None
     temp_c: np.ndarray | None = None
@@ -57,10 +58,11 @@ class Dataset:
 
     def __post_init__(self) -> None:
         self.q = np.atleast_2d(np.asarray(self.q, float))
-        self.xyz = np.atleast_2d(np.asarray(self.xyz, float))
+        self.tracker_p_smr = np.atleast_2d(np.asarray(self.tracker_p_smr, float))
         n = self.q.shape[0]
-        if self.xyz.shape != (n, 3):
-            raise DataError(f"{self.source}: xyz has shape {self.xyz.shape}, expected ({n}, 3)")
+        if self.tracker_p_smr.shape != (n, 3):
+            raise DataError(f"{self.source}: tracker_p_smr has shape "
+                            f"{self.tracker_p_smr.shape}, expected ({n}, 3)")
         if not self.pose_id:
             self.pose_id = [str(i + 1) for i in range(n)]
         if self.is_valid is None:
@@ -87,7 +89,7 @@ class Dataset:
         return replace(
             self,
             q=self.q[idx],
-            xyz=self.xyz[idx],
+            tracker_p_smr=self.tracker_p_smr[idx],
             pose_id=[self.pose_id[i] for i in idx],
             cmd=pick(self.cmd),
             temp_c=pick(self.temp_c),
@@ -125,7 +127,7 @@ class Dataset:
 
         return Dataset(
             q=np.vstack([self.q, other.q]),
-            xyz=np.vstack([self.xyz, other.xyz]),
+            tracker_p_smr=np.vstack([self.tracker_p_smr, other.tracker_p_smr]),
             pose_id=self.pose_id + other.pose_id,
             cmd=cat(self.cmd, other.cmd),
             temp_c=cat(self.temp_c, other.temp_c),
@@ -147,7 +149,7 @@ class Dataset:
         for j in range(N):
             cols[f"q{j + 1}"] = np.degrees(self.q[:, j])
         for k, c in enumerate("xyz"):
-            cols[c] = self.xyz[:, k]
+            cols[c] = self.tracker_p_smr[:, k]
         if self.cmd is not None:
             for k, c in enumerate("xyz"):
                 cols[f"cmd_{c}"] = self.cmd[:, k]
@@ -395,5 +397,5 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
                 "positive number"
             ) from None
 
-    return Dataset(q=np.radians(q), xyz=xyz, pose_id=pose_id, cmd=cmd, dirs=dirs,
+    return Dataset(q=np.radians(q), tracker_p_smr=xyz, pose_id=pose_id, cmd=cmd, dirs=dirs,
                    is_valid=is_valid, meta=meta, source=source, lines=t.lines, **opt)

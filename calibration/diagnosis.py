@@ -278,7 +278,7 @@ def diagnose(
     bound = em.bind(calib)
     x = fit.values
     P, J, G = em.evaluate(x, bound, jacobian=True, joints=True)
-    r = (calib.xyz - P).ravel()
+    r = (calib.tracker_p_smr - P).ravel()
     n = calib.n
     free = fit.free
     Jf = J[:, :, free].reshape(3 * n, -1)
@@ -421,7 +421,7 @@ def _confirm(c: Candidate, fit: Fit, data: Dataset, folds: int, seed: int) -> No
             train, test = calib.subset(fold_of != f), calib.subset(fold_of == f)
             for i, model in enumerate((em, ext)):
                 ft = identify(model, train, fit.solver)
-                sq[i] += float(np.sum((test.xyz - ft.predict(test)) ** 2))
+                sq[i] += float(np.sum((test.tracker_p_smr - ft.predict(test)) ** 2))
         c.heldout_before_mm, c.heldout_after_mm = np.sqrt(sq / calib.n)
     # a real effect lowers the held-out error by more than estimation noise does
     c.confirmed = bool(c.heldout_after_mm < c.heldout_before_mm * 0.995)

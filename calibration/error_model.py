@@ -2,13 +2,16 @@
 parameter vector.
 
 ``bind(data)`` precomputes what the effects need from a data set;
+``perturb(x, bound)`` applies the effects stage by stage to the chain's inputs (joints,
+table, length scale, tool, base pose): the one place where an identified model is
+applied, used by evaluation, compensation, model export and the zero-point command;
 ``evaluate(x, bound)`` returns the predicted target centres in the tracker frame
 and the exact Jacobian with respect to every parameter, vectorised over poses.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -20,6 +23,8 @@ from .robot_model import RobotModel
 from .transforms import fit_rigid, matrix_to_rotvec
 
 _STAGES = ("joint", "table", "length", "tool", "base", "measure")
+#: stages that need per-pose data (a bound data set) to be applied
+_PER_POSE = ("joint", "length")
 
 
 @dataclass
@@ -29,6 +34,35 @@ class Bound:
     data: Dataset
     nominal: ChainResult
     states: list[Any]
+
+
+@dataclass
+class Perturbed:
+    """The chain's inputs with the effects applied at a parameter vector, stage by stage.
+
+    Attributes
+    ----------
+    q : (n, N) joints as they really are (reported + every joint-stage correction), rad;
+        None when no data were bound
+    table : (N, 5) nominal table plus the table-stage deltas (rad, mm)
+    tool : (3,) target centre in the flange frame (tool stage, else the nominal tool), mm
+    length_scale : (n,) per-pose relative growth of the lengths (length stage), or None
+    tracker_T_base : the base stage's pose of the robot base in the tracker frame, as
+        (R (3, 3), t (3,)), or None
+    applied : the stages an effect acted at
+    skipped : indices of the effects not applied: per-pose stages (joint, length) without
+        bound data, and the measure stage (the instrument, not the chain)
+    partials : effect index -> its stage hook's partial derivatives (for Jacobians)
+    """
+
+    q: np.ndarray | None
+    table: np.ndarray
+    tool: np.ndarray
+    length_scale: np.ndarray | None = None
+    tracker_T_base: tuple[np.ndarray, np.ndarray] | None = None
+    applied: set[str] = field(default_factory=set)
+    skipped: list[int] = field(default_factory=list)
+    partials: dict[int, np.ndarray] = field(default_factory=dict)
 
 
 class ErrorModel:
@@ -111,7 +145,7 @@ class ErrorModel:
         if base and tool and bound.data.n >= 4:
             sb, st_ = self.slices[base[0]], self.slices[tool[0]]
             nom = bound.nominal
-            Rf, pf, meas = nom.flange_R, nom.flange_p, bound.data.xyz
+            Rf, pf, meas = nom.base_R_flange, nom.base_p_flange, bound.data.tracker_p_smr
             t = x[st_].copy()
             for _ in range(8):
                 R, c = fit_rigid(pf + Rf @ t, meas)
@@ -136,6 +170,39 @@ class ErrorModel:
                 x[sl] = e.normalize(x[sl])
         return x
 
+    def perturb(self, x: np.ndarray, bound: Bound | None = None) -> Perturbed:
+        """Apply the effects at ``x`` to the chain's inputs, stage by stage (see
+        :class:`Perturbed`). Without ``bound`` data, joint and length effects are skipped
+        (they act per pose); the measure stage is never applied here."""
+        x = np.asarray(x, float)
+        eff, sls = self.effects, self.slices
+        out = Perturbed(None, self._table0, self.model.tool_mm())
+        if bound is not None:
+            data, sts = bound.data, bound.states
+            out.q = data.q
+            if self._by_stage["joint"]:
+                out.q = data.q.copy()
+                for i in self._by_stage["joint"]:
+                    d, out.partials[i] = eff[i].delta(x[sls[i]], data, sts[i])
+                    out.q[:, eff[i].joint - 1] += d
+            for i in self._by_stage["length"]:
+                out.length_scale, out.partials[i] = eff[i].length_scale(x[sls[i]], data,
+                                                                       sts[i])
+        for i in self._by_stage["table"]:
+            d, out.partials[i] = eff[i].table_delta(x[sls[i]])
+            out.table = out.table + d
+        for i in self._by_stage["tool"]:
+            out.tool, out.partials[i] = eff[i].tool_point(x[sls[i]])
+        for i in self._by_stage["base"]:
+            if hasattr(eff[i], "transform"):
+                out.tracker_T_base = eff[i].transform(x[sls[i]])
+        for i, e in enumerate(eff):
+            if e.stage == "measure" or (bound is None and e.stage in _PER_POSE):
+                out.skipped.append(i)
+            else:
+                out.applied.add(e.stage)
+        return out
+
     def evaluate(
         self, x: np.ndarray, bound: Bound, jacobian: bool = True, joints: bool = False
     ):
@@ -149,59 +216,34 @@ class ErrorModel:
             column any joint correction acts through
         """
         x = np.asarray(x, float)
-        data = bound.data
-        n = data.n
-        eff, sls, sts = self.effects, self.slices, bound.states
+        n = bound.data.n
+        eff, sls = self.effects, self.slices
         J = np.zeros((n, 3, self.n_params)) if jacobian else None
-
-        q = data.q
-        joint_parts = []
-        if self._by_stage["joint"]:
-            q = q.copy()
-            for i in self._by_stage["joint"]:
-                d, part = eff[i].delta(x[sls[i]], data, sts[i])
-                q[:, eff[i].joint - 1] += d
-                joint_parts.append((i, eff[i].joint - 1, part))
-        table = self._table0
-        table_parts = []
-        for i in self._by_stage["table"]:
-            d, part = eff[i].table_delta(x[sls[i]])
-            table = table + d
-            table_parts.append((i, part))
-        scale = None
-        length_part = None
-        for i in self._by_stage["length"]:
-            scale, part = eff[i].length_scale(x[sls[i]], data, sts[i])
-            length_part = (i, part)
-        tool = self.model.tool_mm()
-        tool_part = None
-        for i in self._by_stage["tool"]:
-            tool, part = eff[i].tool_point(x[sls[i]])
-            tool_part = (i, part)
-
+        c = self.perturb(x, bound)
+        table, tool, scale = c.table, c.tool, c.length_scale
         jacobian = jacobian or joints
-        r = run_chain(self.model.convention, table, q, tool, scale, jacobian=jacobian)
-        P = r.point
+        r = run_chain(self.model.convention, table, c.q, tool, scale, jacobian=jacobian)
+        P = r.base_p_tcp
         G = r.dP_dtable[:, :, :, 0] if joints else None
         if jacobian:
             dP = r.dP_dtable
-            for i, j, part in joint_parts:
-                J[:, :, sls[i]] = dP[:, :, j, 0][:, :, None] * part[:, None, :]
-            for i, part in table_parts:
+            for i in self._by_stage["joint"]:
+                j = eff[i].joint - 1
+                J[:, :, sls[i]] = dP[:, :, j, 0][:, :, None] * c.partials[i][:, None, :]
+            for i in self._by_stage["table"]:
                 # (k, N*5) @ (N*5, 3n) on the chain's own storage layout
+                part = c.partials[i]
                 N = part.shape[0]
                 block = part.reshape(N * 5, -1).T @ r.dP_internal.reshape(N * 5, 3 * n)
                 J[:, :, sls[i]] = block.reshape(-1, 3, n).transpose(2, 1, 0)
             grow = None if scale is None else (1.0 + scale)[:, None, None]
-            if tool_part is not None:
-                i, part = tool_part
-                cols = r.flange_R @ part
+            for i in self._by_stage["tool"]:
+                cols = r.base_R_flange @ c.partials[i]
                 J[:, :, sls[i]] = cols if grow is None else cols * grow
-            if length_part is not None:
-                i, part = length_part
+            for i in self._by_stage["length"]:
                 lengths = dP[:, :, :, D] * table[:, D] + dP[:, :, :, A] * table[:, A]
-                dP_ds = lengths.sum(axis=2) / (1.0 + scale)[:, None] + r.flange_R @ tool
-                J[:, :, sls[i]] = dP_ds[:, :, None] * part[:, None, :]
+                dP_ds = lengths.sum(axis=2) / (1.0 + scale)[:, None] + r.base_R_flange @ tool
+                J[:, :, sls[i]] = dP_ds[:, :, None] * c.partials[i][:, None, :]
         for i in self._by_stage["base"]:
             P, R, Jb = eff[i].apply(x[sls[i]], P)
             if jacobian:
@@ -243,7 +285,7 @@ class ErrorModel:
 
     def residuals(self, x: np.ndarray, bound: Bound) -> np.ndarray:
         """Measured minus predicted target centres, (n, 3) mm."""
-        return bound.data.xyz - self.evaluate(x, bound, jacobian=False)[0]
+        return bound.data.tracker_p_smr - self.evaluate(x, bound, jacobian=False)[0]
 
     def numeric_jacobian(self, x: np.ndarray, bound: Bound, rel: float = 1e-3) -> np.ndarray:
         """Central finite differences of :meth:`evaluate` (for tests), (n, 3, n_params)."""

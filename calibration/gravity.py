@@ -45,7 +45,7 @@ def gravity_torques(
         mp = np.broadcast_to(np.asarray(payload_kg, float), (n,))
     else:
         mp = np.full(n, model.payload.mass_kg if model.payload else 0.0)
-    cp = chain.flange_p + chain.flange_R @ p_com  # (n, 3)
+    cp = chain.base_p_flange + chain.base_R_flange @ p_com  # (n, 3)
     S = S + (mp[:, None] * cp)[:, None, :]
     M = M + mp[:, None]
     moment = cross(S - M[:, :, None] * chain.joint_origins, np.broadcast_to(g, S.shape))
@@ -67,6 +67,6 @@ def potential_energy(
         mp = np.broadcast_to(np.asarray(payload_kg, float), (c.shape[0],))
     else:
         mp = np.full(c.shape[0], model.payload.mass_kg if model.payload else 0.0)
-    cp = chain.flange_p + chain.flange_R @ p_com
+    cp = chain.base_p_flange + chain.base_R_flange @ p_com
     V = V - mp * (cp @ g)
     return V / 1000.0

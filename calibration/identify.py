@@ -125,34 +125,6 @@ class Fit:
             )
         return rows
 
-    def summary(self) -> dict:
-        """The ``calibrate --json`` object (FORMATS.md §4), without file names."""
-        out = {
-            "model": self.error_model.model.name,
-            "effects": self.error_model.labels,
-            "solver": self.solver,
-            "n_params": self.error_model.n_params,
-            "n_identifiable": self.identifiability.n_identifiable,
-            "unidentifiable": self.identifiability.unidentifiable,
-            "calib": {k: self.calib[k] for k in ("n", "rms_mm", "mean_mm", "max_mm", "p95_mm")},
-        }
-        if self.valid is not None:
-            out["valid"] = {
-                k: self.valid[k] for k in ("n", "rms_mm", "mean_mm", "max_mm", "p95_mm")
-            }
-        out.update(
-            {
-                "noise_floor_mm": self.noise_floor_mm,
-                "converged": self.converged,
-                "reason": self.reason,
-                "iterations": self.iterations,
-                "condition_number": self.identifiability.condition_number,
-                "observability_index": self.identifiability.observability_index,
-                "solve_s": self.solve_s,
-            }
-        )
-        return out
-
 
 def covariance(J: np.ndarray, r: np.ndarray, free: np.ndarray, sigma: float | None = None,
                penalty: tuple[np.ndarray, np.ndarray] | None = None):
@@ -258,7 +230,7 @@ def identify(
     result = SOLVERS[solver](problem, **(solver_options or {}))
     x = problem.full(result.xf)
     P, J = error_model.evaluate(x, bound, jacobian=True)
-    resid = calib.xyz - P
+    resid = calib.tracker_p_smr - P
     weights = result.info.get("weights")
     r_w = resid if weights is None else resid * np.sqrt(weights)[:, None]
     J_w = J if weights is None else J * np.sqrt(weights)[:, None, None]
@@ -284,7 +256,7 @@ def identify(
     for e, st in zip(error_model.effects, bound.states, strict=True):
         fit.notes.extend(e.describe(st))
     if held is not None and held.n:
-        vres = held.xyz - error_model.evaluate(x, error_model.bind(held), False)[0]
+        vres = held.tracker_p_smr - error_model.evaluate(x, error_model.bind(held), False)[0]
         fit.valid_data, fit.valid_residuals, fit.valid = held, vres, error_stats(vres)
     fit.solve_s = time.perf_counter() - t0
     return fit
@@ -296,15 +268,3 @@ def fit_at(error_model: ErrorModel, data: Dataset, x: np.ndarray, **kw) -> Fit:
     fit = identify(error_model, data, x0=x, solver_options={"max_iter": 0}, **kw)
     fit.converged, fit.reason, fit.iterations = True, "parameters given, not fitted", 0
     return fit
-
-
-#: the "uncalibrated" reference: nominal kinematics, with only the base (where the robot
-#: stands) and the tool (where the SMR sits) fitted, since neither is a property of the arm
-UNCALIBRATED_EFFECTS = "base,tool"
-UNCALIBRATED_LABEL = "uncalibrated (best-fit base and tool)"
-
-
-def fit_uncalibrated(model, data: Dataset, **kw) -> Fit:
-    """The nominal robot's accuracy: only the base and tool fitted (see
-    :data:`UNCALIBRATED_EFFECTS`)."""
-    return identify(ErrorModel(model, UNCALIBRATED_EFFECTS), data, **kw)

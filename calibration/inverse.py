@@ -92,13 +92,13 @@ class ChainFK:
         """
         r = run_chain(self.convention, self.table, np.atleast_2d(q) + self.offsets, self.tool,
                       jacobian=False)
-        Jp = cross(r.joint_axes, r.point[:, None, :] - r.joint_origins).transpose(0, 2, 1)
-        return r.point, r.flange_R, Jp, r.joint_axes.transpose(0, 2, 1)
+        Jp = cross(r.joint_axes, r.base_p_tcp[:, None, :] - r.joint_origins).transpose(0, 2, 1)
+        return r.base_p_tcp, r.base_R_flange, Jp, r.joint_axes.transpose(0, 2, 1)
 
     def point(self, q: np.ndarray) -> np.ndarray:
         """Tool point for joint angles q (rad), shape (n, 3), mm."""
         return run_chain(self.convention, self.table, np.atleast_2d(q) + self.offsets,
-                         self.tool, jacobian=False).point
+                         self.tool, jacobian=False).base_p_tcp
 
 
 def rotation_error(R: np.ndarray, R_target: np.ndarray) -> np.ndarray:

@@ -51,11 +51,12 @@ class ChainResult:
 
     Attributes
     ----------
-    point : (n, 3) target centre in the robot base frame, mm
-    flange_R : (n, 3, 3) flange orientation (columns are the flange axes)
-    flange_p : (n, 3) flange origin, mm
+    base_p_tcp : (n, 3) the tool point (target centre) in the robot base frame, mm
+    base_R_flange : (n, 3, 3) flange orientation in the base frame (columns are the flange
+        axes)
+    base_p_flange : (n, 3) flange origin in the base frame, mm
     dP_dtable : (n, 3, N, 5) or None
-        derivative of ``point`` with respect to each table entry
+        derivative of ``base_p_tcp`` with respect to each table entry
         (theta_offset, d, a, alpha, beta), mm per rad or mm per mm. Column
         ``[:, :, j, 0]`` is also the derivative with respect to joint angle j.
     joint_axes, joint_origins : (n, N, 3)
@@ -64,9 +65,9 @@ class ChainResult:
         the base frame and the frame of every link (after each joint row)
     """
 
-    point: np.ndarray
-    flange_R: np.ndarray
-    flange_p: np.ndarray
+    base_p_tcp: np.ndarray
+    base_R_flange: np.ndarray
+    base_p_flange: np.ndarray
     dP_dtable: np.ndarray | None
     joint_axes: np.ndarray
     joint_origins: np.ndarray
@@ -180,10 +181,10 @@ def run_chain(
         tj, tc = np.array(tra_at).T
         dPi[tj, tc] = T if grow is None else T * grow
         dP = dPi.transpose(3, 2, 0, 1)
-    flange_R = FR[N].transpose(2, 1, 0)
+    base_R_flange = FR[N].transpose(2, 1, 0)
     result = ChainResult(
         point.T,
-        flange_R,
+        base_R_flange,
         p.T,
         dP,
         JA.transpose(2, 0, 1),
@@ -224,4 +225,4 @@ def forward(model: RobotModel, q_deg_or_rad: np.ndarray, *, degrees: bool = Fals
 def tool_points(model: RobotModel, q: np.ndarray, tool: np.ndarray | None = None) -> np.ndarray:
     """Target centre in the base frame for joint angles ``q`` (rad), shape (n, 3), mm."""
     t = model.tool_mm() if tool is None else tool
-    return run_chain(model.convention, model.dh_table(), q, t, jacobian=False).point
+    return run_chain(model.convention, model.dh_table(), q, t, jacobian=False).base_p_tcp

@@ -77,8 +77,8 @@ def simulate(
     ``columns`` are passed to :class:`Dataset` (``temp_c``, ``dirs``, ``is_valid``...); the
     result carries ``tracker_sigma_mm`` metadata so the noise floor is known.
     """
-    data = Dataset(q=q, xyz=np.zeros((len(q), 3)), source="simulated", **columns)
+    data = Dataset(q=q, tracker_p_smr=np.zeros((len(q), 3)), source="simulated", **columns)
     P = error_model.evaluate(x_true, error_model.bind(data), jacobian=False)[0]
-    data.xyz = P + rng.normal(0.0, sigma_mm, P.shape)
+    data.tracker_p_smr = P + rng.normal(0.0, sigma_mm, P.shape)
     data.meta = {"tracker_sigma_mm": repr(float(sigma_mm)), **data.meta}
     return data

@@ -69,15 +69,30 @@ def make_T(R: np.ndarray, t: np.ndarray) -> np.ndarray:
     return T
 
 
+def fit_rotation(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """Best-fit rotation (Kabsch), no translation: R minimising sum |R src_i - dst_i|^2.
+
+    Parameters
+    ----------
+    src, dst : array, shape (n, 3)
+        Paired vectors (e.g. displacements, mm), n >= 2 not all parallel for a unique R.
+
+    Returns
+    -------
+    R : array, shape (3, 3), a proper rotation (det +1)
+    """
+    H = np.asarray(src, float).T @ np.asarray(dst, float)
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0
+    return Vt.T @ np.diag([1.0, 1.0, d]) @ U.T
+
+
 def fit_rigid(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Best-fit rigid transform (Kabsch): R, t minimising |R src + t - dst|, points (n, 3)."""
     src = np.asarray(src, float)
     dst = np.asarray(dst, float)
     cs, cd = src.mean(0), dst.mean(0)
-    H = (src - cs).T @ (dst - cd)
-    U, _, Vt = np.linalg.svd(H)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
-    R = Vt.T @ D @ U.T
+    R = fit_rotation(src - cs, dst - cd)
     return R, cd - R @ cs
 
 

@@ -75,7 +75,7 @@ def position_uncertainty(
         C[:, frame] = 0.0
     rng = np.random.default_rng(seed)
     q = random_joints(em.model, n_poses, rng)
-    data = Dataset(q=q, xyz=np.zeros((n_poses, 3)), source="workspace sample")
+    data = Dataset(q=q, tracker_p_smr=np.zeros((n_poses, 3)), source="workspace sample")
     _, J = em.evaluate(fit.values, em.bind(data), jacobian=True)
     # trace(J C J^T) per pose, without forming the 3x3 matrices' off-diagonals
     var = np.einsum("nip,pq,niq->n", J, C, J)
@@ -165,7 +165,8 @@ def monte_carlo(
     samples = np.empty((n, em.n_params))
     failed = 0
     for i in range(n):
-        data = replace(fit.data, xyz=P + rng.normal(0.0, s, P.shape), meta=dict(fit.data.meta))
+        data = replace(fit.data, tracker_p_smr=P + rng.normal(0.0, s, P.shape),
+                       meta=dict(fit.data.meta))
         f = identify(em, data, solver or "lm", x0=fit.values, fixed=fixed,
                      solver_options=solver_options)
         samples[i] = f.values

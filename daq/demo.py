@@ -16,12 +16,11 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from calibration import ErrorModel, identify, load_csv
-from calibration.diagnosis import diagnose
-from calibration.identify import UNCALIBRATED_LABEL, fit_uncalibrated
+from calibration import load_csv
 from calibration.params_io import save_params
-from calibration.report import render_report
+from calibration.workflow import UNCALIBRATED_LABEL, staged_fit
 from drivers.urls import open_robot, open_tracker
+from presentation.html_report import render_report
 from sim_drivers.model_truth import ModelTruth
 from sim_drivers.serve import ServeConfig, SimStack
 
@@ -126,19 +125,18 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     data = load_csv(csv_path, model)  # through the interchange format, as a user would
     floor = data.noise_floor_mm()
     result.noise_floor_mm = floor
-    base_fit = fit_uncalibrated(model, data)
-    fit = identify(ErrorModel(model), data)
+    sf = staged_fit(data, model)
+    fit, diag = sf.current, sf.diagnosis
     say(f"[4/7] calibrated {','.join(fit.error_model.labels)}: validation RMS "
-        f"{fit.valid['rms_mm']:.4f} mm (uncalibrated {base_fit.valid['rms_mm']:.3f} mm, "
-        f"noise floor {floor:.4f} mm)")
-    diag = diagnose(fit, data)
+        f"{fit.valid['rms_mm']:.4f} mm (uncalibrated {sf.uncalibrated.valid['rms_mm']:.3f} "
+        f"mm, noise floor {floor:.4f} mm)")
     say(f"[5/7] diagnosis ({diag.n_screened} candidates): {diag.recommendation()}")
-    stages = [(UNCALIBRATED_LABEL, base_fit), (",".join(fit.error_model.labels), fit)]
+    stages = [(UNCALIBRATED_LABEL, sf.uncalibrated), (",".join(fit.error_model.labels), fit)]
     final = fit
-    if diag.best is not None:
-        result.found = diag.best.effect
-        final = identify(ErrorModel(model, diag.next_effects()), data)
-        stages.append((f"+ {diag.best.effect}", final))
+    if sf.improved is not None:
+        result.found = sf.added_effect
+        final = sf.improved
+        stages.append((f"+ {sf.added_effect}", final))
         say(f"[6/7] calibrated --effects {diag.next_effects()}: validation RMS "
             f"{final.valid['rms_mm']:.4f} mm")
     else:

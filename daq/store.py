@@ -445,7 +445,7 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std"):
             "sigma_mm": ("tracker std, RMS over axes" if sigma_mode == "std"
                          else "tracker std / sqrt(n), RMS over axes")}
     return Dataset(
-        q=s["q"], xyz=s["xyz"], pose_id=ids, cmd=cmd, temp_c=temp, t_s=s["t"],
+        q=s["q"], tracker_p_smr=s["xyz"], pose_id=ids, cmd=cmd, temp_c=temp, t_s=s["t"],
         sigma_mm=sigma, dirs=s["dirs"], is_valid=np.array([v == "valid" for v in s["set"]]),
         meta=meta, source=f"{store.path} run {run_id}",
     )
@@ -464,7 +464,7 @@ def postures_from_run(store: RunStore, run_id: int | None = None, *, to_base: bo
 
     Built with :func:`calibration.zero_point.postures_from_dataset`: the joints read
     (rad), the plane of every posture from the plan's targets (``info.plane``) and the
-    measured tips (mm). The tips are in the tracker frame (``xyz_frame="tracker"``),
+    measured tips (mm). The tips are in the tracker frame (``tracker_p_tip``),
     or, with ``to_base`` and a run that knows its measurement frame
     (``tracker_T_base`` from a frame run, in its options), in the robot base frame.
 
@@ -489,10 +489,9 @@ def postures_from_run(store: RunStore, run_id: int | None = None, *, to_base: bo
         plane = np.array([int(t["info"]["plane"]) for t in targets])
     except (TypeError, KeyError) as e:
         raise StoreError(f"{store.path}: run {run.id}: a target has no plane ({e})") from None
-    post = postures_from_dataset(data, plane, measured=True, xyz_frame="tracker")
+    post = postures_from_dataset(data, plane)
     T = run.options.get("tracker_T_base")
     if to_base and T is not None:
         T = np.asarray(T, float)
-        post.xyz = (post.xyz - T[:3, 3]) @ T[:3, :3]
-        post.xyz_frame = "base"
+        post = post.tips_in_base(T[:3, :3], T[:3, 3])
     return post, run

@@ -66,7 +66,7 @@ class ModelTruth:
         q = np.asarray(q, float).reshape(1, -1)
         dirs = None if ctx.direction is None else np.asarray(ctx.direction, int).reshape(1, -1)
         data = Dataset(
-            q=q, xyz=np.zeros((1, 3)), dirs=dirs, temp_c=np.array([ctx.temp_c]),
+            q=q, tracker_p_smr=np.zeros((1, 3)), dirs=dirs, temp_c=np.array([ctx.temp_c]),
             t_s=np.array([ctx.t_s]),
             payload_kg=None if ctx.payload_kg is None else np.array([ctx.payload_kg]),
         )

@@ -3,6 +3,13 @@
 ``parse_effects("geometric,base,tool,compliance:2", model)`` builds effect
 objects from their names. Families register in :data:`REGISTRY`; a user's file
 adds its own with :func:`load_effect_file`.
+
+Modules
+-------
+base       the Effect interface and its stages, JointEffect, EffectError, display units
+geometric  geometric (the DH/MDH table), base (robot in the tracker frame), tool (SMR)
+physical   compliance, harmonic, scale, backlash, coupling, thermal, tracker_scale
+table      table:J, a smooth correction table for joint errors no formula captures
 """
 
 from __future__ import annotations

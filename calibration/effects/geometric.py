@@ -71,7 +71,7 @@ class Base(Effect):
         self.scales = np.array([1.0, 1.0, 1.0, 1e-3, 1e-3, 1e-3])
 
     def initial(self, data: Dataset, nominal: Any, state: Any) -> np.ndarray:
-        R, t = fit_rigid(nominal.point, data.xyz)
+        R, t = fit_rigid(nominal.base_p_tcp, data.tracker_p_smr)
         return np.concatenate([t, matrix_to_rotvec(R)])
 
     def transform(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

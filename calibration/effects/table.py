@@ -107,7 +107,7 @@ def tune_smoothing(error_model, data: Dataset, effect: Table, identify_fn, grid=
         for f in range(folds):
             train, test = data.subset(fold_of != f), data.subset(fold_of == f)
             fit = identify_fn(error_model, train)
-            r = test.xyz - fit.predict(test)
+            r = test.tracker_p_smr - fit.predict(test)
             sq += float(np.sum(r**2))
             count += test.n
         rms = float(np.sqrt(sq / max(count, 1)))

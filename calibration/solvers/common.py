@@ -55,7 +55,7 @@ class Problem:
         """Residual (3 n [+ m],) and its Jacobian d r / d xf, (3 n [+ m], n_free)."""
         x = self.full(xf)
         P, J = self.error_model.evaluate(x, self.bound, jacobian=True)
-        r = self.bound.data.xyz - P
+        r = self.bound.data.tracker_p_smr - P
         Jr = -J[:, :, self.free]
         if self.weights is not None:
             w = np.sqrt(self.weights)[:, None]

@@ -132,7 +132,8 @@ def ridge_curve(s: np.ndarray, beta: np.ndarray, c2_perp: float, V: np.ndarray,
     }
 
 
-def _gcv(curve: dict, n_obs: int) -> np.ndarray:
+def gcv(curve: dict, n_obs: int) -> np.ndarray:
+    """GCV(xi) over the grid of a :func:`ridge_curve` (n_obs: observations with weight)."""
     dof = np.maximum(n_obs - curve["trace_h"], 1e-9)
     return n_obs * curve["residual_norm"] ** 2 / dof**2
 
@@ -191,7 +192,7 @@ def solve_ridge(
         ``scale_mm``, ``rejected`` / ``downweighted`` (pose ids), ``xi``,
         ``xi_method``, ``condition_number`` and ``condition_class`` (of the
         equilibrated A^T P A), ``refixed`` (parameter names held after weighting)
-        and ``ridge_curve`` (for :func:`plot_ridge`).
+        and ``ridge_curve`` (for :func:`presentation.ridge_plot.plot_ridge`).
     """
     centre = problem.xf0.copy()
     x = centre.copy() if xf0 is None else np.asarray(xf0, float).copy()
@@ -268,7 +269,7 @@ def solve_ridge(
         curve["trace_h"] = curve["trace_h"] + A1.shape[1]
         n_obs = 3 * int(np.count_nonzero(w > 0))
         if xi_method == "gcv":
-            k = int(np.argmin(_gcv(curve, n_obs)))
+            k = int(np.argmin(gcv(curve, n_obs)))
         elif xi_method == "lcurve":
             k = _lcurve_corner(curve)
         if xi_method == "fixed":
@@ -334,7 +335,7 @@ def _unweighted(problem: Problem, xf: np.ndarray) -> tuple[np.ndarray, np.ndarra
     """Residuals (n, 3) and their Jacobian d r / d xf (n, 3, m), without problem weights."""
     x = problem.full(xf)
     P, J = problem.error_model.evaluate(x, problem.bound, jacobian=True)
-    return problem.bound.data.xyz - P, -J[:, :, problem.free]
+    return problem.bound.data.tracker_p_smr - P, -J[:, :, problem.free]
 
 
 def _penalty(problem: Problem, xf: np.ndarray):
@@ -353,46 +354,3 @@ def _cost(problem: Problem, xf: np.ndarray, r: np.ndarray, w: np.ndarray) -> flo
 
 def _rms(r: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(r**2, axis=1))))
-
-
-def plot_ridge(info: dict, path, title: str = "") -> None:
-    """Save the L-curve, GCV and ridge trace of a ridge fit as a PNG (matplotlib, Agg).
-
-    Parameters
-    ----------
-    info : ``SolverResult.info`` / ``Fit.info`` of a ``ridge`` fit
-    path : output file (.png)
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    curve = info["ridge_curve"]
-    k = curve["xi"] > 0
-    xi = curve["xi"][k]
-    fig, ax = plt.subplots(1, 3, figsize=(15, 4.5))
-    ax[0].loglog(curve["residual_norm"][k], curve["solution_norm"][k], ".-")
-    j = int(np.argmin(np.abs(np.log(xi) - np.log(max(info["xi"], xi[0])))))
-    ax[0].loglog(curve["residual_norm"][k][j], curve["solution_norm"][k][j], "ro",
-                 label=f"chosen xi = {info['xi']:.3g} ({info['xi_method']})")
-    ax[0].set_xlabel("weighted residual norm, mm")
-    ax[0].set_ylabel("|u| (equilibrated deviation from start)")
-    ax[0].set_title("L-curve")
-    ax[0].legend()
-    n_obs = 3 * int(np.count_nonzero(np.asarray(info["weights"]) > 0))
-    ax[1].loglog(xi, _gcv(curve, n_obs)[k])
-    ax[1].axvline(max(info["xi"], xi[0]), color="r")
-    ax[1].set_xlabel("ridge parameter xi")
-    ax[1].set_ylabel("GCV(xi)")
-    ax[1].set_title("generalised cross-validation")
-    ax[2].semilogx(xi, curve["trace"][k])
-    ax[2].axvline(max(info["xi"], xi[0]), color="r")
-    ax[2].set_xlabel("ridge parameter xi")
-    ax[2].set_ylabel("u_k (equilibrated parameter deviation)")
-    ax[2].set_title(f"ridge trace ({curve['trace'].shape[1]} parameters)")
-    fig.suptitle(title or f"ridge: condition number {info['condition_number']:.3g} "
-                 f"({info['condition_class']})")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)

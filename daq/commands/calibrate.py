@@ -6,10 +6,12 @@ import json
 from pathlib import Path
 
 from calibration import DEFAULT_EFFECTS, ErrorModel, identify, load_csv
-from calibration.identify import UNCALIBRATED_LABEL, fit_uncalibrated
 from calibration.params_io import fit_to_dict, load_params, solver_summary
-from calibration.solvers import SOLVERS, plot_ridge
+from calibration.solvers import SOLVERS
 from calibration.uncertainty import correlations, monte_carlo
+from calibration.workflow import UNCALIBRATED_LABEL, fit_uncalibrated
+from presentation.ridge_plot import plot_ridge
+from presentation.summaries import fit_summary
 
 from ..cli import UsageError
 from .common import add_model_args, fmt, load_inputs, print_json, table, wrap_errors
@@ -82,7 +84,7 @@ def run(args) -> int:
             json.dumps(fit_to_dict(fit, args.effect_file), indent=1) + "\n"
         )
     if args.json:
-        out = fit.summary()
+        out = fit_summary(fit)
         out["params_file"] = args.out
         out["uncalibrated"] = {"calib": baseline.calib, "valid": baseline.valid}
         out["strongest_correlations"] = correlations(fit)["strongest"]

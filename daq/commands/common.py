@@ -7,7 +7,7 @@ import math
 import sys
 from pathlib import Path
 
-from calibration import DataError, ModelError, load_csv, load_model
+from calibration import DEFAULT_EFFECTS, DataError, ModelError, load_csv, load_model
 from calibration.effects import EffectError, load_effect_file
 from calibration.params_io import ParamsError
 
@@ -24,6 +24,15 @@ def add_model_args(p, data: bool = True) -> None:
     p.add_argument("--sigma", type=float, default=None, metavar="MM",
                    help="tracker standard uncertainty per axis, mm (else from the CSV)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
+
+
+def add_current_model_args(p, params_help: str, solver_help: str | None = None) -> None:
+    """``--effects``, ``--params`` and ``--solver``: the current model, as
+    :func:`calibration.workflow.current_fit` takes it (given parameters, or fitted)."""
+    p.add_argument("--effects", default=DEFAULT_EFFECTS, metavar="LIST",
+                   help=f"the current model's effects (default {DEFAULT_EFFECTS})")
+    p.add_argument("--params", metavar="params.json", help=params_help)
+    p.add_argument("--solver", default="lm", help=solver_help)
 
 
 def load_inputs(args):

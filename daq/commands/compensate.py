@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from calibration.compensation import compensate, load_targets
-from calibration.export import calibrated_model, write_model_yaml, write_ur_conf
+from calibration.model_export import calibrated_model, write_model_yaml, write_ur_conf
 from calibration.params_io import load_params
 from calibration.transforms import matrix_to_rotvec
 
@@ -82,13 +82,13 @@ def run(args) -> int:
     if args.targets:
         t = wrap_errors(lambda: load_targets(args.targets, model))
         start = _parse_start(args.start, model.n_joints) if args.start else None
-        c = compensate(em, x, t.xyz, t.q, q_start=start, keep_orientation=not args.position_only,
-                       columns=t.columns)
+        c = compensate(em, x, t.base_p_tcp, t.q, q_start=start,
+                       keep_orientation=not args.position_only, columns=t.columns)
         text = _csv(t, c)
         if args.out:
             Path(args.out).write_text(text)
         doc.update({
-            "n_targets": len(t.xyz),
+            "n_targets": len(t.base_p_tcp),
             "n_reached": int(c.success.sum()),
             "n_orientation_kept": int(c.orientation_kept.sum()),
             "nominal_joints": "given" if t.q is not None else "computed",
@@ -101,8 +101,8 @@ def run(args) -> int:
         })
         rc = 0 if c.success.all() else 1
         if not args.json:
-            print(f"targets   {args.targets}: {len(t.xyz)}, reached {int(c.success.sum())}, "
-                  f"orientation held {int(c.orientation_kept.sum())}")
+            print(f"targets   {args.targets}: {len(t.base_p_tcp)}, reached "
+                  f"{int(c.success.sum())}, orientation held {int(c.orientation_kept.sum())}")
             print(f"solver    {c.reason}; {c.iterations} iterations")
             print(f"correction of the Cartesian targets: mean {fmt(c.correction_mm.mean())} mm, "
                   f"max {fmt(c.correction_mm.max())} mm")

@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
-from calibration import DEFAULT_EFFECTS, ErrorModel, identify
 from calibration.diagnosis import Diagnosis, diagnose
-from calibration.identify import fit_at
-from calibration.params_io import load_params
+from calibration.workflow import current_fit
 
-from .common import add_model_args, fmt, load_inputs, print_json, table, wrap_errors
+from .common import (
+    add_current_model_args,
+    add_model_args,
+    fmt,
+    load_inputs,
+    print_json,
+    table,
+    wrap_errors,
+)
 
 
 def register(sub) -> None:
@@ -19,31 +25,14 @@ def register(sub) -> None:
         "significance test against the noise and a held-out check; say which effect to add.",
     )
     add_model_args(p)
-    p.add_argument("--effects", default=DEFAULT_EFFECTS, metavar="LIST",
-                   help=f"the current model's effects (default {DEFAULT_EFFECTS})")
-    p.add_argument("--params", metavar="params.json",
-                   help="use these parameters (and their model) instead of fitting")
-    p.add_argument("--solver", default="lm")
+    add_current_model_args(p, "use these parameters (and their model) instead of fitting")
     p.add_argument("--top", type=int, default=12, help="rows of the ranking to print")
     p.set_defaults(func=run)
 
 
-def current_fit(args, model, data):
-    if args.params:
-        em, x, _ = wrap_errors(lambda: load_params(args.params))
-        if em.model.n_joints != model.n_joints:
-            from ..cli import UsageError
-
-            raise UsageError(f"{args.params}: model has {em.model.n_joints} joints, "
-                             f"the data {model.n_joints}")
-        return fit_at(em, data, x)
-    em = wrap_errors(lambda: ErrorModel(model, args.effects))
-    return wrap_errors(lambda: identify(em, data, args.solver))
-
-
 def run(args) -> int:
     model, data = load_inputs(args)
-    fit = current_fit(args, model, data)
+    fit = wrap_errors(lambda: current_fit(model, data, args.effects, args.params, args.solver))
     diag = diagnose(fit, data)
     if args.json:
         print_json(diag.to_json())

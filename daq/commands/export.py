@@ -78,5 +78,5 @@ def _postures(store, args) -> int:
         sys.stdout.write(text)
     else:
         print(f"run {r.id}: {post.n} postures written to {args.out} (tips in the "
-              f"{post.xyz_frame} frame)", file=sys.stderr)
+              f"{post.tip_frame} frame)", file=sys.stderr)
     return 0

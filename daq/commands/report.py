@@ -5,12 +5,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from calibration import DEFAULT_EFFECTS
-from calibration.report import ReportError, build_report
 from calibration.solvers import SOLVERS
+from presentation.html_report import ReportError, build_report
 
 from ..cli import UsageError
-from .common import add_model_args, load_inputs, print_json, wrap_errors
+from .common import add_current_model_args, add_model_args, load_inputs, print_json, wrap_errors
 
 
 def register(sub) -> None:
@@ -24,11 +23,8 @@ def register(sub) -> None:
         "statistics, residual plots, the candidate ranking and the parameters.",
     )
     add_model_args(p)
-    p.add_argument("--effects", default=DEFAULT_EFFECTS, metavar="LIST",
-                   help=f"the current model's effects (default {DEFAULT_EFFECTS})")
-    p.add_argument("--params", metavar="params.json",
-                   help="use these parameters (and their model) as the current model")
-    p.add_argument("--solver", default="lm", help="identification method (default lm)")
+    add_current_model_args(p, "use these parameters (and their model) as the current model",
+                           "identification method (default lm)")
     p.add_argument("--title", default=None, help="the page's heading")
     p.add_argument("--out", default="report.html", metavar="FILE.html",
                    help="where to write the page (default report.html)")

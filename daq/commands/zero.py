@@ -39,8 +39,8 @@ from calibration.zero_point import (
     load_postures,
     rigorous_method,
     seed_method,
-    summary,
 )
+from presentation.summaries import zero_summary
 
 from ..cli import UsageError
 from .common import fmt, open_store, print_json, table, wrap_errors
@@ -106,23 +106,15 @@ def register(sub) -> None:
 
 def _chain(model, params_path):
     """The chain to recalibrate and the base transform (R, t) or None."""
-    table = model.dh_table()
-    tool = model.tool_mm()
-    base = None
-    if params_path:
-        em, x, _ = wrap_errors(lambda: load_params(params_path))
-        if em.model.n_joints != model.n_joints:
-            raise UsageError(f"{params_path}: its model has {em.model.n_joints} joints, "
-                             f"{model.name} has {model.n_joints}")
-        table = em.model.dh_table()
-        for e, sl in zip(em.effects, em.slices, strict=True):
-            if e.family == "geometric":
-                table = table + e.table_delta(x[sl])[0]
-            elif e.family == "tool":
-                tool = x[sl]
-            elif e.family == "base":
-                base = e.transform(x[sl])
-    return ChainFK(model.convention, table, tool), base
+    if not params_path:
+        return ChainFK.from_model(model), None
+    em, x, _ = wrap_errors(lambda: load_params(params_path))
+    if em.model.n_joints != model.n_joints:
+        raise UsageError(f"{params_path}: its model has {em.model.n_joints} joints, "
+                         f"{model.name} has {model.n_joints}")
+    c = em.perturb(x)
+    tool = c.tool if "tool" in c.applied else model.tool_mm()
+    return ChainFK(model.convention, c.table, tool), c.tracker_T_base
 
 
 def _replay_start(path, n_joints):
@@ -172,10 +164,6 @@ def run(args) -> int:
         model = wrap_errors(lambda: load_model(args.model))
         postures = wrap_errors(lambda: load_postures(args.postures, model))
         source = args.postures
-    if postures.xyz is not None and postures.xyz_frame != "base" and not args.params:
-        notes.append("measured tips are in the tracker frame and the base pose is unknown "
-                     "(no frame run, no --params): not used")
-        postures.xyz = None
     out = None
     if args.out:
         out = _check_out(args.out, args.model, args.params, args.postures, args.replay,
@@ -184,9 +172,14 @@ def run(args) -> int:
             raise UsageError("--out *.json updates a params file: give --params")
     fk, base = _chain(model, args.params)
     offsets0 = _replay_start(args.replay, model.n_joints) if args.replay else None
-    measured = None
-    if postures.xyz is not None:
-        measured = postures.xyz if base is None else (postures.xyz - base[1]) @ base[0]
+    measured = postures.base_p_tip
+    if postures.tracker_p_tip is not None:
+        if base is not None:  # the calibrated model's base: tracker_T_base
+            measured = postures.tips_in_base(*base).base_p_tip
+        else:
+            notes.append("measured tips are in the tracker frame and the base pose is unknown "
+                         + ("(no base in --params)" if args.params else
+                            "(no frame run, no --params)") + ": not used")
     results = {}
     if args.method in ("seed", "both"):
         results["seed"] = seed_method(fk, postures, offsets0=offsets0,
@@ -196,11 +189,11 @@ def run(args) -> int:
                                               measured_base=measured, sigma_mm=args.sigma,
                                               reject_outliers=not args.keep_outliers)
     main = results.get("rigorous", results.get("seed"))
-    doc = summary(main, model.name, postures.n, tolerance_deg=args.tolerance_deg,
+    doc = zero_summary(main, model.name, postures.n, tolerance_deg=args.tolerance_deg,
                   sigma_mm=args.sigma, measured=measured is not None and main.method != "seed")
     if "seed" in results and main is not results["seed"]:
         s = results["seed"]
-        sdoc = summary(s, model.name, postures.n, tolerance_deg=args.tolerance_deg,
+        sdoc = zero_summary(s, model.name, postures.n, tolerance_deg=args.tolerance_deg,
                        sigma_mm=args.sigma)
         doc["seed"] = {k: sdoc[k] for k in ("offsets_deg", "tool_mm", "target_mm", "rms_mm",
                                             "status", "reasons", "converged", "reason",

@@ -4,7 +4,7 @@ Joint 1 alone turns through ``circle_span_deg`` in ``circle_points`` steps
 (the target traces a circle about the base Z axis), then the TCP moves along
 the base x axis alone, ``line_points`` points over ``line_length_mm`` centred
 on the start (linear moves). :func:`finalize` fits the circle and the line
-(:mod:`daq.frame_fit`) and stores the base frame in the tracker frame
+(:mod:`calibration.frame_fit`) and stores the base frame in the tracker frame
 (``tracker_T_base``) and the fit quality with the run.
 """
 
@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..frame_fit import measurement_frame
+from calibration.frame_fit import measurement_frame
+
 from ..plans import Plan, Target
 from ._common import default_start, expected_joints, floats, nominal_point
 

@@ -34,9 +34,10 @@ def candidates(model, n: int, rng: np.random.Generator, *, floor_z_mm: float | N
         r = run_chain(model.convention, model.dh_table(), q, model.tool_mm(), jacobian=False)
         ok = np.ones(len(q), bool)
         if floor_z_mm is not None:
-            ok &= (r.frames_p[:, 1:, 2] >= floor_z_mm).all(axis=1) & (r.point[:, 2] >= floor_z_mm)
+            ok &= ((r.frames_p[:, 1:, 2] >= floor_z_mm).all(axis=1)
+                   & (r.base_p_tcp[:, 2] >= floor_z_mm))
         if max_reach_mm is not None:
-            ok &= np.linalg.norm(r.point, axis=1) <= max_reach_mm
+            ok &= np.linalg.norm(r.base_p_tcp, axis=1) <= max_reach_mm
         out.append(q[ok])
         have += int(ok.sum())
         if have >= n:
@@ -52,8 +53,9 @@ def scaled_jacobian(error_model: ErrorModel, q: np.ndarray) -> np.ndarray:
     """Identification Jacobian at the nominal (base = identity) per pose, scaled by the
     parameters' typical sizes: shape (n, 3, p), mm per typical error."""
     model = error_model.model
-    pts = run_chain(model.convention, model.dh_table(), q, model.tool_mm(), jacobian=False).point
-    data = error_model.prepare(Dataset(q=q, xyz=pts, source="<candidate poses>"))
+    pts = run_chain(model.convention, model.dh_table(), q, model.tool_mm(),
+                    jacobian=False).base_p_tcp
+    data = error_model.prepare(Dataset(q=q, tracker_p_smr=pts, source="<candidate poses>"))
     bound = error_model.bind(data)
     _, J = error_model.evaluate(error_model.initial(bound), bound)
     return J * np.asarray(error_model.scales, float)

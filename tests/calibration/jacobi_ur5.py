@@ -28,7 +28,7 @@ def load(name: str, valid: bool = False) -> tuple[Dataset, np.ndarray]:
     q = np.radians([[float(r[f"joint_{j}"]) for j in range(1, 7)] for r in rows])
     target = np.array([[float(r[c]) for c in ("x_t", "y_t", "z_t")] for r in rows])
     dif = np.array([[float(r[c]) for c in ("x_dif", "y_dif", "z_dif")] for r in rows])
-    data = Dataset(q=q, xyz=target - dif, cmd=target, pose_id=[r["step_order"] for r in rows],
-                   is_valid=np.full(len(rows), valid), source=str(path),
-                   lines=np.arange(2, len(rows) + 2))
+    data = Dataset(q=q, tracker_p_smr=target - dif, cmd=target,
+                   pose_id=[r["step_order"] for r in rows], is_valid=np.full(len(rows), valid),
+                   source=str(path), lines=np.arange(2, len(rows) + 2))
     return data, target

@@ -25,7 +25,7 @@ def calibrated():
 
 
 def _points(em, x, q):
-    return em.evaluate(x, em.bind(Dataset(q=q, xyz=np.zeros((len(q), 3)))), False)[0]
+    return em.evaluate(x, em.bind(Dataset(q=q, tracker_p_smr=np.zeros((len(q), 3)))), False)[0]
 
 
 def test_compensated_targets_reach_the_true_robot(calibrated):

@@ -70,7 +70,8 @@ def test_missing_file(tmp_path):
 def test_csv_round_trip(tmp_path):
     rng = np.random.default_rng(0)
     d = Dataset(
-        q=rng.uniform(-1, 1, (5, 6)), xyz=rng.normal(size=(5, 3)), temp_c=rng.normal(20, 1, 5),
+        q=rng.uniform(-1, 1, (5, 6)), tracker_p_smr=rng.normal(size=(5, 3)),
+        temp_c=rng.normal(20, 1, 5),
         dirs=rng.integers(-1, 2, (5, 6)), is_valid=np.array([0, 0, 1, 0, 1], bool),
         cmd=rng.normal(size=(5, 3)), meta={"tracker_sigma_mm": "0.02"},
     )
@@ -78,7 +79,7 @@ def test_csv_round_trip(tmp_path):
     d.to_csv(p)
     e = load_csv(p, UR)
     np.testing.assert_allclose(e.q, d.q, rtol=0, atol=1e-15)
-    np.testing.assert_array_equal(e.xyz, d.xyz)
+    np.testing.assert_array_equal(e.tracker_p_smr, d.tracker_p_smr)
     np.testing.assert_array_equal(e.dirs, d.dirs)
     np.testing.assert_array_equal(e.is_valid, d.is_valid)
     np.testing.assert_array_equal(e.cmd, d.cmd)

@@ -16,7 +16,7 @@ FAMILIES = ["compliance:2", "harmonic:1", "harmonic12:4", "table:3", "scale:2", 
 def _data(n, rng, **extra):
     cols = {"temp_c": rng.uniform(15, 35, n), "dirs": rng.choice([-1, 1], (n, 6)),
             "t_s": np.arange(n) * 10.0, **extra}
-    return Dataset(q=random_joints(MODEL, n, rng), xyz=np.zeros((n, 3)), **cols)
+    return Dataset(q=random_joints(MODEL, n, rng), tracker_p_smr=np.zeros((n, 3)), **cols)
 
 
 @pytest.mark.parametrize("effect", FAMILIES)
@@ -64,7 +64,7 @@ def test_thermal_needs_temperatures():
     em = ErrorModel(MODEL, "geometric,base,tool,thermal")
     rng = np.random.default_rng(0)
     with pytest.raises(EffectError, match="temp_c"):
-        em.bind(Dataset(q=random_joints(MODEL, 5, rng), xyz=np.zeros((5, 3))))
+        em.bind(Dataset(q=random_joints(MODEL, 5, rng), tracker_p_smr=np.zeros((5, 3))))
 
 
 def test_backlash_derives_directions_from_capture_order_and_says_so():

@@ -21,7 +21,7 @@ def _dataset(name, seed, n_cal=300, n_val=1000, only_identifiable=True):
         # perturb only what these poses can determine, so the truth is directly comparable
         from calibration import Dataset
 
-        probe = Dataset(q=q[:n_cal], xyz=np.zeros((n_cal, 3)))
+        probe = Dataset(q=q[:n_cal], tracker_p_smr=np.zeros((n_cal, 3)))
         b = em.bind(probe)
         x_nom = em.initial(b)
         x_nom[em.index("base.x") : em.index("base.x") + 6] = [2500, 0, 0, 0.3, -0.2, 0.1]

@@ -13,7 +13,7 @@ def test_default_model_jacobian_matches_finite_differences(name):
     em = ErrorModel(m)
     rng = np.random.default_rng(11)
     q = random_joints(m, 40, rng)
-    bound = em.bind(Dataset(q=q, xyz=np.zeros((40, 3))))
+    bound = em.bind(Dataset(q=q, tracker_p_smr=np.zeros((40, 3))))
     # far from nominal: big geometric errors, a base in an arbitrary orientation
     x = realistic_truth(em, rng, length_mm=2.0, angle_deg=0.5)
     _, J = em.evaluate(x, bound)
@@ -28,7 +28,7 @@ def test_base_jacobian_near_half_turn():
     m = load_model("ur10e")
     em = ErrorModel(m)
     rng = np.random.default_rng(2)
-    bound = em.bind(Dataset(q=random_joints(m, 10, rng), xyz=np.zeros((10, 3))))
+    bound = em.bind(Dataset(q=random_joints(m, 10, rng), tracker_p_smr=np.zeros((10, 3))))
     x = realistic_truth(em, rng)
     k = em.index("base.rx")
     x[k : k + 3] = np.array([1.0, 2.0, 2.0]) / 3.0 * (np.pi - 1e-3)

@@ -108,7 +108,7 @@ def test_fk_matches_product_of_exponentials(name):
         table[r, 4] = 2e-3
     tool = np.array([12.0, -7.0, 55.0])
     q = rng.uniform(-np.pi, np.pi, (20, m.n_joints))
-    ours = run_chain(m.convention, table, q, tool, jacobian=False).point
+    ours = run_chain(m.convention, table, q, tool, jacobian=False).base_p_tcp
     ref = _poe_points(m.convention, table, tool, q)
     np.testing.assert_allclose(ours, ref, rtol=0, atol=1e-9)
 

@@ -9,15 +9,9 @@ import pytest
 
 from calibration import DEFAULT_EFFECTS, ErrorModel, identify, load_model
 from calibration.diagnosis import diagnose
-from calibration.report import (
-    MAX_POINTS,
-    Stage,
-    _subsample,
-    _value_std,
-    build_report,
-    render_report,
-)
 from calibration.simulate import random_joints, realistic_truth, simulate
+from presentation.figures import MAX_POINTS, Stage, _subsample
+from presentation.html_report import _value_std, build_report, render_report
 
 FIGURES = ["fig-story", "fig-hist", "fig-workspace", "fig-joints", "fig-torque", "fig-time",
            "fig-periodogram"]

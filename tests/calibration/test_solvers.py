@@ -5,8 +5,9 @@ import pytest
 
 from calibration import ErrorModel, identify, load_model
 from calibration.simulate import random_joints, realistic_truth, simulate
-from calibration.solvers import SOLVERS, igg3_weights, plot_ridge
+from calibration.solvers import SOLVERS, igg3_weights
 from calibration.solvers.ridge import condition_class
+from presentation.ridge_plot import plot_ridge
 
 SIGMA = 0.015  # mm per axis
 
@@ -21,7 +22,7 @@ def _data(seed, n_cal=200, n_val=300, n_outliers=0):
     bad = np.sort(rng.choice(n_cal, n_outliers, replace=False))
     direction = rng.normal(size=(n_outliers, 3))
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
-    data.xyz[bad] += direction * rng.uniform(1.0, 3.0, (n_outliers, 1))
+    data.tracker_p_smr[bad] += direction * rng.uniform(1.0, 3.0, (n_outliers, 1))
     return em, data, [data.pose_id[i] for i in bad]
 
 

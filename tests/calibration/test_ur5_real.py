@@ -14,7 +14,7 @@ def test_geometric_calibration_and_diagnosis_on_real_ur5_data():
     test, test_target = load(RANDOM, valid=True)
     # the data's targets are the nominal model's own predictions (to its 0.1 mm rounding)
     assert np.abs(tool_points(model, grid.q) - target).max() < 0.1
-    before = np.linalg.norm(test.xyz - test_target, axis=1)
+    before = np.linalg.norm(test.tracker_p_smr - test_target, axis=1)
     assert abs(before.mean() - 2.57) < 0.02  # as published: 2.57 mm uncalibrated
     data = grid.concat(test)
     fit = identify(ErrorModel(model), data)

@@ -5,8 +5,8 @@ import pytest
 import yaml
 
 from calibration import ErrorModel, load_model
-from calibration.export import calibrated_model, calibrated_table, ur_deltas, write_ur_conf
 from calibration.kinematics import run_chain
+from calibration.model_export import calibrated_model, calibrated_table, ur_deltas, write_ur_conf
 from calibration.ur_conf import (
     URConfError,
     deltas_from_table,
@@ -28,7 +28,7 @@ def _reference():
 
 def _fk(table, q):
     r = run_chain("dh", table, q, TOOL, jacobian=False)
-    return r.point, r.flange_R
+    return r.base_p_tcp, r.base_R_flange
 
 
 def _random_q(n=1000, seed=0):
@@ -62,7 +62,7 @@ def test_nominal_ur10_matches_urs_check_values():
     for case in ref["fk_checks_ur10_nominal"]:
         if "position" in case:
             r = run_chain("dh", nominal, np.array([case["q"]]), np.zeros(3), jacobian=False)
-            np.testing.assert_allclose(r.point[0] / 1000.0, case["position"], atol=1e-10)
+            np.testing.assert_allclose(r.base_p_tcp[0] / 1000.0, case["position"], atol=1e-10)
 
 
 def test_beta_model_exports_to_ur_deltas_exactly():

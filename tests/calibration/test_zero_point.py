@@ -84,7 +84,7 @@ def test_rigorous_uncertainties_are_honest_and_status_ok(cell):
 
 def test_measured_tips_make_joint_1_identifiable():
     m, post, _ = _cell(seed=4, tracker_sigma_mm=0.01)
-    r = rigorous_method(ChainFK.from_model(m), post, measured_base=post.xyz)
+    r = rigorous_method(ChainFK.from_model(m), post, measured_base=post.base_p_tip)
     assert r.unidentifiable == ["j6"]
     err = np.degrees(r.offsets - np.radians(HIDDEN_DEG))[r.determined]
     assert np.abs(err).max() < TOL_DEG, err
@@ -159,7 +159,7 @@ def test_dataset_like_input(cell):
     from calibration import Dataset
 
     m, post, _ = cell
-    data = Dataset(q=post.q, xyz=np.zeros((post.n, 3)), source="store run 7")
+    data = Dataset(q=post.q, tracker_p_smr=np.zeros((post.n, 3)), source="store run 7")
     p = postures_from_dataset(data, measured=False)
     assert isinstance(p, Postures) and p.plane.tolist() == post.plane.tolist()
     r = rigorous_method(ChainFK.from_model(m), p)

@@ -14,9 +14,9 @@ import time
 import numpy as np
 import pytest
 
+from calibration.frame_fit import axis_angle_deg
 from daq.check import check_plan
 from daq.cli import main
-from daq.frame_fit import axis_angle_deg
 from daq.routines import make_plan
 from daq.store import RunStore, dataset_from_run
 from sim_drivers.inprocess import default_truth

@@ -11,11 +11,11 @@ import pytest
 
 import sim_drivers.inprocess as inproc
 from calibration import ErrorModel, identify, load_csv, load_model
+from calibration.frame_fit import axis_angle_deg, fit_circle, fit_line, measurement_frame
 from daq.check import PlanRefused, check_plan, require_ok
 from daq.cli import main
 from daq.commands.capture import confirm_motion, is_local
 from daq.executor import ExecutorOptions
-from daq.frame_fit import axis_angle_deg, fit_circle, fit_line, measurement_frame
 from daq.plans import Plan, Target
 from daq.progress import Progress
 from daq.routines import make_plan

@@ -88,3 +88,37 @@ def test_zero_bad_input_exits_2(postures, tmp_path, capsys):
     assert "is an input file" in capsys.readouterr().err
     assert main(["zero", str(path), "--model", "ur10e", "--out", str(tmp_path / "p.json")]) == 2
     assert main(["zero", str(path), "--model", "ur10e", "--sigma", "-1"]) == 2
+
+
+def test_measured_tips_are_used_in_the_frame_they_are_in(tmp_path, capsys):
+    """Base-frame tips stay as they are with --params; tracker-frame tips are mapped into
+    the base frame with the params' base pose."""
+    from calibration import ErrorModel, identify
+    from calibration.params_io import save_params
+    from calibration.simulate import random_joints, realistic_truth, simulate
+    from calibration.transforms import rotvec_to_matrix
+
+    m = load_model("ur10e")
+    rng = np.random.default_rng(7)
+    em = ErrorModel(m, "base,tool")
+    x = realistic_truth(em, rng)
+    fit = identify(em, simulate(em, x, random_joints(m, 60, rng), 0.01, rng))
+    params = tmp_path / "p.json"
+    save_params(fit, params)
+    post, _ = simulate_postures("dh", m.dh_table(), np.radians(HIDDEN_DEG),
+                                np.array([12.0, -8.0, 135.0]), np.array([700.0, 150.0, 250.0]),
+                                scatter_mm=0.02 / np.sqrt(3), tracker_sigma_mm=0.01,
+                                limits=m.limits_rad(), rng=np.random.default_rng(1))
+    in_base = tmp_path / "base_tips.csv"
+    post.to_csv(in_base)
+    k = em.index("base.x")
+    R, t = rotvec_to_matrix(fit.values[k + 3:k + 6]), fit.values[k:k + 3]
+    post.tracker_p_tip, post.base_p_tip = post.base_p_tip @ R.T + t, None
+    in_tracker = tmp_path / "tracker_tips.csv"
+    post.to_csv(in_tracker)
+    for path in (in_base, in_tracker):
+        rc = main(["zero", str(path), "--model", "ur10e", "--params", str(params), "--json"])
+        doc = json.loads(capsys.readouterr().out)
+        assert rc == 0, doc["reasons"]
+        assert doc["unidentifiable"] == ["j6"] and doc["notes"] == []
+        np.testing.assert_allclose(doc["offsets_deg"][:5], HIDDEN_DEG[:5], atol=0.005)

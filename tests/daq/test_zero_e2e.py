@@ -84,7 +84,7 @@ def test_zero20_capture_then_zero_from_the_store(tmp_path, capsys):
     assert main(["export", "--db", str(db), "--postures", "--out", str(csv)]) == 0
     post = load_postures(csv, load_model("ur10e"))
     assert post.n == 20 and np.bincount(post.plane).tolist() == [0, 5, 5, 5, 5]
-    assert post.xyz is not None and post.xyz_frame == "tracker"
+    assert post.tracker_p_tip is not None and post.tip_frame == "tracker"
     with RunStore(db) as store:
         ref, _ = postures_from_run(store)
     np.testing.assert_allclose(post.q, ref.q, atol=1e-12)

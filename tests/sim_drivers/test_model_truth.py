@@ -16,7 +16,7 @@ def test_hidden_effect_is_in_the_truth_and_calibration_recovers_the_base():
     lim = np.radians([[-170, 170], [-170, -10], [20, 160], [-170, 170], [-170, 170], [-170, 170]])
     q = rng.uniform(lim[:, 0], lim[:, 1], (150, 6))
     xyz = np.array([truth.true_point(qi, PoseContext()) for qi in q])
-    data = Dataset(q=q, xyz=xyz + rng.normal(0, 0.01, xyz.shape))
+    data = Dataset(q=q, tracker_p_smr=xyz + rng.normal(0, 0.01, xyz.shape))
     fit = identify(ErrorModel(truth.model, "geometric,base,tool,compliance:3"), data)
     assert fit.calib["rms_mm"] < 0.03
     k = fit.error_model.index("base.x")

@@ -1,6 +1,8 @@
-"""Export a calibrated model: the model YAML (FORMATS.md §2) with the geometric deltas
-folded into the table and the identified tool as ``tool``, and UR ``calibration.conf``
-deltas (exact conversion to pure DH, see :mod:`calibration.ur_conf`).
+"""Model export (not the run export of ``cellcal export``): a calibrated model as the model
+YAML (FORMATS.md §2) with the geometric deltas folded into the table and the identified
+tool as ``tool``, and UR ``calibration.conf`` deltas (exact conversion to pure DH, see
+:mod:`calibration.ur_conf`). The effects are applied by
+:meth:`~calibration.error_model.ErrorModel.perturb`.
 
 Only the robot's own kinematics go into these files: the base (the robot in the
 tracker frame) is a property of the cell, and effects that are not fixed kinematic
@@ -28,19 +30,14 @@ def calibrated_table(error_model: ErrorModel, x: np.ndarray):
     tool : (3,) tool point in the flange frame, mm (identified, else nominal)
     notes : effects that are not part of the table (named, with why)
     """
-    x = np.asarray(x, float)
-    table = error_model.model.dh_table()
-    tool = error_model.model.tool_mm()
+    c = error_model.perturb(x)
     notes = []
-    for e, sl in zip(error_model.effects, error_model.slices, strict=True):
-        if e.family == "geometric":
-            table = table + e.table_delta(x[sl])[0]
-        elif e.family == "tool":
-            tool = np.asarray(e.tool_point(x[sl])[0], float)
-        elif e.family == "base":
+    for e in error_model.effects:
+        if e.stage == "base":
             notes.append("base: the robot's pose in the tracker frame is not part of the model")
-        else:
+        elif e.stage not in ("table", "tool"):
             notes.append(f"{e.label}: not a fixed kinematic parameter, not exported")
+    table, tool = c.table, np.asarray(c.tool, float)
     return table, tool, notes
 
 

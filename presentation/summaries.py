@@ -1,0 +1,76 @@
+"""The JSON objects the command line prints for a result of the calibration core
+(FORMATS.md §4): :func:`fit_summary` (``calibrate --json``) and :func:`zero_summary`
+(``zero --json``). Numbers rounded and units in degrees where a person reads them."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from calibration.identify import Fit
+from calibration.zero_point import ZeroResult, assess
+
+
+def fit_summary(fit: Fit) -> dict:
+    """The ``calibrate --json`` object (FORMATS.md §4), without file names."""
+    out = {
+        "model": fit.error_model.model.name,
+        "effects": fit.error_model.labels,
+        "solver": fit.solver,
+        "n_params": fit.error_model.n_params,
+        "n_identifiable": fit.identifiability.n_identifiable,
+        "unidentifiable": fit.identifiability.unidentifiable,
+        "calib": {k: fit.calib[k] for k in ("n", "rms_mm", "mean_mm", "max_mm", "p95_mm")},
+    }
+    if fit.valid is not None:
+        out["valid"] = {
+            k: fit.valid[k] for k in ("n", "rms_mm", "mean_mm", "max_mm", "p95_mm")
+        }
+    out.update(
+        {
+            "noise_floor_mm": fit.noise_floor_mm,
+            "converged": fit.converged,
+            "reason": fit.reason,
+            "iterations": fit.iterations,
+            "condition_number": fit.identifiability.condition_number,
+            "observability_index": fit.identifiability.observability_index,
+            "solve_s": fit.solve_s,
+        }
+    )
+    return out
+
+
+def zero_summary(result: ZeroResult, model_name: str, n_poses: int, *, tolerance_deg: float,
+            sigma_mm: float, measured: bool = False) -> dict:
+    """The ``zero --json`` object (FORMATS.md §4) plus extra keys."""
+    status, reasons = assess(result, tolerance_deg=tolerance_deg, sigma_mm=sigma_mm,
+                             measured=measured)
+    det = result.determined
+    off = [round(math.degrees(v), 6) if d else None
+           for v, d in zip(result.offsets, det, strict=True)]
+    std = [round(math.degrees(s), 6) if d and np.isfinite(s) else None
+           for s, d in zip(result.std, det, strict=True)]
+    changed = [f"j{j + 1}" for j in range(len(det))
+               if det[j] and abs(math.degrees(result.offsets[j])) > tolerance_deg]
+    return {
+        "model": model_name,
+        "n_poses": n_poses,
+        "offsets_deg": off,
+        "std_deg": std,
+        "unidentifiable": result.unidentifiable,
+        "tool_mm": [round(float(v), 6) for v in result.tool],
+        "target_mm": [round(float(v), 6) for v in result.target],
+        "rms_mm": round(result.rms_mm, 6),
+        "status": status,
+        "method": result.method,
+        "changed": changed,
+        "tolerance_deg": tolerance_deg,
+        "reasons": reasons,
+        "outliers": result.outliers,
+        "converged": result.converged,
+        "reason": result.reason,
+        "iterations": result.iterations,
+        "solve_s": round(result.solve_s, 6),
+        "offsets_rad": [float(v) for v in result.offsets],
+    }

@@ -1,0 +1,35 @@
+"""Kabsch fits: the rotation between paired displacements, and the rigid transform."""
+
+import numpy as np
+
+from calibration.transforms import fit_rigid, fit_rotation, random_rotation
+
+
+def test_fit_rotation_recovers_a_rotation_from_three_probe_displacements():
+    rng = np.random.default_rng(4)
+    R = random_rotation(rng)
+    a = 5.0 * np.eye(3)  # three probe moves along the base axes, mm
+    b = a @ R.T + rng.normal(0.0, 1e-4, (3, 3))  # the same moves as the tracker sees them
+    got = fit_rotation(a, b)
+    np.testing.assert_allclose(got, R, atol=1e-4)
+    np.testing.assert_allclose(got @ got.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(got) > 0
+
+
+def test_fit_rotation_is_proper_for_planar_and_reflected_pairs():
+    rng = np.random.default_rng(5)
+    R = random_rotation(rng)
+    a = rng.normal(size=(2, 3))  # two displacements: a plane, the third axis from det +1
+    got = fit_rotation(a, a @ R.T)
+    np.testing.assert_allclose(got, R, atol=1e-9)
+    mirrored = fit_rotation(a, a * [1.0, 1.0, -1.0])  # no rotation fits a mirror exactly
+    assert np.linalg.det(mirrored) > 0
+
+
+def test_fit_rigid_recovers_the_transform():
+    rng = np.random.default_rng(6)
+    R, t = random_rotation(rng), rng.normal(0.0, 1000.0, 3)
+    src = rng.normal(0.0, 500.0, (20, 3))
+    R_fit, t_fit = fit_rigid(src, src @ R.T + t)
+    np.testing.assert_allclose(R_fit, R, atol=1e-12)
+    np.testing.assert_allclose(t_fit, t, atol=1e-9)
