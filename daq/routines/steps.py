@@ -48,7 +48,8 @@ def make_plan(model, *, start_xyz=None, start_deg=None, step_mm: float = 20.0, c
             labels.append(f"{ax}{k}")
             info.append({"axis": ax, "step": k})
     qs, _ = expected_joints(model, np.array(pts), q0)
-    targets = tuple(Target(i, "linear", q=qs[i], xyz=pts[i], label=labels[i], info=info[i])
+    targets = tuple(Target(i, "linear", q=qs[i], base_p_tcp=pts[i], label=labels[i],
+                           info=info[i])
                     for i in range(len(pts)))
     params = {"start_xyz_mm": p0.tolist(), "start_deg": np.degrees(q0).tolist(),
               "step_mm": step_mm, "count": count, "axes": axes}
