@@ -159,6 +159,23 @@ def report(out: dict, as_json: bool) -> int:
     return {"completed": 0, "stopped": 130}.get(out["status"], 1)
 
 
+def run_and_report(command: str, as_json: bool, go) -> int:
+    """``go(progress)`` (a service call returning a ``RunOutcome``) with a progress line;
+    prints the outcome and returns the exit code (1 when the devices cannot be reached)."""
+    from ..errors import ConnectFailed
+    from ..progress import Progress
+
+    progress = Progress(enabled=not as_json)
+    try:
+        outcome = go(progress)
+    except ConnectFailed as e:
+        print(f"cellcal {command}: cannot connect: {e}", file=sys.stderr)
+        return 1
+    finally:
+        progress.close()
+    return report(outcome.to_json(), as_json)
+
+
 def request_from_args(args):
     """The typed capture request of the parsed arguments (ValueError for bad values)."""
     from ..routines import get
@@ -178,8 +195,6 @@ def request_from_args(args):
 
 
 def run(args) -> int:
-    from ..errors import ConnectFailed
-    from ..progress import Progress
     from ..service import plan_run, start_run
     from ..store import RunStore, StoreError
 
@@ -210,14 +225,9 @@ def run(args) -> int:
             print(f"run {run_id}: {plan.routine}, {len(plan)} points, plan "
                   f"{plan.hash[:16]}", file=sys.stderr)
 
-    progress = Progress(enabled=not args.json)
     try:
-        outcome = start_run(store, planned, robot_url=args.robot, tracker_url=args.tracker,
-                            progress=progress, on_started=started)
-    except ConnectFailed as e:
-        print(f"cellcal capture: cannot connect: {e}", file=sys.stderr)
-        return 1
+        return run_and_report("capture", args.json, lambda progress: start_run(
+            store, planned, robot_url=args.robot, tracker_url=args.tracker, progress=progress,
+            on_started=started))
     finally:
-        progress.close()
         store.close()
-    return report(outcome.to_json(), args.json)

@@ -11,7 +11,14 @@ from __future__ import annotations
 
 import sys
 
-from .capture import EXEC_FLAGS, acquire_flags, add_common, confirm_motion, flag_values, report
+from .capture import (
+    EXEC_FLAGS,
+    acquire_flags,
+    add_common,
+    confirm_motion,
+    flag_values,
+    run_and_report,
+)
 
 
 def _all_acquire_flags() -> list:
@@ -32,8 +39,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..errors import ConnectFailed
-    from ..progress import Progress
     from ..routines import get
     from ..service import prepare_resume, resume_run
     from .common import open_store
@@ -53,16 +58,9 @@ def run(args) -> int:
                 print(f"run {run_id}: resuming {r.routine}, {done}/{r.n_points} points "
                       "stored", file=sys.stderr)
 
-        progress = Progress(enabled=not args.json)
-        try:
-            outcome = resume_run(store, res, executor=flag_values(args, EXEC_FLAGS),
-                                 acquire=flag_values(args, acquire_flags(get(r.routine))),
-                                 progress=progress, on_started=started)
-        except ConnectFailed as e:
-            print(f"cellcal resume: cannot connect: {e}", file=sys.stderr)
-            return 1
-        finally:
-            progress.close()
-        return report(outcome.to_json(), args.json)
+        return run_and_report("resume", args.json, lambda progress: resume_run(
+            store, res, executor=flag_values(args, EXEC_FLAGS),
+            acquire=flag_values(args, acquire_flags(get(r.routine))), progress=progress,
+            on_started=started))
     finally:
         store.close()
