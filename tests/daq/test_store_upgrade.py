@@ -47,7 +47,9 @@ def test_upgrade_turns_the_options_into_typed_contexts(v2_db):
         frame, steps, zero, poses = st.runs()
         for r in (frame, steps, zero, poses):
             assert Plan.from_json(r.plan_json).hash == r.plan_hash  # plans load unchanged
-    cols = [c[1] for c in sqlite3.connect(v2_db).execute("PRAGMA table_info(runs)")]
+    con = sqlite3.connect(v2_db)
+    cols = [c[1] for c in con.execute("PRAGMA table_info(runs)")]
+    con.close()
     assert "context_json" in cols and "options_json" not in cols
     T = frame.frame["tracker_T_base"]
     for r in (frame, steps, zero, poses):
