@@ -5,6 +5,7 @@ Modules (sub-command in brackets)
     ``common``            shared helpers: loading inputs with user-facing errors, printing
     ``demo``              [demo] the whole workflow on the simulated cell
     ``capture``           [capture ROUTINE] plan, dry-run and run a routine into the store
+    ``routine_args``      the command-line options of each capture routine
     ``runs``              [runs] list the runs of a store, or show one
     ``resume``            [resume] continue an interrupted run
     ``export_run``        [export] a run's samples as a measurement or postures CSV

@@ -13,6 +13,7 @@ import sys
 from urllib.parse import urlsplit
 
 from ..cli import UsageError
+from .routine_args import ROUTINE_ARGS, floats
 
 #: executor options settable on the command line: (flag, attribute, type, help)
 EXEC_FLAGS = [
@@ -74,9 +75,9 @@ def register(sub) -> None:
                        "completed one in the store, if any)")
         r.add_argument("--dry-run", action="store_true",
                        help="check and print the plan, do not move")
-        for flag, _, typ, hlp in EXEC_FLAGS + acquire_flags(mod):
+        for flag, _, typ, hlp in EXEC_FLAGS + ROUTINE_ARGS[name].acquire_flags:
             r.add_argument(flag, type=typ, default=None, help=hlp)
-        mod.add_args(r)
+        ROUTINE_ARGS[name].add(r)
         r.set_defaults(func=run)
 
 
@@ -130,11 +131,6 @@ def flag_values(args, flags) -> dict:
     return out
 
 
-def acquire_flags(mod) -> list:
-    """A routine's acquisition flags (:mod:`daq.routines`), [] when it has none."""
-    return list(getattr(mod, "ACQUIRE_FLAGS", []))
-
-
 def report(out: dict, as_json: bool) -> int:
     """Print a run outcome (``RunOutcome.to_json()``); the exit code."""
     from .common import print_json
@@ -178,20 +174,18 @@ def run_and_report(command: str, as_json: bool, go) -> int:
 
 def request_from_args(args):
     """The typed capture request of the parsed arguments (ValueError for bad values)."""
-    from ..routines import get
-    from ..routines._common import floats
     from ..run_context import ExecutorOptions
     from ..service import CaptureRequest
 
-    mod = get(args.routine)
+    spec = ROUTINE_ARGS[args.routine]
     tool = floats(args.tool_mm, 3, "--tool-mm")
     return CaptureRequest(
-        routine=args.routine, model=args.model, params=mod.params_from_args(args),
+        routine=args.routine, model=args.model, params=spec.params(args),
         tool_mm=None if tool is None else tuple(tool), seed=args.seed,
         floor_z_mm=None if args.no_floor else args.floor_z_mm,
         max_reach_mm=getattr(args, "max_reach_mm", None), frame_run=args.frame_run,
         executor=ExecutorOptions(**flag_values(args, EXEC_FLAGS)),
-        acquire=flag_values(args, acquire_flags(mod)))
+        acquire=flag_values(args, spec.acquire_flags))
 
 
 def run(args) -> int:

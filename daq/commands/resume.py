@@ -11,21 +11,11 @@ from __future__ import annotations
 
 import sys
 
-from .capture import (
-    EXEC_FLAGS,
-    acquire_flags,
-    add_common,
-    confirm_motion,
-    flag_values,
-    run_and_report,
-)
+from .capture import EXEC_FLAGS, add_common, confirm_motion, flag_values, run_and_report
+from .routine_args import ROUTINE_ARGS
 
-
-def _all_acquire_flags() -> list:
-    """Every routine's acquisition flags (given, they apply to a run of that routine)."""
-    from ..routines import ROUTINES, get
-
-    return [f for name in ROUTINES for f in acquire_flags(get(name))]
+#: every routine's acquisition flags (given, they apply to a run of that routine)
+ACQUIRE_FLAGS = [f for spec in ROUTINE_ARGS.values() for f in spec.acquire_flags]
 
 
 def register(sub) -> None:
@@ -33,13 +23,12 @@ def register(sub) -> None:
                        description=__doc__.splitlines()[0])
     p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN")
     add_common(p, resume=True)
-    for flag, _, typ, hlp in EXEC_FLAGS + _all_acquire_flags():
+    for flag, _, typ, hlp in EXEC_FLAGS + ACQUIRE_FLAGS:
         p.add_argument(flag, type=typ, default=None, help=hlp)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from ..routines import get
     from ..service import prepare_resume, resume_run
     from .common import open_store
 
@@ -60,7 +49,7 @@ def run(args) -> int:
 
         return run_and_report("resume", args.json, lambda progress: resume_run(
             store, res, executor=flag_values(args, EXEC_FLAGS),
-            acquire=flag_values(args, acquire_flags(get(r.routine))), progress=progress,
+            acquire=flag_values(args, ROUTINE_ARGS[r.routine].acquire_flags), progress=progress,
             on_started=started))
     finally:
         store.close()

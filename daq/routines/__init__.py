@@ -1,7 +1,7 @@
 """Capture routines: each turns its parameters and a robot model into a :class:`~daq.plans.Plan`.
 
 Modules
-    ``_common``   expected joints of Cartesian targets, start postures, argument parsing
+    ``_common``   start postures, nominal points, expected joints of Cartesian targets
     ``frame``     measurement-frame setup: the joint-1 circle and the x line; fits the frame
     ``steps``     axis-wise step moves along x, y, z (absolute positioning error)
     ``zero20``    20 postures on 4 planes through one point, with its closed-loop acquisition
@@ -12,9 +12,6 @@ Every routine module provides
 
 ``make_plan(model, **params) -> Plan``
     The plan (plain data, checked by :func:`daq.check.check_plan` before motion).
-``add_args(parser)`` / ``params_from_args(args) -> dict``
-    Its command-line options (``cellcal capture ROUTINE ...``): a pure conversion of
-    the parsed arguments into ``make_plan``'s keyword arguments, no I/O.
 
 and optionally
 
@@ -25,11 +22,13 @@ and optionally
     What the routine computes once every point is stored (``frame`` and/or
     ``summary`` for the run) from the run's :class:`~daq.store.Samples`, e.g. the
     measurement frame of ``frame``.
-``ACQUIRE_OPTIONS``, ``ACQUIRE_FLAGS``, ``acquisition(model, context) -> Acquisition``
+``ACQUIRE_OPTIONS``, ``acquisition(model, context) -> Acquisition``
     Adaptive acquisition (:class:`daq.executor.Acquisition`): the options model (stored
-    in the run context's ``acquire``), its command-line flags ``(flag, option, type,
-    help)`` for ``capture`` and ``resume``, and the strategy the executor calls at each
-    point in place of the single read-joints → measure (zero20's closed loop).
+    in the run context's ``acquire``) and the strategy the executor calls at each point
+    in place of the single read-joints → measure (zero20's closed loop).
+
+A routine's command-line options (``cellcal capture ROUTINE ...``) live with the
+command line: :mod:`daq.commands.routine_args`.
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..frame_fit import measurement_frame
 from ..plans import Plan, Target
-from ._common import default_start, expected_joints, floats, nominal_point
+from ._common import default_start, expected_joints, nominal_point
 
 
 def make_plan(model, *, start_deg=None, circle_span_deg: float = 90.0, circle_points: int = 12,
@@ -72,17 +72,3 @@ def finalize(plan: Plan, samples, run) -> dict:
     d = fit.to_dict()
     return {"frame": d, "summary": {"circle_rms_mm": fit.circle.rms, "line_rms_mm": fit.line.rms,
                                     "orthogonality_deg": fit.orthogonality_deg}}
-
-
-def add_args(p) -> None:
-    p.add_argument("--start-deg", metavar="Q1,..,QN", help="start posture, deg")
-    p.add_argument("--circle-span-deg", type=float, default=90.0, help="joint-1 turn (deg)")
-    p.add_argument("--circle-points", type=int, default=12)
-    p.add_argument("--line-length-mm", type=float, default=300.0)
-    p.add_argument("--line-points", type=int, default=11)
-
-
-def params_from_args(args) -> dict:
-    return {"start_deg": floats(args.start_deg, None, "--start-deg"),
-            "circle_span_deg": args.circle_span_deg, "circle_points": args.circle_points,
-            "line_length_mm": args.line_length_mm, "line_points": args.line_points}

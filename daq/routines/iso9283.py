@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..plans import Plan, Target
-from ._common import default_start, expected_joints, floats, nominal_point
+from ._common import default_start, expected_joints, nominal_point
 
 
 def cube_points(centre, side_mm: float) -> np.ndarray:
@@ -70,17 +70,3 @@ def finalize(plan: Plan, samples, run) -> dict:
             entry["AP_mm"] = float(np.linalg.norm(mean - xc))
         out[f"P{k}"] = entry
     return {"summary": {**(run.summary or {}), "iso9283": out}}
-
-
-def add_args(p) -> None:
-    p.add_argument("--centre-xyz", metavar="X,Y,Z", help="cube centre, mm (base frame)")
-    p.add_argument("--start-deg", metavar="Q1,..,QN", help="IK seed posture, deg")
-    p.add_argument("--side-mm", type=float, default=200.0)
-    p.add_argument("--cycles", type=int, default=30)
-    p.add_argument("--approach-mm", type=float, default=20.0)
-
-
-def params_from_args(args) -> dict:
-    return {"centre_xyz": floats(args.centre_xyz, 3, "--centre-xyz"),
-            "start_deg": floats(args.start_deg, None, "--start-deg"), "side_mm": args.side_mm,
-            "cycles": args.cycles, "approach_mm": args.approach_mm}

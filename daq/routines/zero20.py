@@ -8,8 +8,8 @@ acquisition (:class:`ZeroLoop`, the executor's adaptive-acquisition hook) closes
 the loop with the tracker — damped-least-squares joint corrections until the
 measured tip is on the target within ``tol_mm`` (the target in the tracker frame
 is fixed by the first posture) — and the executor records the joints. The loop's
-settings are :class:`ZeroLoopOptions` (``--zero-tol-mm``, ``--zero-average``),
-stored in the run context's ``acquire`` options.
+settings are :class:`ZeroLoopOptions` (on the command line ``--zero-tol-mm``,
+``--zero-average``), stored in the run context's ``acquire`` options.
 
 Needs an arm that can orient its tool (6 joints or more): a smaller arm reaches
 a point in too few postures.
@@ -29,7 +29,6 @@ from calibration.transforms import fit_rigid
 
 from ..errors import ZeroNotReached
 from ..plans import Plan, Target
-from ._common import floats
 
 
 def make_plan(model, *, target_xyz=None, seed_deg=None, seed: int = 0,
@@ -130,8 +129,8 @@ def replay_source(store, run_id: int) -> dict:
 
 
 def resolve_params(params: dict, open_store) -> dict:
-    """``--replay RUN`` (``replay_run``) resolved against the run store: the recorded
-    postures (``open_store()`` opens it; called only for a replay)."""
+    """``replay_run`` (``--replay RUN``) resolved against the run store: the recorded
+    postures (``open_store()`` opens it, only for a replay)."""
     run_id = params.get("replay_run")
     if run_id is None:
         return params
@@ -150,27 +149,6 @@ def finalize(plan: Plan, samples, run) -> dict:
     spread = np.linalg.norm(xyz - xyz.mean(axis=0), axis=1)
     return {"summary": {**(run.summary or {}), "tip_spread_max_mm": float(spread.max()),
                         "tip_spread_rms_mm": float(np.sqrt(np.mean(spread**2)))}}
-
-
-def add_args(p) -> None:
-    p.add_argument("--target-xyz", metavar="X,Y,Z", help="fixed target point, mm (base frame)")
-    p.add_argument("--seed-deg", metavar="Q1,..,QN", help="preferred configuration, deg")
-    p.add_argument("--replay", type=int, metavar="RUN", default=None,
-                   help="replay the 20 postures recorded in run RUN of --db (their joints, "
-                   "not re-solved), closing the loop again: the fine pass after a manual "
-                   "adjustment of the joint zeros")
-
-
-def params_from_args(args) -> dict:
-    """The plan's parameters; ``--replay RUN`` stays a reference (``replay_run``), resolved
-    against the store by :func:`resolve_params`."""
-    if getattr(args, "replay", None) is not None:
-        if args.target_xyz is not None or args.seed_deg is not None:
-            raise ValueError("zero20: --replay takes the postures (and target) from the run; "
-                             "drop --target-xyz/--seed-deg")
-        return {"replay_run": args.replay}
-    return {"target_xyz": floats(args.target_xyz, 3, "--target-xyz"),
-            "seed_deg": floats(args.seed_deg, None, "--seed-deg"), "seed": args.seed or 0}
 
 
 # ------------------------------------------------------------ the closed loop
@@ -202,15 +180,6 @@ class ZeroLoopOptions(BaseModel):
 
 #: the routine's acquisition options (stored in the run context's ``acquire``)
 ACQUIRE_OPTIONS = ZeroLoopOptions
-
-#: their command-line flags (``capture zero20``, ``resume``): (flag, option, type, help)
-ACQUIRE_FLAGS = [
-    ("--zero-tol-mm", "tol_mm", float, "zero20: tip-on-target tolerance, mm (default 0.01; "
-     "the loop also stops within 1.5x the measurement's 3-D std)"),
-    ("--zero-average", "average", int,
-     "zero20: tracker measurements averaged per step of the closed loop (default 1)"),
-]
-
 
 def acquisition(model, context) -> ZeroLoop:
     """The run's closed loop, from its context (options, measurement frame)."""

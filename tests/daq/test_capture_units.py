@@ -316,3 +316,33 @@ def test_progress_lines():
     quiet = io.StringIO()
     Progress(quiet, enabled=False)(1, 2)
     assert quiet.getvalue() == ""
+
+
+# ------------------------------------------------------ layout contracts
+def test_every_routine_has_its_command_line_options():
+    from daq.commands.routine_args import ROUTINE_ARGS
+    from daq.routines import ROUTINES
+
+    assert set(ROUTINE_ARGS) == set(ROUTINES)
+
+
+def test_capture_errors_are_their_own_family():
+    from daq.errors import CaptureError, QualityError, ZeroNotReached
+    from daq.executor import fault_kind
+    from drivers.errors import DriverError
+
+    for cls in (QualityError, ZeroNotReached):
+        assert issubclass(cls, CaptureError) and not issubclass(cls, DriverError)
+    assert QualityError.transient and not ZeroNotReached.transient
+    assert fault_kind(QualityError("tracker t", "measure", "std")) == "quality"
+    assert str(QualityError("tracker t", "measure", "std")) == "tracker t: measure: std"
+
+
+def test_zero_loop_rotation_fit_recovers_the_tracker_orientation():
+    from calibration.transforms import random_rotation
+    from daq.routines.zero20 import rotation_between
+
+    rng = np.random.default_rng(3)
+    R = random_rotation(rng)
+    a = 5.0 * np.eye(3) + rng.normal(0, 0.05, (3, 3))  # three probe displacements, mm
+    np.testing.assert_allclose(rotation_between(a, a @ R.T), R, atol=1e-12)
