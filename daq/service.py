@@ -192,10 +192,10 @@ def _devices(robot_url, tracker_url, devices, timeout, on_fail=None) -> Iterator
 
 # -------------------------------------------------------------------- start
 def _open_existing(db) -> RunStore:
-    if db is None or not Path(db).exists():
-        raise RequestError(f"{db}: no such run store")
+    if db is None:
+        raise RequestError("no run store given")
     try:
-        return RunStore(db)
+        return RunStore.open_existing(db)
     except (StoreError, OSError) as e:
         raise RequestError(str(e)) from None
 

@@ -188,6 +188,14 @@ class RunStore:
             self.con.close()
             raise
 
+    @classmethod
+    def open_existing(cls, path: str | Path, synchronous: str = "FULL") -> RunStore:
+        """An existing store; :class:`StoreError` when there is no such file (never create
+        an empty store for a mistyped path)."""
+        if not Path(path).exists():
+            raise StoreError(f"{path}: no such run store")
+        return cls(path, synchronous=synchronous)
+
     # ------------------------------------------------------------ lifecycle
     def close(self) -> None:
         self.con.close()
