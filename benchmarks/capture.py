@@ -22,8 +22,9 @@ sys.path.insert(0, str(ROOT))
 
 import sim_drivers.inprocess as inproc  # noqa: E402
 from calibration import load_model  # noqa: E402
-from daq.executor import Executor, ExecutorOptions  # noqa: E402
+from daq.executor import Executor  # noqa: E402
 from daq.routines import make_plan  # noqa: E402
+from daq.run_context import ExecutorOptions  # noqa: E402
 from daq.store import RunStore  # noqa: E402
 from drivers.urls import open_robot, open_tracker  # noqa: E402
 from sim_drivers.serve import ServeConfig, SimStack  # noqa: E402

@@ -22,6 +22,7 @@ import numpy as np
 
 from calibration.kinematics import run_chain
 
+from .errors import PlanRefused
 from .plans import Plan
 
 
@@ -62,14 +63,6 @@ class CheckResult:
         if len(self.problems) > limit:
             lines.append(f"  ... and {len(self.problems) - limit} more")
         return "\n".join(lines)
-
-
-class PlanRefused(ValueError):
-    """A plan failed the dry run; ``result`` holds the problems."""
-
-    def __init__(self, result: CheckResult) -> None:
-        self.result = result
-        super().__init__(result.report())
 
 
 _LIMIT_TOL = 1e-9
@@ -134,7 +127,7 @@ def check_plan(
     tip = chain.base_p_tcp
     for r, t in enumerate(rows):
         if what[r] == "target" and t.move == "linear":
-            miss = float(np.linalg.norm(tip[r] - np.asarray(t.xyz)))
+            miss = float(np.linalg.norm(tip[r] - np.asarray(t.base_p_tcp)))
             if miss > reach_tol_mm:
                 res.problems.append(Problem(t.index, t.label, f"unreachable: the expected joints "
                                             f"miss the target by {miss:.2f} mm"))
@@ -158,7 +151,7 @@ def check_plan(
 
 
 def require_ok(plan: Plan, model, **kw) -> CheckResult:
-    """:func:`check_plan`, raising :class:`PlanRefused` when the plan fails."""
+    """:func:`check_plan`, raising :class:`~daq.errors.PlanRefused` when the plan fails."""
     res = check_plan(plan, model, **kw)
     if not res.ok:
         raise PlanRefused(res)

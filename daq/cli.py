@@ -3,7 +3,8 @@
 Each sub-command lives in its own module under :mod:`daq.commands` and
 exposes ``register(subparsers)``; adding a command is one line in
 ``COMMANDS``. Exit codes: 0 success, 1 failure, 2 bad input (a file, a
-flag or a model that is refused), other codes as a command documents
+flag or a model that is refused: :class:`UsageError`, or the capture service's
+:class:`~daq.errors.RequestError`), other codes as a command documents
 (``zero`` uses 3 for "data too poor to decide").
 """
 
@@ -19,12 +20,12 @@ COMMANDS = [
     "daq.commands.capture",
     "daq.commands.runs",
     "daq.commands.resume",
-    "daq.commands.export",
+    "daq.commands.export_run",
     "daq.commands.calibrate",
     "daq.commands.diagnose",
     "daq.commands.models",
-    "daq.commands.sim",
-    "daq.commands.simulate",
+    "daq.commands.sim_serve",
+    "daq.commands.simulate_dataset",
     "daq.commands.zero",
     "daq.commands.report",
     "daq.commands.compensate",
@@ -49,11 +50,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from .errors import RequestError
+
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except UsageError as e:
+    except (UsageError, RequestError) as e:
         print(f"cellcal {args.command}: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -6,15 +6,25 @@ controller's nominal TCP when the robot offers :class:`CommandedPosition`) →
 measure (averaged; a per-axis std above ``max_std_mm`` is remeasured) → write
 one sample in one SQLite transaction. That commit is the checkpoint.
 
+Adaptive acquisition
+    A routine may hand the executor an :class:`Acquisition` strategy: after the move
+    the executor calls ``acquisition.acquire(target, ctx)`` in place of the single
+    read-joints → measure, and the strategy returns the joints and the measurement
+    of the point. It acts through ``ctx`` (a :class:`PointContext`: the executor's
+    own moves, reads and quality-checked measurements, and the run's summary as
+    state kept across resumes), so its faults are handled like any other. zero20's
+    closed loop is one (:mod:`daq.routines.zero20`).
+
 Faults
-    * transient driver errors (``DriverError.transient``: beam break, timeout,
-      dropped connection, garbage, device not ready) are recorded, then the
-      point is retried after a backoff (doubling, capped) and a reconnection
-      (close + connect) of the device that failed; after ``max_retries`` the
-      run is paused;
+    * transient errors (``DriverError.transient``: beam break, timeout, dropped
+      connection, garbage, device not ready; ``CaptureError.transient``: a
+      measurement too noisy) are recorded, then the point is retried after a
+      backoff (doubling, capped) and a reconnection (close + connect) of the device
+      that failed; after ``max_retries`` the run is paused;
     * a protective stop pauses the run (status ``paused``, the reason recorded
       and printed); an operator clears it, then ``cellcal resume``;
-    * any other driver error (command rejected, limit) pauses the run too;
+    * any other driver or capture error (command rejected, limit, a closed loop that
+      did not converge) pauses the run too;
     * Ctrl-C (SIGINT) stops after the current point (status ``stopped``).
 
 Every interruption goes to the store's ``interruptions`` table. A point whose
@@ -31,7 +41,7 @@ import signal
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
@@ -44,55 +54,12 @@ from drivers.errors import (
     ProtectiveStop,
     ProtocolError,
 )
-from drivers.protocols import CommandedPosition
+from drivers.protocols import CommandedPosition, JointReading, Measurement
 
+from .errors import CaptureError, QualityError
 from .plans import Plan, Target
+from .run_context import ExecutorOptions
 from .store import RunStore, Sample
-
-
-@dataclass
-class ExecutorOptions:
-    """Motion, measurement and retry settings (rad/s, mm/s, s, mm)."""
-
-    speed_rad_s: float = 0.5
-    speed_mm_s: float = 100.0
-    move_timeout_s: float = 120.0
-    io_timeout_s: float = 1.0
-    connect_timeout_s: float = 5.0
-    dwell_s: float = 0.0
-    measure_s: float = 0.5
-    measure_timeout_s: float = 10.0
-    max_std_mm: float = 0.05
-    max_remeasure: int = 3
-    max_retries: int = 8
-    backoff_s: float = 0.02
-    backoff_max_s: float = 1.0
-    zero_tol_mm: float = 0.01
-    zero_max_iter: int = 25
-    zero_damping_mm: float = 1.0
-    #: size of the three probe moves that measure the tracker's orientation for the
-    #: zero-point loop when the run has no measurement frame, mm
-    zero_probe_mm: float = 5.0
-    #: the loop also stops once the tip is within this many times the 3-D std of the
-    #: measurement (a tolerance below the tracker's noise cannot be confirmed)
-    zero_noise_k: float = 1.5
-    #: tracker measurements averaged per step of the zero-point loop (their mean's std is
-    #: taken as std/sqrt(n): independent measurements; a tracker whose noise is correlated
-    #: over seconds gains less)
-    zero_average: int = 1
-    #: the loop stops only after a correction that moved the tip by at most this (mm):
-    #: a large correction leaves a residual along its own direction (model Jacobian,
-    #: tracker rotation: ~1 %) that is systematic, not noise, and would bias the offsets
-    zero_confirm_step_mm: float = 0.5
-    #: a joint moved by less than this (rad) approached with direction 0
-    dir_deadband_rad: float = 1e-6
-    extra: dict = field(default_factory=dict)
-
-
-class QualityError(DriverError):
-    """The tracker's std stayed above the threshold after the remeasurements."""
-
-    transient = True
 
 
 class _Pause(Exception):  # noqa: N818 - control flow
@@ -103,35 +70,57 @@ class _Pause(Exception):  # noqa: N818 - control flow
 
 def fault_kind(e: BaseException) -> str:
     """Short name of a fault for the interruptions table."""
+    if isinstance(e, CaptureError):
+        return e.kind
     for cls, name in ((ProtectiveStop, "protective_stop"), (BeamBroken, "beam"),
-                      (QualityError, "quality"), (CommandTimeout, "timeout"),
-                      (ConnectionLost, "connection"), (ProtocolError, "protocol"),
-                      (NotReady, "not_ready")):
+                      (CommandTimeout, "timeout"), (ConnectionLost, "connection"),
+                      (ProtocolError, "protocol"), (NotReady, "not_ready")):
         if isinstance(e, cls):
             return name
     return "rejected" if isinstance(e, DriverError) else "error"
 
 
-def describe(driver) -> str:
-    """A one-line description of a driver (class, model, serial, firmware when known)."""
-    parts = [type(driver).__name__]
-    for k in ("model", "serial", "firmware"):
-        v = getattr(driver, k, "")
-        if isinstance(v, str) and v:
-            parts.append(f"{k}={v}")
-    n = getattr(driver, "n_joints", 0)
-    if isinstance(n, int) and n:
-        parts.append(f"joints={n}")
-    return " ".join(parts)
+class Acquisition(Protocol):
+    """A routine's adaptive acquisition of a point (see the module docstring)."""
+
+    def acquire(self, target: Target, ctx: PointContext) -> tuple[JointReading, Measurement]:
+        """The joints and the measurement of ``target``, the robot having moved to it."""
+        ...
 
 
-def tool_jacobian(model, q: np.ndarray) -> np.ndarray:
-    """d(tool point)/dq of the nominal model at ``q`` (rad, (N,)): shape (3, N), mm/rad."""
-    from calibration.kinematics import run_chain
+class PointContext:
+    """What an :class:`Acquisition` may do at one point: the executor's own actions.
 
-    r = run_chain(model.convention, model.dh_table(), np.asarray(q, float)[None],
-                  model.tool_mm(), jacobian=True)
-    return r.dP_dtable[0, :, :, 0]
+    Moves and reads go through the executor, which notes the device in use so a fault
+    reconnects the right one; :meth:`measure` is quality-checked (remeasured, then
+    :class:`~daq.errors.QualityError`). :meth:`summary` / :meth:`save_summary` keep
+    state with the run (it survives a resume).
+    """
+
+    def __init__(self, executor: Executor, phase: list[str]) -> None:
+        self._ex, self._phase = executor, phase
+
+    @property
+    def robot_url(self) -> str:
+        return getattr(self._ex.robot, "url", "")
+
+    def move_joints(self, q) -> None:
+        """Joint move to ``q`` (rad), then wait until settled."""
+        self._ex._move_joints(q, self._phase)
+
+    def read_joints(self) -> JointReading:
+        return self._ex._read_q(self._phase)
+
+    def measure(self) -> Measurement:
+        """An averaged measurement whose per-axis std is within ``max_std_mm``."""
+        return self._ex._measure(self._phase)
+
+    def summary(self) -> dict:
+        """The run's summary as stored (a copy)."""
+        return dict(self._ex.store.run(self._ex.run_id).summary or {})
+
+    def save_summary(self, summary: dict) -> None:
+        self._ex.store.update_run(self._ex.run_id, summary=summary)
 
 
 class Executor:
@@ -146,8 +135,8 @@ class Executor:
     robot, tracker : RobotDriver, TrackerDriver
         Connected drivers (they are reconnected after transient faults).
     options : ExecutorOptions
-    model : RobotModel, optional
-        Needed by ``zero`` targets (closed-loop joint corrections).
+    acquisition : Acquisition, optional
+        The routine's adaptive acquisition (needed by ``zero`` targets).
     progress : callable(done, total, last_error), optional
         Called after every point and every fault.
     finalize : callable(plan, samples, run) -> dict, optional
@@ -164,7 +153,7 @@ class Executor:
         tracker,
         options: ExecutorOptions | None = None,
         *,
-        model=None,
+        acquisition: Acquisition | None = None,
         progress: Callable[[int, int, str | None], None] | None = None,
         finalize: Callable | None = None,
     ) -> None:
@@ -175,7 +164,7 @@ class Executor:
         self.store, self.run_id, self.plan = store, run_id, plan
         self.robot, self.tracker = robot, tracker
         self.o = options or ExecutorOptions()
-        self.model = model
+        self.acquisition = acquisition
         self.progress = progress
         self.finalize = finalize
         self._stop = threading.Event()
@@ -281,7 +270,7 @@ class Executor:
                 self._fault(t, e)
                 raise _Pause("paused", f"protective stop at point {t.index}: {e}; clear it at "
                              "the controller, then `cellcal resume`") from e
-            except DriverError as e:
+            except (DriverError, CaptureError) as e:
                 self._fault(t, e)
                 if not e.transient:
                     raise _Pause("paused", f"{fault_kind(e)} at point {t.index}: {e}") from e
@@ -291,7 +280,7 @@ class Executor:
                 time.sleep(min(self.o.backoff_s * 2 ** (attempt - 1), self.o.backoff_max_s))
                 self._reconnect(t, phase[0])
 
-    def _fault(self, t: Target, e: DriverError) -> None:
+    def _fault(self, t: Target, e: DriverError | CaptureError) -> None:
         self.n_faults += 1
         self.last_error = f"{fault_kind(e)}: {e}"
         self.store.add_interruption(self.run_id, t.index, fault_kind(e), str(e))
@@ -341,18 +330,6 @@ class Executor:
                            f"std {worst:.4f} mm above {o.max_std_mm} mm after "
                            f"{o.max_remeasure} measurements")
 
-    def _measure_zero(self, phase):
-        """The zero-point loop's measurement: the mean of ``zero_average`` measurements."""
-        k = max(1, int(self.o.zero_average))
-        ms = [self._measure(phase) for _ in range(k)]
-        if k == 1:
-            return ms[0]
-        from dataclasses import replace
-
-        std = np.sqrt(np.mean([m.std**2 for m in ms], axis=0) / k)
-        return replace(ms[-1], xyz=np.mean([m.xyz for m in ms], axis=0), std=std,
-                       n=int(sum(m.n for m in ms)))
-
     def _acquire(self, t: Target, attempt: int, phase) -> Sample:
         o = self.o
         if self._last_cmd_q is None:
@@ -366,13 +343,16 @@ class Executor:
                 self._last_cmd_q = np.asarray(t.via, float)
         prev = self._last_cmd_q
         if t.move == "linear":
-            self._move_linear(t.xyz, phase)
+            self._move_linear(t.base_p_tcp, phase)
         else:
             self._move_joints(t.q, phase)
         if o.dwell_s > 0:
             time.sleep(o.dwell_s)
-        if t.move == "zero":
-            jr, m = self._close_loop(t, phase)
+        if self.acquisition is not None:
+            jr, m = self.acquisition.acquire(t, PointContext(self, phase))
+        elif t.move == "zero":
+            raise ValueError(f"point {t.index}: a zero target needs its routine's acquisition "
+                             "(zero20's closed loop)")
         else:
             jr = self._read_q(phase)
             m = None
@@ -387,107 +367,9 @@ class Executor:
         self._last_cmd_q = cmd_q
         env = m.env or {}
         return Sample(
-            point_index=t.index, q=jr.q, xyz=m.xyz, std=m.std, n=m.n, t=m.timestamp,
-            pose_id=t.label, set_name=t.set, target=t.to_dict(),
+            point_index=t.index, joints_rad=jr.q, tracker_p_smr=m.xyz, std_mm=m.std, n=m.n,
+            t=m.timestamp, pose_id=t.label, set_name=t.set, target=t.to_dict(),
             temp_c=env.get("temp_c"), pressure_hpa=env.get("pressure_hpa"),
-            humidity_pct=env.get("humidity_pct"), cmd=cmd, dirs=dirs, attempts=attempt,
-            joints_t=jr.timestamp,
+            humidity_pct=env.get("humidity_pct"), base_p_tcp_cmd=cmd, dirs=dirs,
+            attempts=attempt, joints_t=jr.timestamp,
         )
-
-    # ------------------------------------------------------- zero-point loop
-    def _zero_target(self, m_xyz: np.ndarray) -> np.ndarray:
-        """The zero-point target in the tracker frame: fixed by the first zero point."""
-        run = self.store.run(self.run_id)
-        summary = dict(run.summary or {})
-        if "zero_target_tracker_mm" not in summary:
-            summary["zero_target_tracker_mm"] = [float(v) for v in m_xyz]
-            self.store.update_run(self.run_id, summary=summary)
-        return np.asarray(summary["zero_target_tracker_mm"], float)
-
-    def _zero_rotation(self, jr, m, phase):
-        """Rotation tracker <- base (3x3) for the zero-point loop, and the current state.
-
-        From the run's measurement frame (``options['tracker_R_base']``, from a frame
-        run) when known; else from the run summary (``zero_tracker_R_base``, measured
-        earlier in this run); else measured now: three probe moves of
-        ``zero_probe_mm`` along the base axes (nominal model), their nominal tip
-        displacements matched to the measured ones (Kabsch). The tracker may stand in
-        any orientation: with a wrong rotation the corrections point the wrong way
-        (the loop diverges beyond 90 degrees).
-
-        Returns
-        -------
-        R : (3, 3) tracker_R_base
-        jr, m : the joints read and the measurement at the robot's current position
-        """
-        run = self.store.run(self.run_id)
-        if run.options.get("tracker_R_base") is not None:
-            return np.asarray(run.options["tracker_R_base"], float), jr, m
-        summary = dict(run.summary or {})
-        if "zero_tracker_R_base" in summary:
-            return np.asarray(summary["zero_tracker_R_base"], float), jr, m
-        from calibration.inverse import ChainFK
-
-        fk = ChainFK.from_model(self.model)
-        q0 = np.asarray(jr.q, float)
-        p0 = fk.point(q0[None])[0]
-        m0 = np.asarray(m.xyz, float)
-        A, B = [], []
-        for k in range(3):
-            dp = np.zeros(3)
-            dp[k] = self.o.zero_probe_mm
-            dq = np.linalg.lstsq(tool_jacobian(self.model, q0), dp, rcond=None)[0]
-            self._move_joints(q0 + dq, phase)
-            jr = self._read_q(phase)
-            m = self._measure_zero(phase)
-            A.append(fk.point(np.asarray(jr.q, float)[None])[0] - p0)
-            B.append(np.asarray(m.xyz, float) - m0)
-        R = kabsch_rotation(np.array(A), np.array(B))
-        summary["zero_tracker_R_base"] = R.tolist()
-        self.store.update_run(self.run_id, summary=summary)
-        return R, jr, m
-
-    def _close_loop(self, t: Target, phase):
-        """Damped-least-squares joint corrections until the tool tip is on the target.
-
-        The tool Jacobian comes from the nominal model (base frame), turned into the
-        tracker frame with the run's frame rotation (:meth:`_zero_rotation`). The loop
-        stops when the measured tip is within ``zero_tol_mm`` of the target, or within
-        ``zero_noise_k`` times the measurement's own 3-D std when that is larger, and the
-        last correction moved the tip by at most ``zero_confirm_step_mm`` (else one more
-        correction: after a large one, the tip's residual error is systematic).
-        """
-        if self.model is None:
-            raise ValueError("zero targets need the robot model")
-        o = self.o
-        jr = self._read_q(phase)
-        m = self._measure_zero(phase)
-        target = self._zero_target(m.xyz)
-        R, jr, m = self._zero_rotation(jr, m, phase)
-        lam2 = o.zero_damping_mm**2
-        last_step = 0.0  # the tip motion of the last correction, mm
-        for _ in range(o.zero_max_iter):
-            e = target - m.xyz
-            tol = max(o.zero_tol_mm, o.zero_noise_k * float(np.linalg.norm(m.std)))
-            if float(np.linalg.norm(e)) <= tol and last_step <= o.zero_confirm_step_mm:
-                return jr, m
-            J = R @ tool_jacobian(self.model, jr.q)
-            dq = J.T @ np.linalg.solve(J @ J.T + lam2 * np.eye(3), e)
-            last_step = float(np.linalg.norm(J @ dq))
-            self._move_joints(jr.q + dq, phase)
-            jr = self._read_q(phase)
-            m = self._measure_zero(phase)
-        raise ZeroNotReached(f"robot {getattr(self.robot, 'url', '')}", "zero",
-                             f"tip {np.linalg.norm(target - m.xyz):.4f} mm from the target after "
-                             f"{o.zero_max_iter} corrections")
-
-
-def kabsch_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The rotation R (3x3) minimising sum |R a_i - b_i|^2 (a, b: (n, 3) displacements, mm)."""
-    U, _, Vt = np.linalg.svd(np.asarray(b, float).T @ np.asarray(a, float))
-    d = np.sign(np.linalg.det(U @ Vt)) or 1.0
-    return U @ np.diag([1.0, 1.0, d]) @ Vt
-
-
-class ZeroNotReached(DriverError):
-    """The closed loop did not bring the tool tip onto the zero-point target."""

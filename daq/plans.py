@@ -6,7 +6,8 @@ executor (:mod:`daq.executor`) runs. It is plain data: it can be dry-run
 by its content hash (sha256 of a canonical JSON text) — a resumed run refuses
 a plan whose hash differs from the stored one.
 
-Units: joints in rad, positions in mm (robot base frame).
+Units: joints in rad, positions in mm (robot base frame). In the JSON a target's
+``base_p_tcp`` is the key ``xyz`` (the stored plans and their hashes keep it).
 """
 
 from __future__ import annotations
@@ -50,13 +51,14 @@ class Target:
     index : int
         Stable index within the plan (0-based); the store's key with the run id.
     move : {"joints", "linear", "zero"}
-        ``joints``: joint move to ``q``; ``linear``: linear TCP move to ``xyz``;
-        ``zero``: joint move to ``q``, then close the loop with the tracker until
-        the tool tip is on the run's zero-point target (see :mod:`daq.routines.zero20`).
+        ``joints``: joint move to ``q``; ``linear``: linear TCP move to ``base_p_tcp``;
+        ``zero``: joint move to ``q``, then the routine's acquisition decides the
+        joints (zero20 closes the loop with the tracker until the tool tip is on the
+        run's zero-point target, see :mod:`daq.routines.zero20`).
     q : tuple of float, shape (N,), rad, optional
-        Joint target (``joints``/``zero``), or the joints expected at ``xyz`` for
-        a ``linear`` target (used by the dry run only).
-    xyz : tuple of float, shape (3,), mm, optional
+        Joint target (``joints``/``zero``), or the joints expected at ``base_p_tcp``
+        for a ``linear`` target (used by the dry run only).
+    base_p_tcp : tuple of float, shape (3,), mm, optional
         TCP target in the robot base frame (``linear``), or the nominal target
         point (``zero``).
     via : tuple of float, optional
@@ -73,7 +75,7 @@ class Target:
     index: int
     move: str
     q: tuple[float, ...] | None = None
-    xyz: tuple[float, ...] | None = None
+    base_p_tcp: tuple[float, ...] | None = None
     via: tuple[float, ...] | None = None
     set: str = "calib"
     label: str = ""
@@ -85,21 +87,20 @@ class Target:
         if self.set not in ("calib", "valid"):
             raise ValueError(f"target {self.index}: set must be calib or valid, got {self.set!r}")
         object.__setattr__(self, "q", _vec(self.q))
-        object.__setattr__(self, "xyz", _vec(self.xyz))
+        object.__setattr__(self, "base_p_tcp", _vec(self.base_p_tcp))
         object.__setattr__(self, "via", _vec(self.via))
         if self.move in ("joints", "zero") and self.q is None:
             raise ValueError(f"target {self.index}: a {self.move} target needs q")
-        if self.move == "linear" and (self.xyz is None or len(self.xyz) != 3):
+        if self.move == "linear" and (self.base_p_tcp is None or len(self.base_p_tcp) != 3):
             raise ValueError(f"target {self.index}: a linear target needs xyz (3 values)")
         if not self.label:
             object.__setattr__(self, "label", str(self.index + 1))
 
     def to_dict(self) -> dict:
-        """JSON-ready dict (only the fields that are set)."""
+        """JSON-ready dict (only the fields that are set; ``base_p_tcp`` as ``xyz``)."""
         d: dict[str, Any] = {"index": self.index, "move": self.move, "set": self.set,
                              "label": self.label}
-        for k in ("q", "xyz", "via"):
-            v = getattr(self, k)
+        for k, v in (("q", self.q), ("xyz", self.base_p_tcp), ("via", self.via)):
             if v is not None:
                 d[k] = list(v)
         if self.info:
@@ -108,9 +109,9 @@ class Target:
 
     @classmethod
     def from_dict(cls, d: dict) -> Target:
-        return cls(index=int(d["index"]), move=d["move"], q=d.get("q"), xyz=d.get("xyz"),
-                   via=d.get("via"), set=d.get("set", "calib"), label=d.get("label", ""),
-                   info=dict(d.get("info", {})))
+        return cls(index=int(d["index"]), move=d["move"], q=d.get("q"),
+                   base_p_tcp=d.get("xyz"), via=d.get("via"), set=d.get("set", "calib"),
+                   label=d.get("label", ""), info=dict(d.get("info", {})))
 
 
 @dataclass(frozen=True)

@@ -3,6 +3,17 @@
 Open drivers by URL (:func:`open_robot`, :func:`open_tracker`); every driver
 raises the errors of :mod:`drivers.errors`. Driver classes are imported
 lazily (``drivers.ModbusRobot`` loads pymodbus only when first used).
+
+Modules
+    ``protocols``     what capture needs from a robot and a tracker (small protocols)
+    ``errors``        one error hierarchy for every driver
+    ``urls``          open drivers from URLs (``ur://``, ``modbus+tcp://``, ``sim://``...)
+    ``transport``     line I/O over any pyserial URL, with deadlines and typed errors
+    ``settle``        waiting until a robot is settled, by polling its status
+    ``line_robot``    a robot controller behind the ASCII line protocol
+    ``line_tracker``  a laser tracker over TCP or serial, line protocol
+    ``modbus_robot``  a PLC-style robot controller over Modbus TCP
+    ``ur_rtde``       Universal Robots over ur-rtde
 """
 
 from __future__ import annotations

@@ -1,0 +1,19 @@
+"""A simulated cell: a true robot with hidden errors, a noisy tracker, faults, a clock,
+served over the wire protocols the drivers speak and as in-process objects.
+
+Modules
+    ``truth``              the true-robot protocol and ``ToyArm``, a 3-joint stand-in
+    ``model_truth``        ``ModelTruth``: a nominal model plus hidden errors and effects
+    ``cell``               ``SimCell``: the true robot, its controller, the tracker, the clock
+    ``faults``             fault injection: a spec language by probability or schedule
+    ``inprocess``          ``sim://`` drivers acting directly on a shared cell
+    ``line_server``        a line-protocol server thread over TCP or a pseudo-terminal
+    ``robot_server``       the line-protocol robot controller
+    ``tracker_server``     the line-protocol laser tracker
+    ``modbus_server``      the PLC-style robot controller over Modbus TCP
+    ``rtde_wire``          the RTDE (protocol v2) wire format
+    ``rtde_server``        an RTDE server for the cell (receive side of ur-rtde)
+    ``rtde_child``         that server's child process
+    ``fake_rtde_control``  ``FakeRTDEControl``: ur-rtde's control interface on a cell
+    ``serve``              ``SimStack``: every server for one cell (``cellcal sim serve``)
+"""

@@ -1,0 +1,20 @@
+"""The ``cellcal`` sub-commands: each parses its arguments, calls the layer below with typed
+inputs and prints; none passes the argparse namespace on.
+
+Modules (sub-command in brackets)
+    ``common``            shared helpers: loading inputs with user-facing errors, printing
+    ``demo``              [demo] the whole workflow on the simulated cell
+    ``capture``           [capture ROUTINE] plan, dry-run and run a routine into the store
+    ``routine_args``      the command-line options of each capture routine
+    ``runs``              [runs] list the runs of a store, or show one
+    ``resume``            [resume] continue an interrupted run
+    ``export_run``        [export] a run's samples as a measurement or postures CSV
+    ``calibrate``         [calibrate] identify a model's errors from a measurement CSV
+    ``diagnose``          [diagnose] rank the effects missing from a calibrated model
+    ``models``            [models] list the built-in robot models
+    ``sim_serve``         [sim serve] serve the simulated cell over its wire protocols
+    ``simulate_dataset``  [simulate] write a measurement CSV of a simulated robot
+    ``zero``              [zero] zero-point recalibration from 20 postures
+    ``report``            [report] the HTML calibration report
+    ``compensate``        [compensate] joints and corrected targets from a calibration
+"""

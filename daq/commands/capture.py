@@ -13,6 +13,7 @@ import sys
 from urllib.parse import urlsplit
 
 from ..cli import UsageError
+from .routine_args import ROUTINE_ARGS, floats
 
 #: executor options settable on the command line: (flag, attribute, type, help)
 EXEC_FLAGS = [
@@ -24,10 +25,6 @@ EXEC_FLAGS = [
      "remeasure when the tracker's per-axis std exceeds this, mm (default 0.05)"),
     ("--max-retries", "max_retries", int, "retries per point after transient faults (default 8)"),
     ("--io-timeout", "io_timeout_s", float, "timeout of reads, s (default 1)"),
-    ("--zero-tol-mm", "zero_tol_mm", float, "zero20: tip-on-target tolerance, mm (default 0.01; "
-     "the loop also stops within 1.5x the measurement's 3-D std)"),
-    ("--zero-average", "zero_average", int,
-     "zero20: tracker measurements averaged per step of the closed loop (default 1)"),
 ]
 
 
@@ -78,9 +75,9 @@ def register(sub) -> None:
                        "completed one in the store, if any)")
         r.add_argument("--dry-run", action="store_true",
                        help="check and print the plan, do not move")
-        for flag, _, typ, hlp in EXEC_FLAGS:
+        for flag, _, typ, hlp in EXEC_FLAGS + ROUTINE_ARGS[name].acquire_flags:
             r.add_argument(flag, type=typ, default=None, help=hlp)
-        mod.add_args(r)
+        ROUTINE_ARGS[name].add(r)
         r.set_defaults(func=run)
 
 
@@ -124,82 +121,21 @@ def confirm_motion(urls: list[str], yes: bool, stdin=None, stderr=None) -> None:
 
 
 # --------------------------------------------------------------- plumbing
-def _flag_dest(flag: str) -> str:
-    return flag.lstrip("-").replace("-", "_")
-
-
-def options_from_args(args, stored: dict | None = None):
-    from dataclasses import asdict
-
-    from ..executor import ExecutorOptions
-
-    base = dict(stored or {})
-    known = set(asdict(ExecutorOptions()))
-    base = {k: v for k, v in base.items() if k in known}
-    o = ExecutorOptions(**base)
-    for flag, attr, _, _ in EXEC_FLAGS:
-        v = getattr(args, _flag_dest(flag), None)
+def flag_values(args, flags) -> dict:
+    """``{attribute: value}`` of the flags given on the command line (others left out)."""
+    out = {}
+    for flag, attr, _, _ in flags:
+        v = getattr(args, flag.lstrip("-").replace("-", "_"), None)
         if v is not None:
-            setattr(o, attr, v)
-    return o
+            out[attr] = v
+    return out
 
 
-def open_drivers(robot_url: str, tracker_url: str, timeout: float = 5.0):
-    """Connected (robot, tracker); closes what was opened when the other fails."""
-    import sim_drivers.inprocess  # noqa: F401  (registers sim://)
-    from drivers.errors import DriverError
-    from drivers.urls import open_robot, open_tracker
-
-    try:
-        robot = open_robot(robot_url)
-        tracker = open_tracker(tracker_url)
-    except ValueError as e:
-        raise UsageError(str(e)) from None
-    try:
-        robot.connect(timeout=timeout)
-        tracker.connect(timeout=timeout)
-    except DriverError as e:
-        robot.close()
-        tracker.close()
-        raise ConnectFailed(str(e)) from e
-    return robot, tracker
-
-
-class ConnectFailed(Exception):
-    """The devices could not be reached."""
-
-
-def run_executor(store, run_id, plan, robot, tracker, options, model, args) -> tuple[str, dict]:
-    """Run the executor with progress; returns (status, JSON-ready summary)."""
-    import time
-
-    from ..executor import Executor
-    from ..progress import Progress
-    from ..routines import get
-
-    progress = Progress(enabled=not args.json)
-    ex = Executor(store, run_id, plan, robot, tracker, options, model=model, progress=progress,
-                  finalize=getattr(get(plan.routine), "finalize", None))
-    t0 = time.monotonic()
-    try:
-        status = ex.run()
-    finally:
-        progress.close()
-    run = store.run(run_id)
-    out = {"run": run_id, "routine": plan.routine, "status": status, "reason": run.reason,
-           "points": len(plan), "samples": store.n_samples(run_id), "faults": ex.n_faults,
-           "elapsed_s": time.monotonic() - t0, "plan_hash": plan.hash, "db": str(store.path)}
-    if run.frame is not None:
-        out["frame"] = run.frame
-    if run.summary:
-        out["summary"] = run.summary
-    return status, out
-
-
-def report(out: dict, args) -> int:
+def report(out: dict, as_json: bool) -> int:
+    """Print a run outcome (``RunOutcome.to_json()``); the exit code."""
     from .common import print_json
 
-    if args.json:
+    if as_json:
         print_json(out)
     else:
         print(f"run {out['run']} ({out['routine']}): {out['status']}, "
@@ -219,29 +155,49 @@ def report(out: dict, args) -> int:
     return {"completed": 0, "stopped": 130}.get(out["status"], 1)
 
 
-def run(args) -> int:
-    from calibration import ModelError, load_model
+def run_and_report(command: str, as_json: bool, go) -> int:
+    """``go(progress)`` (a service call returning a ``RunOutcome``) with a progress line;
+    prints the outcome and returns the exit code (1 when the devices cannot be reached)."""
+    from ..errors import ConnectFailed
+    from ..progress import Progress
 
-    from ..check import check_plan
-    from ..routines import get
-    from ..routines._common import floats
+    progress = Progress(enabled=not as_json)
+    try:
+        outcome = go(progress)
+    except ConnectFailed as e:
+        print(f"cellcal {command}: cannot connect: {e}", file=sys.stderr)
+        return 1
+    finally:
+        progress.close()
+    return report(outcome.to_json(), as_json)
+
+
+def request_from_args(args):
+    """The typed capture request of the parsed arguments (ValueError for bad values)."""
+    from ..run_context import ExecutorOptions
+    from ..service import CaptureRequest
+
+    spec = ROUTINE_ARGS[args.routine]
+    tool = floats(args.tool_mm, 3, "--tool-mm")
+    return CaptureRequest(
+        routine=args.routine, model=args.model, params=spec.params(args),
+        tool_mm=None if tool is None else tuple(tool), seed=args.seed,
+        floor_z_mm=None if args.no_floor else args.floor_z_mm,
+        max_reach_mm=getattr(args, "max_reach_mm", None), frame_run=args.frame_run,
+        executor=ExecutorOptions(**flag_values(args, EXEC_FLAGS)),
+        acquire=flag_values(args, spec.acquire_flags))
+
+
+def run(args) -> int:
+    from ..service import plan_run, start_run
     from ..store import RunStore, StoreError
 
-    mod = get(args.routine)
     try:
-        model = load_model(args.model)
-        tool = floats(args.tool_mm, 3, "--tool-mm")
-        if tool is not None:
-            model = model.with_changes(tool=tuple(tool))
-        params = mod.params_from_args(args)
-        plan = mod.make_plan(model, **params)
-    except (ModelError, ValueError) as e:
+        request = request_from_args(args)
+    except ValueError as e:
         raise UsageError(str(e)) from None
-    res = check_plan(plan, model, floor_z_mm=None if args.no_floor else args.floor_z_mm,
-                     max_reach_mm=getattr(args, "max_reach_mm", None))
-    if not res.ok:
-        raise UsageError(res.report())
-    options = options_from_args(args)
+    planned = plan_run(request, db=args.db)
+    plan = planned.plan
     if args.dry_run:
         if args.json:
             from .common import print_json
@@ -250,59 +206,22 @@ def run(args) -> int:
                         "check": "ok", "params": plan.params})
         else:
             print(f"{plan.routine}: {len(plan)} points, plan {plan.hash[:16]}")
-            print(res.report())
+            print(planned.check.report())
         return 0
     confirm_motion([args.robot, args.tracker], args.yes)
     try:
         store = RunStore(args.db, synchronous=args.synchronous)
     except (StoreError, OSError) as e:
         raise UsageError(str(e)) from None
+
+    def started(run_id: int, _done: int) -> None:
+        if not args.json:
+            print(f"run {run_id}: {plan.routine}, {len(plan)} points, plan "
+                  f"{plan.hash[:16]}", file=sys.stderr)
+
     try:
-        extra = {"tool_mm": model.tool_mm().tolist()}
-        frame_run = _frame_run(store, args.frame_run)
-        if frame_run is not None:
-            extra |= {"frame_run": frame_run.id,
-                     "tracker_T_base": frame_run.frame["tracker_T_base"],
-                     "tracker_R_base": [r[:3] for r in frame_run.frame["tracker_T_base"][:3]]}
-        try:
-            robot, tracker = open_drivers(args.robot, args.tracker)
-        except ConnectFailed as e:
-            print(f"cellcal capture: cannot connect: {e}", file=sys.stderr)
-            return 1
-        try:
-            from dataclasses import asdict
-
-            from ..executor import describe
-
-            run_id = store.create_run(
-                plan, robot_url=args.robot, tracker_url=args.tracker,
-                robot_desc=describe(robot), tracker_desc=describe(tracker), seed=args.seed,
-                model=args.model, options={**asdict(options), **extra},
-            )
-            if not args.json:
-                print(f"run {run_id}: {plan.routine}, {len(plan)} points, plan "
-                      f"{plan.hash[:16]}", file=sys.stderr)
-            status, out = run_executor(store, run_id, plan, robot, tracker, options, model, args)
-        finally:
-            robot.close()
-            tracker.close()
-        return report(out, args)
+        return run_and_report("capture", args.json, lambda progress: start_run(
+            store, planned, robot_url=args.robot, tracker_url=args.tracker, progress=progress,
+            on_started=started))
     finally:
         store.close()
-
-
-def _frame_run(store, run_id):
-    if run_id is not None:
-        from ..store import StoreError
-
-        try:
-            r = store.run(run_id)
-        except StoreError as e:
-            raise UsageError(str(e)) from None
-        if r.frame is None:
-            raise UsageError(f"run {run_id} has no measurement frame (not a completed frame run)")
-        return r
-    for r in reversed(store.runs()):
-        if r.routine == "frame" and r.status == "completed" and r.frame is not None:
-            return r
-    return None

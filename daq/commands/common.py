@@ -104,9 +104,7 @@ def open_store(path, synchronous: str = "FULL"):
     create an empty store for a mistyped path)."""
     from ..store import RunStore, StoreError
 
-    if not Path(path).exists():
-        raise UsageError(f"{path}: no such run store")
     try:
-        return RunStore(path, synchronous=synchronous)
+        return RunStore.open_existing(path, synchronous=synchronous)
     except (StoreError, OSError) as e:
         raise UsageError(str(e)) from None

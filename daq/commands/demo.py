@@ -35,7 +35,7 @@ def run(args) -> int:
             parse_effect(args.hidden, load_model("ur10e"))
         except EffectError as e:
             raise UsageError(str(e)) from None
-    from ..demo import run_demo
+    from ..demo_workflow import run_demo
 
     result = run_demo(args.out, seed=args.seed, hidden=args.hidden, poses=args.poses,
                       valid=args.valid, progress=not args.quiet)

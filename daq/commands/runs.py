@@ -1,4 +1,5 @@
-"""``cellcal runs``: list the runs in a run store (or show one with its interruptions)."""
+"""``cellcal runs``: list the runs in a run store (or show one with its context and
+interruptions)."""
 
 from __future__ import annotations
 
@@ -41,6 +42,7 @@ def run(args) -> int:
             except StoreError as e:
                 raise UsageError(str(e)) from None
             d = _run_dict(store, r)
+            d["context"] = r.context.model_dump(mode="json")
             d["interruptions"] = [
                 {"point": p, "t": t, "kind": k, "message": m}
                 for p, t, k, m in store.interruptions(r.id)
@@ -49,8 +51,9 @@ def run(args) -> int:
                 print_json(d)
                 return 0
             for k, v in d.items():
-                if k not in ("interruptions", "frame"):
+                if k not in ("interruptions", "frame", "context"):
                     print(f"{k:13s} {v}")
+            print(f"{'context':13s} {r.context.to_json()}")
             if r.frame:
                 print(f"{'frame':13s} tracker_T_base {r.frame['tracker_T_base'][:3]}")
             print(f"interruptions ({len(d['interruptions'])}):")

@@ -218,7 +218,8 @@ def run(args) -> int:
 
 def _from_store(args):
     """(model, postures) of a zero20 run in the store; ``postures.run_id`` set."""
-    from ..store import StoreError, postures_from_run
+    from ..run_data import postures_from_run
+    from ..store import StoreError
 
     try:
         with open_store(args.db) as store:

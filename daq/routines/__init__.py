@@ -1,19 +1,34 @@
 """Capture routines: each turns its parameters and a robot model into a :class:`~daq.plans.Plan`.
 
+Modules
+    ``_common``   start postures, nominal points, expected joints of Cartesian targets
+    ``frame``     measurement-frame setup: the joint-1 circle and the x line; fits the frame
+    ``steps``     axis-wise step moves along x, y, z (absolute positioning error)
+    ``zero20``    20 postures on 4 planes through one point, with its closed-loop acquisition
+    ``poses``     random or observability-optimised calibration/validation poses
+    ``iso9283``   pose accuracy and repeatability cycles (ISO 9283 cube points)
+
 Every routine module provides
 
 ``make_plan(model, **params) -> Plan``
     The plan (plain data, checked by :func:`daq.check.check_plan` before motion).
-``add_args(parser)`` / ``params_from_args(args) -> dict``
-    Its command-line options (``cellcal capture ROUTINE ...``).
-``finalize(plan, samples, run) -> dict | None``
-    Optional: what the routine computes once every point is stored (``frame``
-    and/or ``summary`` for the run), e.g. the measurement frame of ``frame``.
 
-Routines: ``frame`` (measurement-frame setup), ``steps`` (axis-wise step
-moves), ``zero20`` (20 postures on 4 planes through one target point),
-``poses`` (random or observability-optimised calibration/validation poses),
-``iso9283`` (pose accuracy and repeatability cycles).
+and optionally
+
+``resolve_params(params, open_store) -> dict``
+    Parameters that refer to earlier runs, resolved against the run store
+    (``open_store()`` opens it): zero20's ``--replay RUN``.
+``finalize(plan, samples, run) -> dict | None``
+    What the routine computes once every point is stored (``frame`` and/or
+    ``summary`` for the run) from the run's :class:`~daq.store.Samples`, e.g. the
+    measurement frame of ``frame``.
+``ACQUIRE_OPTIONS``, ``acquisition(model, context) -> Acquisition``
+    Adaptive acquisition (:class:`daq.executor.Acquisition`): the options model (stored
+    in the run context's ``acquire``) and the strategy the executor calls at each point
+    in place of the single read-joints → measure (zero20's closed loop).
+
+A routine's command-line options (``cellcal capture ROUTINE ...``) live with the
+command line: :mod:`daq.commands.routine_args`.
 """
 
 from __future__ import annotations

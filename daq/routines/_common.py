@@ -1,4 +1,5 @@
-"""Helpers shared by the routines: expected joints of Cartesian targets, argument parsing."""
+"""Helpers shared by the routines: start postures, nominal points, expected joints of
+Cartesian targets."""
 
 from __future__ import annotations
 
@@ -42,16 +43,3 @@ def expected_joints(model, xyz: np.ndarray, q_start: np.ndarray) -> tuple[np.nda
         if r.success[0]:
             q_prev = r.q[0]
     return np.array(out), np.array(ok)
-
-
-def floats(text: str | None, n: int | None, what: str) -> list[float] | None:
-    """Parse ``"1,2,3"`` into floats (exactly ``n`` when given); ValueError naming ``what``."""
-    if text is None:
-        return None
-    try:
-        v = [float(s) for s in str(text).replace(" ", "").split(",") if s]
-    except ValueError:
-        raise ValueError(f"{what}: expected comma-separated numbers, got {text!r}") from None
-    if n is not None and len(v) != n:
-        raise ValueError(f"{what}: expected {n} numbers, got {len(v)}")
-    return v

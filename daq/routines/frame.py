@@ -15,7 +15,7 @@ import numpy as np
 from calibration.frame_fit import measurement_frame
 
 from ..plans import Plan, Target
-from ._common import default_start, expected_joints, floats, nominal_point
+from ._common import default_start, expected_joints, nominal_point
 
 
 def make_plan(model, *, start_deg=None, circle_span_deg: float = 90.0, circle_points: int = 12,
@@ -52,7 +52,7 @@ def make_plan(model, *, start_deg=None, circle_span_deg: float = 90.0, circle_po
     # approach the line's first point along +x, like the rest of the line
     qs, _ = expected_joints(model, xyz, q0)
     for k in range(line_points):
-        targets.append(Target(len(targets), "linear", q=qs[k], xyz=xyz[k],
+        targets.append(Target(len(targets), "linear", q=qs[k], base_p_tcp=xyz[k],
                               label=f"line{k + 1}", info={"part": "line"}))
     params = {"start_deg": np.degrees(q0).tolist(), "circle_span_deg": circle_span_deg,
               "circle_points": circle_points, "line_length_mm": line_length_mm,
@@ -60,30 +60,16 @@ def make_plan(model, *, start_deg=None, circle_span_deg: float = 90.0, circle_po
     return Plan("frame", params, tuple(targets), model=model.name)
 
 
-def finalize(plan: Plan, samples: dict, run) -> dict:
+def finalize(plan: Plan, samples, run) -> dict:
     """Fit the frame: ``{"frame": FrameFit.to_dict(), "summary": {...}}``."""
-    part = [(t or {}).get("info", {}).get("part") for t in samples["target"]]
+    part = [(t or {}).get("info", {}).get("part") for t in samples.targets]
     circ = np.array([p == "circle" for p in part])
     line = np.array([p == "line" for p in part])
     height = float(plan.params["origin_height_mm"])
-    cmd_z = samples["cmd"][circ, 2]
+    cmd_z = samples.base_p_tcp_cmd[circ, 2]
     if cmd_z.size and np.all(np.isfinite(cmd_z)):
         height = float(cmd_z.mean())  # the controller's own nominal TCP height
-    fit = measurement_frame(samples["xyz"][circ], samples["xyz"][line], height)
+    fit = measurement_frame(samples.tracker_p_smr[circ], samples.tracker_p_smr[line], height)
     d = fit.to_dict()
     return {"frame": d, "summary": {"circle_rms_mm": fit.circle.rms, "line_rms_mm": fit.line.rms,
                                     "orthogonality_deg": fit.orthogonality_deg}}
-
-
-def add_args(p) -> None:
-    p.add_argument("--start-deg", metavar="Q1,..,QN", help="start posture, deg")
-    p.add_argument("--circle-span-deg", type=float, default=90.0, help="joint-1 turn (deg)")
-    p.add_argument("--circle-points", type=int, default=12)
-    p.add_argument("--line-length-mm", type=float, default=300.0)
-    p.add_argument("--line-points", type=int, default=11)
-
-
-def params_from_args(args) -> dict:
-    return {"start_deg": floats(args.start_deg, None, "--start-deg"),
-            "circle_span_deg": args.circle_span_deg, "circle_points": args.circle_points,
-            "line_length_mm": args.line_length_mm, "line_points": args.line_points}

@@ -8,7 +8,7 @@ pre-position ``approach_mm`` away along ``approach_dir`` first.
 
 :func:`finalize` computes per point the positional repeatability
 RP = l̄ + 3·S_l (ISO 9283 §7.2.2, from the tracker only) and, when the run knows
-the measurement frame (``tracker_T_base`` in its options), the positional
+the measurement frame (``tracker_T_base`` in its context), the positional
 accuracy AP = |x̄ − x_c| of the mean attained position from the commanded one.
 """
 
@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..plans import Plan, Target
-from ._common import default_start, expected_joints, floats, nominal_point
+from ._common import default_start, expected_joints, nominal_point
 
 
 def cube_points(centre, side_mm: float) -> np.ndarray:
@@ -43,7 +43,7 @@ def make_plan(model, *, centre_xyz=None, start_deg=None, side_mm: float = 200.0,
     targets = []
     for cyc in range(cycles):
         for k in range(5):
-            targets.append(Target(len(targets), "linear", q=qs[k], xyz=pts[k],
+            targets.append(Target(len(targets), "linear", q=qs[k], base_p_tcp=pts[k],
                                   via=pts[k] + approach_mm * d, label=f"c{cyc + 1}.P{k + 1}",
                                   info={"cycle": cyc + 1, "point": k + 1}))
     params = {"centre_xyz_mm": c.tolist(), "start_deg": np.degrees(q0).tolist(),
@@ -52,14 +52,13 @@ def make_plan(model, *, centre_xyz=None, start_deg=None, side_mm: float = 200.0,
     return Plan("iso9283", params, tuple(targets), model=model.name)
 
 
-def finalize(plan: Plan, samples: dict, run) -> dict:
+def finalize(plan: Plan, samples, run) -> dict:
     """RP (and AP when the frame is known) per cube point, mm."""
-    pts = np.array([(t or {}).get("info", {}).get("point", 0) for t in samples["target"]])
-    T = (run.options or {}).get("tracker_T_base")
-    T = None if T is None else np.asarray(T, float)
+    pts = np.array([(t or {}).get("info", {}).get("point", 0) for t in samples.targets])
+    T = run.context.tracker_T_base_matrix
     out = {}
     for k in range(1, 6):
-        X = samples["xyz"][pts == k]
+        X = samples.tracker_p_smr[pts == k]
         if len(X) == 0:
             continue
         mean = X.mean(axis=0)
@@ -67,21 +66,7 @@ def finalize(plan: Plan, samples: dict, run) -> dict:
         s = float(np.std(ell, ddof=1)) if len(ell) > 1 else 0.0
         entry = {"n": len(X), "RP_mm": float(ell.mean() + 3 * s)}
         if T is not None:
-            xc = T[:3, :3] @ np.asarray(plan.targets[k - 1].xyz) + T[:3, 3]
+            xc = T[:3, :3] @ np.asarray(plan.targets[k - 1].base_p_tcp) + T[:3, 3]
             entry["AP_mm"] = float(np.linalg.norm(mean - xc))
         out[f"P{k}"] = entry
     return {"summary": {**(run.summary or {}), "iso9283": out}}
-
-
-def add_args(p) -> None:
-    p.add_argument("--centre-xyz", metavar="X,Y,Z", help="cube centre, mm (base frame)")
-    p.add_argument("--start-deg", metavar="Q1,..,QN", help="IK seed posture, deg")
-    p.add_argument("--side-mm", type=float, default=200.0)
-    p.add_argument("--cycles", type=int, default=30)
-    p.add_argument("--approach-mm", type=float, default=20.0)
-
-
-def params_from_args(args) -> dict:
-    return {"centre_xyz": floats(args.centre_xyz, 3, "--centre-xyz"),
-            "start_deg": floats(args.start_deg, None, "--start-deg"), "side_mm": args.side_mm,
-            "cycles": args.cycles, "approach_mm": args.approach_mm}

@@ -134,20 +134,3 @@ def make_plan(model, *, count: int = 100, seed: int = 0, method: str = "random",
               "max_reach_mm": max_reach_mm,
               "observability_index": None if not np.isfinite(o1) else o1}
     return Plan("poses", params, targets, model=model.name)
-
-
-def add_args(p) -> None:
-    p.add_argument("--count", type=int, default=100, help="number of poses")
-    p.add_argument("--method", choices=("random", "optimal"), default="random")
-    p.add_argument("--valid-fraction", type=float, default=0.0,
-                   help="fraction of the poses marked set=valid (random)")
-    p.add_argument("--effects", default="geometric,base,tool",
-                   help="error model whose observability 'optimal' maximises")
-    p.add_argument("--pool", type=int, default=None, help="candidate pool size for 'optimal'")
-    p.add_argument("--max-reach-mm", type=float, default=None)
-
-
-def params_from_args(args) -> dict:
-    return {"count": args.count, "seed": args.seed or 0, "method": args.method,
-            "valid_fraction": args.valid_fraction, "effects": args.effects, "pool": args.pool,
-            "floor_z_mm": args.floor_z_mm, "max_reach_mm": args.max_reach_mm}

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..plans import Plan, Target
-from ._common import default_start, expected_joints, floats, nominal_point
+from ._common import default_start, expected_joints, nominal_point
 
 
 def make_plan(model, *, start_xyz=None, start_deg=None, step_mm: float = 20.0, count: int = 10,
@@ -48,22 +48,9 @@ def make_plan(model, *, start_xyz=None, start_deg=None, step_mm: float = 20.0, c
             labels.append(f"{ax}{k}")
             info.append({"axis": ax, "step": k})
     qs, _ = expected_joints(model, np.array(pts), q0)
-    targets = tuple(Target(i, "linear", q=qs[i], xyz=pts[i], label=labels[i], info=info[i])
+    targets = tuple(Target(i, "linear", q=qs[i], base_p_tcp=pts[i], label=labels[i],
+                           info=info[i])
                     for i in range(len(pts)))
     params = {"start_xyz_mm": p0.tolist(), "start_deg": np.degrees(q0).tolist(),
               "step_mm": step_mm, "count": count, "axes": axes}
     return Plan("steps", params, targets, model=model.name)
-
-
-def add_args(p) -> None:
-    p.add_argument("--start-xyz", metavar="X,Y,Z", help="start point, mm (base frame)")
-    p.add_argument("--start-deg", metavar="Q1,..,QN", help="start posture / IK seed, deg")
-    p.add_argument("--step-mm", type=float, default=20.0)
-    p.add_argument("--count", type=int, default=10, help="steps per axis")
-    p.add_argument("--axes", default="xyz")
-
-
-def params_from_args(args) -> dict:
-    return {"start_xyz": floats(args.start_xyz, 3, "--start-xyz"),
-            "start_deg": floats(args.start_deg, None, "--start-deg"),
-            "step_mm": args.step_mm, "count": args.count, "axes": args.axes}

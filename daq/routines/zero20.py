@@ -3,10 +3,13 @@
 20 different postures, 5 on each of 4 vertical planes through a fixed target
 point, each bringing the tool tip to the target
 (:func:`calibration.zero_point.zero20_postures` on the nominal model). Each
-point is a ``zero`` target: the executor moves to the posture, then, with a
-tracker, closes the loop with damped-least-squares joint corrections until the
-measured tip is on the target within ``zero_tol_mm`` (the target in the
-tracker frame is fixed by the first posture), and records the joints.
+point is a ``zero`` target: the executor moves to the posture, then the routine's
+acquisition (:class:`ZeroLoop`, the executor's adaptive-acquisition hook) closes
+the loop with the tracker — damped-least-squares joint corrections until the
+measured tip is on the target within ``tol_mm`` (the target in the tracker frame
+is fixed by the first posture) — and the executor records the joints. The loop's
+settings are :class:`ZeroLoopOptions` (on the command line ``--zero-tol-mm``,
+``--zero-average``), stored in the run context's ``acquire`` options.
 
 Needs an arm that can orient its tool (6 joints or more): a smaller arm reaches
 a point in too few postures.
@@ -20,9 +23,12 @@ moves to each recorded posture and closes the loop again from there.
 from __future__ import annotations
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict
 
+from calibration.transforms import fit_rigid
+
+from ..errors import ZeroNotReached
 from ..plans import Plan, Target
-from ._common import floats
 
 
 def make_plan(model, *, target_xyz=None, seed_deg=None, seed: int = 0,
@@ -66,7 +72,7 @@ def make_plan(model, *, target_xyz=None, seed_deg=None, seed: int = 0,
     for i in range(len(q)):
         k = int(plane[i])
         per[k] = per.get(k, 0) + 1
-        targets.append(Target(i, "zero", q=q[i], xyz=target, label=f"p{k}.{per[k]}",
+        targets.append(Target(i, "zero", q=q[i], base_p_tcp=target, label=f"p{k}.{per[k]}",
                               info={"plane": k}))
     params = {"target_xyz_mm": target.tolist(),
               "seed_deg": None if q_seed is None else np.degrees(q_seed).tolist(), "seed": seed}
@@ -95,62 +101,223 @@ def replay_plan(model, *, run: int, q, plane, label, target_xyz_mm) -> Plan:
         raise ValueError(f"zero20 --replay {run}: the run has {q.shape[1]} joints, model "
                          f"{model.name} has {model.n_joints}")
     target = np.asarray(target_xyz_mm, float)
-    targets = tuple(Target(i, "zero", q=q[i], xyz=target, label=str(label[i]),
+    targets = tuple(Target(i, "zero", q=q[i], base_p_tcp=target, label=str(label[i]),
                            info={"plane": int(plane[i])}) for i in range(len(q)))
     params = {"target_xyz_mm": target.tolist(), "replay_run": int(run)}
     return Plan("zero20", params, targets, model=model.name)
 
 
-def replay_source(db: str, run_id: int) -> dict:
-    """The ``replay`` argument of :func:`make_plan` from run ``run_id`` of the store ``db``.
+def replay_source(store, run_id: int) -> dict:
+    """The ``replay`` argument of :func:`make_plan` from run ``run_id`` of the open store.
 
     The run must be a completed ``zero20`` run; ValueError otherwise.
     """
-    from pathlib import Path
+    from ..store import StoreError
 
-    from ..plans import Plan
-    from ..store import RunStore, StoreError
-
-    if not Path(db).exists():
-        raise ValueError(f"--replay {run_id}: {db}: no such run store")
-    with RunStore(db) as store:
-        try:
-            r = store.run(run_id)
-        except StoreError as e:
-            raise ValueError(f"--replay {run_id}: {e}") from None
-        if r.routine != "zero20" or r.status != "completed":
-            raise ValueError(f"--replay {run_id}: run {run_id} is a {r.status} {r.routine} run, "
-                             "not a completed zero20 run")
-        s = store.samples(r.id)
+    try:
+        r = store.run(run_id)
+    except StoreError as e:
+        raise ValueError(f"--replay {run_id}: {e}") from None
+    if r.routine != "zero20" or r.status != "completed":
+        raise ValueError(f"--replay {run_id}: run {run_id} is a {r.status} {r.routine} run, "
+                         "not a completed zero20 run")
+    s = store.samples(r.id)
     src = Plan.from_json(r.plan_json)
-    return {"run": r.id, "q": s["q"], "label": s["pose_id"],
-            "plane": [int(t["info"]["plane"]) for t in s["target"]],
+    return {"run": r.id, "q": s.joints_rad, "label": s.pose_id,
+            "plane": [int(t["info"]["plane"]) for t in s.targets],
             "target_xyz_mm": src.params["target_xyz_mm"]}
 
 
-def finalize(plan: Plan, samples: dict, run) -> dict:
+def resolve_params(params: dict, open_store) -> dict:
+    """``replay_run`` (``--replay RUN``) resolved against the run store: the recorded
+    postures (``open_store()`` opens it, only for a replay)."""
+    run_id = params.get("replay_run")
+    if run_id is None:
+        return params
+    try:
+        with open_store() as store:
+            return {"replay": replay_source(store, run_id)}
+    except ValueError as e:
+        if str(e).startswith("--replay"):
+            raise
+        raise ValueError(f"--replay {run_id}: {e}") from None
+
+
+def finalize(plan: Plan, samples, run) -> dict:
     """Spread of the measured tips (they should all be on the target)."""
-    xyz = samples["xyz"]
+    xyz = samples.tracker_p_smr
     spread = np.linalg.norm(xyz - xyz.mean(axis=0), axis=1)
     return {"summary": {**(run.summary or {}), "tip_spread_max_mm": float(spread.max()),
                         "tip_spread_rms_mm": float(np.sqrt(np.mean(spread**2)))}}
 
 
-def add_args(p) -> None:
-    p.add_argument("--target-xyz", metavar="X,Y,Z", help="fixed target point, mm (base frame)")
-    p.add_argument("--seed-deg", metavar="Q1,..,QN", help="preferred configuration, deg")
-    p.add_argument("--replay", type=int, metavar="RUN", default=None,
-                   help="replay the 20 postures recorded in run RUN of --db (their joints, "
-                   "not re-solved), closing the loop again: the fine pass after a manual "
-                   "adjustment of the joint zeros")
+# ------------------------------------------------------------ the closed loop
+class ZeroLoopOptions(BaseModel):
+    """Settings of the zero-point closed loop (mm, rad)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    #: the tip is on the target within this, mm
+    tol_mm: float = 0.01
+    #: corrections at the most per posture
+    max_iter: int = 25
+    #: damping of the least-squares corrections, mm
+    damping_mm: float = 1.0
+    #: size of the three probe moves that measure the tracker's orientation when the run
+    #: has no measurement frame, mm
+    probe_mm: float = 5.0
+    #: the loop also stops once the tip is within this many times the 3-D std of the
+    #: measurement (a tolerance below the tracker's noise cannot be confirmed)
+    noise_k: float = 1.5
+    #: tracker measurements averaged per step (their mean's std is taken as std/sqrt(n):
+    #: independent measurements; a tracker whose noise is correlated over seconds gains less)
+    average: int = 1
+    #: the loop stops only after a correction that moved the tip by at most this (mm): a
+    #: large correction leaves a residual along its own direction (model Jacobian, tracker
+    #: rotation: ~1 %) that is systematic, not noise, and would bias the offsets
+    confirm_step_mm: float = 0.5
 
 
-def params_from_args(args) -> dict:
-    if getattr(args, "replay", None) is not None:
-        if args.target_xyz is not None or args.seed_deg is not None:
-            raise ValueError("zero20: --replay takes the postures (and target) from the run; "
-                             "drop --target-xyz/--seed-deg")
-        return {"replay": replay_source(args.db, args.replay)}
-    return {"target_xyz": floats(args.target_xyz, 3, "--target-xyz"),
-            "seed_deg": floats(args.seed_deg, None, "--seed-deg"), "seed": args.seed or 0}
+#: the routine's acquisition options (stored in the run context's ``acquire``)
+ACQUIRE_OPTIONS = ZeroLoopOptions
 
+def acquisition(model, context) -> ZeroLoop:
+    """The run's closed loop, from its context (options, measurement frame)."""
+    T = context.tracker_T_base_matrix
+    return ZeroLoop(model, ZeroLoopOptions(**context.acquire),
+                    None if T is None else T[:3, :3])
+
+
+def tool_jacobian(model, q: np.ndarray) -> np.ndarray:
+    """d(tool point)/dq of the nominal model at ``q`` (rad, (N,)): shape (3, N), mm/rad."""
+    from calibration.kinematics import run_chain
+
+    r = run_chain(model.convention, model.dh_table(), np.asarray(q, float)[None],
+                  model.tool_mm(), jacobian=True)
+    return r.dP_dtable[0, :, :, 0]
+
+
+def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The rotation R (3x3) minimising sum |R a_i - b_i|^2 (displacements, (n, 3)).
+
+    :func:`calibration.transforms.fit_rigid` on the displacements and their mirror
+    images: their centroids are the origin, so the best rigid fit is a rotation alone.
+    """
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    R, _ = fit_rigid(np.vstack([a, -a]), np.vstack([b, -b]))
+    return R
+
+
+class ZeroLoop:
+    """Damped-least-squares joint corrections until the tool tip is on the target.
+
+    An :class:`~daq.executor.Acquisition`: the executor has moved to the posture; the
+    loop measures, corrects and measures again through the executor's
+    :class:`~daq.executor.PointContext`, and returns the joints and the measurement
+    of the tip on the target. The tool Jacobian comes from the nominal model (base
+    frame), turned into the tracker frame with the rotation tracker <- base
+    (:meth:`rotation`). The loop stops when the measured tip is within ``tol_mm`` of
+    the target, or within ``noise_k`` times the measurement's own 3-D std when that is
+    larger, and the last correction moved the tip by at most ``confirm_step_mm`` (else
+    one more correction: after a large one, the tip's residual error is systematic).
+
+    Parameters
+    ----------
+    model : RobotModel
+        The nominal model (with the controller's tool).
+    options : ZeroLoopOptions
+    tracker_R_base : (3, 3) or None
+        From the run's measurement frame; None: measured by probe moves.
+    """
+
+    def __init__(self, model, options: ZeroLoopOptions | None = None,
+                 tracker_R_base: np.ndarray | None = None) -> None:
+        self.model = model
+        self.o = options or ZeroLoopOptions()
+        self.tracker_R_base = tracker_R_base
+
+    def measure(self, ctx):
+        """The mean of ``average`` measurements."""
+        from dataclasses import replace
+
+        k = max(1, int(self.o.average))
+        ms = [ctx.measure() for _ in range(k)]
+        if k == 1:
+            return ms[0]
+        std = np.sqrt(np.mean([m.std**2 for m in ms], axis=0) / k)
+        return replace(ms[-1], xyz=np.mean([m.xyz for m in ms], axis=0), std=std,
+                       n=int(sum(m.n for m in ms)))
+
+    def target(self, ctx, m_xyz: np.ndarray) -> np.ndarray:
+        """The zero-point target in the tracker frame: fixed by the run's first zero point
+        (kept in the run summary, ``zero_target_tracker_mm``)."""
+        summary = ctx.summary()
+        if "zero_target_tracker_mm" not in summary:
+            summary["zero_target_tracker_mm"] = [float(v) for v in m_xyz]
+            ctx.save_summary(summary)
+        return np.asarray(summary["zero_target_tracker_mm"], float)
+
+    def rotation(self, ctx, jr, m):
+        """Rotation tracker <- base (3x3) for the loop, and the current state.
+
+        From the run's measurement frame when known; else from the run summary
+        (``zero_tracker_R_base``, measured earlier in this run); else measured now: three
+        probe moves of ``probe_mm`` along the base axes (nominal model), their nominal
+        tip displacements matched to the measured ones (:func:`rotation_between`). The
+        tracker may stand in any orientation: with a wrong rotation the corrections point
+        the wrong way (the loop diverges beyond 90 degrees).
+
+        Returns
+        -------
+        R : (3, 3) tracker_R_base
+        jr, m : the joints read and the measurement at the robot's current position
+        """
+        if self.tracker_R_base is not None:
+            return np.asarray(self.tracker_R_base, float), jr, m
+        summary = ctx.summary()
+        if "zero_tracker_R_base" in summary:
+            return np.asarray(summary["zero_tracker_R_base"], float), jr, m
+        from calibration.inverse import ChainFK
+
+        fk = ChainFK.from_model(self.model)
+        q0 = np.asarray(jr.q, float)
+        p0 = fk.point(q0[None])[0]
+        m0 = np.asarray(m.xyz, float)
+        A, B = [], []
+        for k in range(3):
+            dp = np.zeros(3)
+            dp[k] = self.o.probe_mm
+            dq = np.linalg.lstsq(tool_jacobian(self.model, q0), dp, rcond=None)[0]
+            ctx.move_joints(q0 + dq)
+            jr = ctx.read_joints()
+            m = self.measure(ctx)
+            A.append(fk.point(np.asarray(jr.q, float)[None])[0] - p0)
+            B.append(np.asarray(m.xyz, float) - m0)
+        R = rotation_between(np.array(A), np.array(B))
+        summary["zero_tracker_R_base"] = R.tolist()
+        ctx.save_summary(summary)
+        return R, jr, m
+
+    def acquire(self, t: Target, ctx):
+        """Close the loop at the posture the robot stands in; (joints read, measurement)."""
+        o = self.o
+        jr = ctx.read_joints()
+        m = self.measure(ctx)
+        target = self.target(ctx, m.xyz)
+        R, jr, m = self.rotation(ctx, jr, m)
+        lam2 = o.damping_mm**2
+        last_step = 0.0  # the tip motion of the last correction, mm
+        for _ in range(o.max_iter):
+            e = target - m.xyz
+            tol = max(o.tol_mm, o.noise_k * float(np.linalg.norm(m.std)))
+            if float(np.linalg.norm(e)) <= tol and last_step <= o.confirm_step_mm:
+                return jr, m
+            J = R @ tool_jacobian(self.model, jr.q)
+            dq = J.T @ np.linalg.solve(J @ J.T + lam2 * np.eye(3), e)
+            last_step = float(np.linalg.norm(J @ dq))
+            ctx.move_joints(jr.q + dq)
+            jr = ctx.read_joints()
+            m = self.measure(ctx)
+        raise ZeroNotReached(f"robot {ctx.robot_url}", "zero",
+                             f"tip {np.linalg.norm(target - m.xyz):.4f} mm from the target "
+                             f"after {o.max_iter} corrections")

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 
 from calibration import ErrorModel, load_model
-from daq.executor import Executor, ExecutorOptions
-from daq.routines import get
+from daq.run_context import ExecutorOptions, RunContext
+from daq.service import execute
 from daq.store import RunStore
 from drivers.urls import open_robot, open_tracker
 from sim_drivers.model_truth import ModelTruth
@@ -62,14 +62,16 @@ def connected(robot_url: str, tracker_url: str):
 
 
 def run_plan(store: RunStore, plan, robot, tracker, model=None, options=None, run_id=None,
-             urls=("", ""), run_options=None) -> tuple[int, str]:
-    """Create (or continue) a run and execute it; returns (run id, status)."""
+             urls=("", "")) -> tuple[int, str]:
+    """Create (or continue) a run and execute it (:func:`daq.service.execute`) with the
+    executor ``options``; returns (run id, status)."""
+    options = options or ExecutorOptions()
     if run_id is None:
-        run_id = store.create_run(plan, robot_url=urls[0], tracker_url=urls[1],
-                                  options=run_options)
-    ex = Executor(store, run_id, plan, robot, tracker, options or ExecutorOptions(),
-                  model=model, finalize=getattr(get(plan.routine), "finalize", None))
-    return run_id, ex.run()
+        run_id = store.create_run(plan, RunContext(routine=plan.routine, robot_url=urls[0],
+                                                   tracker_url=urls[1], executor=options))
+    context = store.run(run_id).context.model_copy(update={"executor": options})
+    return run_id, execute(store, run_id, plan, robot, tracker, model=model,
+                           context=context).status
 
 
 @contextlib.contextmanager

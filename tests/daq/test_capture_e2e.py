@@ -18,7 +18,8 @@ from calibration.frame_fit import axis_angle_deg
 from daq.check import check_plan
 from daq.cli import main
 from daq.routines import make_plan
-from daq.store import RunStore, dataset_from_run
+from daq.run_data import dataset_from_run
+from daq.store import RunStore
 from sim_drivers.inprocess import default_truth
 from sim_drivers.model_truth import model_truth_factory
 
@@ -79,7 +80,7 @@ def test_steps_export_calibrates(tmp_path, capsys):
         data = dataset_from_run(st, run_id)
     assert data.cmd is not None and data.dirs is not None and data.sigma_mm is not None
     # the controller's nominal TCP is where it was told to go (float32 registers, arrival noise)
-    assert np.allclose(data.cmd, [t.xyz for t in plan.targets], atol=0.05)
+    assert np.allclose(data.cmd, [t.base_p_tcp for t in plan.targets], atol=0.05)
     csv = tmp_path / "steps.csv"
     assert main(["export", "--db", str(tmp_path / "c.db"), "--out", str(csv)]) == 0
     capsys.readouterr()
@@ -151,7 +152,7 @@ def test_sigkill_three_times_then_resume(tmp_path):
         s = store.samples(1)
         kinds = [k for _, _, k, _ in store.interruptions(1)]
         assert store.run(1).status == "completed"
-    assert np.array_equal(s["point_index"], np.arange(150))  # no gaps, no duplicates
+    assert np.array_equal(s.point_index, np.arange(150))  # no gaps, no duplicates
     assert kinds.count("killed") == 3
     assert kills == sorted(kills) and kills[-1] < 150
     print(f"\nkilled after {kills} committed samples; final 150/150")

@@ -7,8 +7,8 @@ import collections
 import numpy as np
 import pytest
 
-from daq.executor import ExecutorOptions
 from daq.routines import make_plan
+from daq.run_context import ExecutorOptions
 from daq.store import RunStore
 from sim_drivers.model_truth import model_truth_factory
 
@@ -44,8 +44,8 @@ def test_500_points_with_faults_of_every_kind(tmp_path):
         fired = collections.Counter(name for _, name in stack.faults.log)
         n_cmd = stack.faults.command_index
         store.close()
-    assert len(s["point_index"]) == 500
-    assert np.array_equal(s["point_index"], np.arange(500))  # each once, no gaps
+    assert len(s.point_index) == 500
+    assert np.array_equal(s.point_index, np.arange(500))  # each once, no gaps
     for name in ("beam", "slow", "drop", "garbage", "pstop", "modbus", "stale"):
         assert fired[name] > 0, (name, fired)
     assert kinds["protective_stop"] >= 1 and kinds["beam"] >= 1

@@ -15,12 +15,14 @@ from calibration.frame_fit import axis_angle_deg, fit_circle, fit_line, measurem
 from daq.check import PlanRefused, check_plan, require_ok
 from daq.cli import main
 from daq.commands.capture import confirm_motion, is_local
-from daq.executor import ExecutorOptions
 from daq.plans import Plan, Target
 from daq.progress import Progress
 from daq.routines import make_plan
 from daq.routines.poses import observability
-from daq.store import SCHEMA_VERSION, RunStore, Sample, StoreError, dataset_from_run
+from daq.run_context import ExecutorOptions, RunContext
+from daq.run_data import dataset_from_run
+from daq.store import RunStore, Sample, StoreError
+from daq.store_schema import SCHEMA_V1, SCHEMA_VERSION
 from drivers.urls import open_robot, open_tracker
 
 from .capture_helpers import TOY, run_plan
@@ -44,7 +46,7 @@ def test_check_plan_names_the_offending_points():
     ok = Target(0, "joints", q=[0.0, 0.3, -0.5])
     over = Target(1, "joints", q=[0.0, 0.3, np.radians(190.0)], label="over")
     floor = Target(2, "joints", q=[0.0, -1.2, 0.0], label="low")
-    far = Target(3, "linear", q=[0.0, 0.0, 0.0], xyz=[900.0, 0.0, 100.0], label="far")
+    far = Target(3, "linear", q=[0.0, 0.0, 0.0], base_p_tcp=[900.0, 0.0, 100.0], label="far")
     res = check_plan(Plan("t", {}, (ok, over, floor, far)), TOYM, floor_z_mm=0.0)
     assert res.bad_indices == [1, 2, 3]
     text = res.report()
@@ -120,9 +122,10 @@ def test_measurement_frame_recovers_a_known_transform():
 
 # ---------------------------------------------------------------- store
 def _sample(i, n_joints=3):
-    return Sample(point_index=i, q=np.full(n_joints, 0.1 * i), xyz=np.array([i, 2.0, 3.0]),
-                  std=np.full(3, 0.01), n=500, t=1000.0 + i, pose_id=f"p{i}", temp_c=20.0,
-                  cmd=np.array([1.0, 2.0, 3.0]), dirs=np.array([1, 0, -1]))
+    return Sample(point_index=i, joints_rad=np.full(n_joints, 0.1 * i),
+                  tracker_p_smr=np.array([i, 2.0, 3.0]), std_mm=np.full(3, 0.01), n=500,
+                  t=1000.0 + i, pose_id=f"p{i}", temp_c=20.0,
+                  base_p_tcp_cmd=np.array([1.0, 2.0, 3.0]), dirs=np.array([1, 0, -1]))
 
 
 def test_store_is_idempotent_and_durable(tmp_path):
@@ -131,7 +134,8 @@ def test_store_is_idempotent_and_durable(tmp_path):
         assert st.version == SCHEMA_VERSION
         assert st.con.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
         assert st.con.execute("PRAGMA synchronous").fetchone()[0] == 2  # FULL
-        rid = st.create_run(plan, robot_url="sim://robot", seed=0, model="toy")
+        rid = st.create_run(plan, RunContext(routine="poses", robot_url="sim://robot", seed=0,
+                                             model="toy"))
         assert st.add_sample(rid, _sample(0)) is True
         assert st.add_sample(rid, _sample(0)) is False  # second write of a point is ignored
         st.add_sample(rid, _sample(3))
@@ -145,11 +149,9 @@ def test_store_is_idempotent_and_durable(tmp_path):
 
 
 def test_upgrade_from_a_v1_store(tmp_path):
-    from daq.store import _SCHEMA_V1
-
     path = tmp_path / "v1.db"
     con = sqlite3.connect(path)
-    con.executescript(_SCHEMA_V1)
+    con.executescript(SCHEMA_V1)
     con.execute("INSERT INTO runs (routine, plan_json, plan_hash, n_points, status, model) "
                 "VALUES ('poses', '{}', 'abc', 2, 'completed', 'toyarm')")
     con.execute("INSERT INTO samples (run_id, point_index, pose_id, q_json, x, y, z, sx, sy, sz, "
@@ -162,7 +164,7 @@ def test_upgrade_from_a_v1_store(tmp_path):
         assert st.version == SCHEMA_VERSION
         assert st.run(1).routine == "poses" and st.run(1).frame is None
         s = st.samples(1)
-        assert s["q"].tolist() == [[0.1, 0.2, 0.3]] and np.isnan(s["cmd"]).all()
+        assert s.joints_rad.tolist() == [[0.1, 0.2, 0.3]] and np.isnan(s.base_p_tcp_cmd).all()
         st.add_interruption(1, None, "test", "the new table exists")
         assert st.interruptions(1)[0][2] == "test"
     con = sqlite3.connect(path)
@@ -223,9 +225,9 @@ def test_pause_on_protective_stop_stop_request_and_resume(tmp_path):
         s = st.samples(rid)
         kinds = [k for _, _, k, _ in st.interruptions(rid)]
     inproc.reset_cells()
-    assert s["point_index"].tolist() == list(range(12))
+    assert s.point_index.tolist() == list(range(12))
     assert kinds.count("beam") == 2 and "protective_stop" in kinds and "sigint" in kinds
-    assert set(np.unique(s["dirs"])) <= {-1, 0, 1}
+    assert set(np.unique(s.dirs)) <= {-1, 0, 1}
 
 
 def test_quality_threshold_remeasures_then_gives_up(tmp_path):
@@ -314,3 +316,33 @@ def test_progress_lines():
     quiet = io.StringIO()
     Progress(quiet, enabled=False)(1, 2)
     assert quiet.getvalue() == ""
+
+
+# ------------------------------------------------------ layout contracts
+def test_every_routine_has_its_command_line_options():
+    from daq.commands.routine_args import ROUTINE_ARGS
+    from daq.routines import ROUTINES
+
+    assert set(ROUTINE_ARGS) == set(ROUTINES)
+
+
+def test_capture_errors_are_their_own_family():
+    from daq.errors import CaptureError, QualityError, ZeroNotReached
+    from daq.executor import fault_kind
+    from drivers.errors import DriverError
+
+    for cls in (QualityError, ZeroNotReached):
+        assert issubclass(cls, CaptureError) and not issubclass(cls, DriverError)
+    assert QualityError.transient and not ZeroNotReached.transient
+    assert fault_kind(QualityError("tracker t", "measure", "std")) == "quality"
+    assert str(QualityError("tracker t", "measure", "std")) == "tracker t: measure: std"
+
+
+def test_zero_loop_rotation_fit_recovers_the_tracker_orientation():
+    from calibration.transforms import random_rotation
+    from daq.routines.zero20 import rotation_between
+
+    rng = np.random.default_rng(3)
+    R = random_rotation(rng)
+    a = 5.0 * np.eye(3) + rng.normal(0, 0.05, (3, 3))  # three probe displacements, mm
+    np.testing.assert_allclose(rotation_between(a, a @ R.T), R, atol=1e-12)

@@ -5,7 +5,7 @@ import json
 import pytest
 
 from daq.cli import main
-from daq.demo import DEMO_EFFECTS, pick_hidden, run_demo
+from daq.demo_workflow import DEMO_EFFECTS, pick_hidden, run_demo
 
 
 @pytest.mark.slow

@@ -39,7 +39,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..store import StoreError, dataset_from_run
+    from ..run_data import dataset_from_run
+    from ..store import StoreError
     from .common import open_store
 
     store = open_store(args.db)
@@ -65,7 +66,8 @@ def run(args) -> int:
 
 def _postures(store, args) -> int:
     """Write a zero20 run's postures CSV (FORMATS.md §1)."""
-    from ..store import StoreError, postures_from_run
+    from ..run_data import postures_from_run
+    from ..store import StoreError
 
     try:
         post, r = postures_from_run(store, args.run_id)  # default: the latest zero20

@@ -24,11 +24,10 @@ from presentation.html_report import render_report
 from sim_drivers.model_truth import ModelTruth
 from sim_drivers.serve import ServeConfig, SimStack
 
-from .check import check_plan
-from .executor import Executor, ExecutorOptions, describe
 from .progress import Progress
-from .routines import get
-from .store import RunStore, dataset_from_run
+from .run_data import dataset_from_run
+from .service import CaptureRequest, plan_run, start_run
+from .store import RunStore
 
 #: hidden effects the demo draws from (by seed): each 0.05-0.5 mm at the tool
 DEMO_EFFECTS = ("compliance:3", "compliance:2", "harmonic:1", "backlash:2", "scale:3",
@@ -172,22 +171,16 @@ def before_after(r: DemoResult) -> str:
 
 
 def _capture(store, routine, params, model, robot, tracker, urls, progress, seed) -> int:
-    """Plan, dry-run and execute one routine; returns the run id (raises on failure)."""
-    mod = get(routine)
-    plan = mod.make_plan(model, **params)
-    check = check_plan(plan, model, floor_z_mm=0.0)
-    if not check.ok:
-        raise RuntimeError(check.report())
-    run_id = store.create_run(plan, robot_url=urls[0], tracker_url=urls[1],
-                              robot_desc=describe(robot), tracker_desc=describe(tracker),
-                              seed=seed, model=model.name,
-                              options={"tool_mm": model.tool_mm().tolist()})
+    """Plan, dry-run and execute one routine (:mod:`daq.service`); returns the run id
+    (raises on failure)."""
+    request = CaptureRequest(routine=routine, model=model.name, params=params, seed=seed)
+    planned = plan_run(request, model=model)
     prog = Progress(enabled=progress)
     try:
-        status = Executor(store, run_id, plan, robot, tracker, ExecutorOptions(), model=model,
-                          progress=prog, finalize=getattr(mod, "finalize", None)).run()
+        out = start_run(store, planned, robot_url=urls[0], tracker_url=urls[1],
+                        devices=(robot, tracker), progress=prog)
     finally:
         prog.close()
-    if status != "completed":
-        raise RuntimeError(f"{routine} run {run_id} {status}: {store.run(run_id).reason}")
-    return run_id
+    if out.status != "completed":
+        raise RuntimeError(f"{routine} run {out.run_id} {out.status}: {out.reason}")
+    return out.run_id

@@ -1,0 +1,125 @@
+"""The run store's SQLite schema and the upgrades between its versions.
+
+``PRAGMA user_version`` holds the version. A new file is created at version 1
+(:data:`SCHEMA_V1`) and brought to :data:`SCHEMA_VERSION` by the same upgrade functions
+an old file goes through (:data:`UPGRADES`, each run in one transaction by
+:class:`daq.store.RunStore`). An upgrade function is frozen once released: it writes
+plain SQL and JSON, never through today's classes, so an old file upgrades the same
+way whatever the code around it has become.
+
+Versions
+    1. runs and samples.
+    2. per run: frame, summary and a loose ``options`` JSON dict; per sample: pressure,
+       humidity, the controller's nominal TCP, approach directions, attempts, the
+       joints' time; the interruptions table.
+    3. ``options_json`` becomes ``context_json``: a versioned run context
+       (:class:`daq.run_context.RunContext`, version 1).
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from collections.abc import Callable
+
+#: current schema version (PRAGMA user_version)
+SCHEMA_VERSION = 3
+
+SCHEMA_V1 = """
+CREATE TABLE runs (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    routine TEXT NOT NULL,
+    plan_json TEXT NOT NULL,
+    plan_hash TEXT NOT NULL,
+    n_points INTEGER NOT NULL,
+    robot_url TEXT, tracker_url TEXT, robot_desc TEXT, tracker_desc TEXT,
+    software TEXT, seed INTEGER, model TEXT,
+    started REAL, stopped REAL,
+    status TEXT NOT NULL, reason TEXT
+);
+CREATE TABLE samples (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    run_id INTEGER NOT NULL REFERENCES runs(id),
+    point_index INTEGER NOT NULL,
+    pose_id TEXT, set_name TEXT,
+    target_json TEXT,
+    q_json TEXT NOT NULL,
+    x REAL NOT NULL, y REAL NOT NULL, z REAL NOT NULL,
+    sx REAL, sy REAL, sz REAL, n INTEGER,
+    t REAL, temp_c REAL,
+    UNIQUE(run_id, point_index)
+);
+"""
+
+
+def _upgrade_1_to_2(con: sqlite3.Connection) -> None:
+    """v2: frame/summary/options per run; pressure, humidity, commanded TCP, approach
+    directions and attempts per sample; the interruptions table."""
+    for col in ("frame_json TEXT", "summary_json TEXT", "options_json TEXT"):
+        con.execute(f"ALTER TABLE runs ADD COLUMN {col}")
+    for col in ("pressure_hpa REAL", "humidity_pct REAL", "cmd_x REAL", "cmd_y REAL",
+                "cmd_z REAL", "dir_json TEXT", "attempts INTEGER DEFAULT 1",
+                "joints_t REAL"):
+        con.execute(f"ALTER TABLE samples ADD COLUMN {col}")
+    con.execute(
+        """CREATE TABLE interruptions (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            run_id INTEGER NOT NULL REFERENCES runs(id),
+            point_index INTEGER,
+            t REAL NOT NULL,
+            kind TEXT NOT NULL,
+            message TEXT
+        )"""
+    )
+    con.execute("CREATE INDEX interruptions_run ON interruptions(run_id)")
+
+
+#: schema 2's executor options (its ``ExecutorOptions`` fields besides the zero-point
+#: loop's and ``extra``): kept under ``executor`` in the v1 context
+_V2_EXECUTOR_KEYS = ("speed_rad_s", "speed_mm_s", "move_timeout_s", "io_timeout_s",
+                     "connect_timeout_s", "dwell_s", "measure_s", "measure_timeout_s",
+                     "max_std_mm", "max_remeasure", "max_retries", "backoff_s",
+                     "backoff_max_s", "dir_deadband_rad")
+#: schema 2's zero-point loop options -> zero20's acquisition options in the v1 context
+_V2_ZERO_KEYS = {"zero_tol_mm": "tol_mm", "zero_max_iter": "max_iter",
+                 "zero_damping_mm": "damping_mm", "zero_probe_mm": "probe_mm",
+                 "zero_noise_k": "noise_k", "zero_average": "average",
+                 "zero_confirm_step_mm": "confirm_step_mm"}
+
+
+def context_from_v2(routine: str, model: str | None, robot_url: str | None,
+                    tracker_url: str | None, seed: int | None, options: dict) -> dict:
+    """The version-1 run context (a JSON-ready dict) of a schema-2 run.
+
+    ``options`` is schema 2's ``options_json``: executor options, ``tool_mm``,
+    ``frame_run``, ``tracker_T_base`` and its redundant rotation ``tracker_R_base``
+    (dropped: it is ``tracker_T_base[:3, :3]``).
+    """
+    ctx: dict = {"version": 1, "routine": routine, "model": model, "tool_mm": None,
+                 "robot_url": robot_url, "tracker_url": tracker_url, "seed": seed,
+                 "frame_run": options.get("frame_run"),
+                 "tracker_T_base": options.get("tracker_T_base"),
+                 "executor": {k: options[k] for k in _V2_EXECUTOR_KEYS if k in options},
+                 "acquire": {}}
+    if options.get("tool_mm") is not None:
+        ctx["tool_mm"] = [float(v) for v in options["tool_mm"]]
+    if routine == "zero20":
+        ctx["acquire"] = {new: options[old] for old, new in _V2_ZERO_KEYS.items()
+                          if old in options}
+    return ctx
+
+
+def _upgrade_2_to_3(con: sqlite3.Connection) -> None:
+    """v3: the loose ``options_json`` becomes a versioned run context (``context_json``)."""
+    con.execute("ALTER TABLE runs ADD COLUMN context_json TEXT")
+    rows = con.execute("SELECT id, routine, model, robot_url, tracker_url, seed, options_json "
+                       "FROM runs").fetchall()
+    for rid, routine, model, robot_url, tracker_url, seed, options in rows:
+        ctx = context_from_v2(routine, model, robot_url, tracker_url, seed,
+                              json.loads(options) if options else {})
+        con.execute("UPDATE runs SET context_json=? WHERE id=?", (json.dumps(ctx), rid))
+    con.execute("ALTER TABLE runs DROP COLUMN options_json")
+
+
+#: UPGRADES[k] takes a database from version k+1 to k+2
+UPGRADES: list[Callable[[sqlite3.Connection], None]] = [_upgrade_1_to_2, _upgrade_2_to_3]
