@@ -36,6 +36,7 @@ import scipy.stats
 from .dataset import Dataset
 from .effects import Effect, EffectError, parse_effect
 from .effects.physical import derive_directions
+from .effects.table import gcv_smoothing
 from .identify import Fit, identify
 from .screening import Screened, kfold_errors, linearise, screen
 
@@ -89,6 +90,8 @@ class AutoStep:
     tried: list[tuple[str, float]] = field(default_factory=list)
     screen_s: float = 0.0
     refit_s: list[float] = field(default_factory=list)
+    #: the fit after this step
+    fit: Fit | None = field(default=None, repr=False)
 
     def to_json(self) -> dict:
         return {"effect": self.effect, "n_params": self.n_params,
@@ -215,6 +218,19 @@ def candidate_effects(fit: Fit, data: Dataset) -> list[Effect]:
     return out
 
 
+def _picks(ranked: list[Screened], confirm: int) -> list[Screened]:
+    """The best ``confirm`` candidates, one per family and joint."""
+    picks, seen = [], set()
+    for s in ranked:
+        key = (s.effect.family, s.effect.joint)
+        if key not in seen:
+            seen.add(key)
+            picks.append(s)
+        if len(picks) >= confirm:
+            break
+    return picks
+
+
 def _parsimonious(tried: list[Tried]) -> Tried:
     """The refit with the lowest held-out error, or one with fewer effective parameters
     whose held-out error is within a standard error of it (the one-standard-error rule)."""
@@ -222,6 +238,23 @@ def _parsimonious(tried: list[Tried]) -> Tried:
     equivalent = [t for t in tried
                   if t is best or np.subtract(*paired_gain(t.heldout, best.heldout)) < 0]
     return min(equivalent, key=lambda t: (t.screened.edf, t.heldout.sq.mean()))
+
+
+def _retune_tables(fit: Fit, ho: Heldout, data: Dataset, folds: int, seed: int):
+    """Re-choose the tables' smoothing by GCV at the new fit (what a table should smooth
+    changes as other effects take their share) and refit; kept when the held-out error
+    does not grow."""
+    tables = [e for e in fit.error_model.effects if hasattr(e, "penalty_matrix")]
+    before = [e.smoothing for e in tables]
+    if not gcv_smoothing(fit, tables):
+        return fit, ho
+    refit = identify(fit.error_model, data, fit.solver, x0=fit.values)
+    ho2 = heldout_errors(refit, folds, seed)
+    if ho2.sq.mean() <= ho.sq.mean():
+        return refit, ho2
+    for e, s in zip(tables, before, strict=True):
+        e.smoothing = s
+    return fit, ho
 
 
 def _significant(s: Screened, n_screened: int, alpha: float) -> bool:
@@ -319,17 +352,11 @@ def _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress)
                           "would (F-test, Bonferroni-corrected)")
             break
         good.sort(key=lambda s: -s.loo_gain)
-        picks, seen = [], set()
-        for s in good:
-            key = (s.effect.family, s.effect.joint)
-            if key not in seen:
-                seen.add(key)
-                picks.append(s)
-            if len(picks) >= confirm:
-                break
         screen_s = time.perf_counter() - ts
         tried: list[Tried] = []
-        refit_s = []
+        refit_s: list[float] = []
+        best = None
+        picks = _picks(good, confirm)
         for s in picks:
             if tried and over_budget():
                 break
@@ -338,11 +365,11 @@ def _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress)
             x0 = np.concatenate([cur.values, np.zeros(s.effect.n_params)])
             refit = identify(ext, data, cur.solver, x0=x0)
             ho = heldout_errors(refit, folds, seed)
-            gain, se = paired_gain(cur_ho, ho)
-            tried.append(Tried(s, refit, ho, gain, se))
+            tried.append(Tried(s, refit, ho, *paired_gain(cur_ho, ho)))
             refit_s.append(time.perf_counter() - tr)
-        best = _parsimonious(tried)
-        if not (best.gain > best.gain_se and best.gain > 0):
+        ok = [t for t in tried if t.gain > t.gain_se and t.gain > 0]
+        best = _parsimonious(ok) if ok else None
+        if best is None:
             rejected = [(t.effect, t.heldout.rms_mm) for t in tried]
             reason = ("no candidate lowers the held-out error by more than its standard "
                       "error")
@@ -355,8 +382,10 @@ def _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress)
             tried=[(t.effect, t.heldout.rms_mm) for t in tried], screen_s=screen_s,
             refit_s=refit_s,
         )
+        cur, cur_ho = _retune_tables(best.fit, best.heldout, data, folds, seed)
+        step.calib_rms_mm, step.heldout_rms_mm = cur.calib["rms_mm"], cur_ho.rms_mm
+        step.seconds, step.fit = time.perf_counter() - ts, cur
         steps.append(step)
-        cur, cur_ho = best.fit, best.heldout
         if progress is not None:
             progress(step)
     return AutoDiagnosis(start, cur, start_ho.rms_mm, start_ho.method, steps, reason, floor,

@@ -288,9 +288,23 @@ def _screened(lin: Linearised, eff: Effect, res: dict, note: str = "", **extra) 
     )
 
 
+def data_gap_deg(theta_rad: np.ndarray, trim: float = 1.0) -> float:
+    """The widest gap (degrees) between consecutive angles in the middle of the data (the
+    ``trim`` % at either end left out): a table's knots are no closer than this, so that no
+    stretch between knots is left to the smoothness penalty alone (a table cannot predict
+    across a gap in the data; a formula can)."""
+    t = np.sort(np.degrees(np.asarray(theta_rad, float)))
+    if t.size < 3:
+        return float("inf")
+    lo, hi = np.percentile(t, [trim, 100 - trim])
+    mid = t[(t >= lo) & (t <= hi)]
+    return float(np.diff(mid).max()) if mid.size > 1 else float("inf")
+
+
 def _screen_table(lin: Linearised, joint: int, spacings) -> Screened | None:
-    """The best table on ``joint``: knots over the data's angles, spacing and smoothing by
-    GCV on the linearised problem."""
+    """The best table on ``joint``: knots over the data's angles, spacing (no finer than the
+    data's widest gap, :func:`data_gap_deg`) and smoothing by GCV on the linearised
+    problem."""
     fit = lin.fit
     em = fit.error_model
     theta = lin.calib.q[:, joint - 1]
@@ -300,7 +314,9 @@ def _screen_table(lin: Linearised, joint: int, spacings) -> Screened | None:
     r = lin.r.ravel()
     best = None
     curves = {}
-    for spacing in spacings:
+    finest = data_gap_deg(lin.calib.q[:, joint - 1])
+    usable = [sp for sp in spacings if sp >= finest] or [max(spacings)]
+    for spacing in usable:
         if np.ptp(np.degrees(theta)) < 2 * spacing:
             continue
         table = Table.covering(em.model, joint, theta, spacing)

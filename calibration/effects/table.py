@@ -208,8 +208,7 @@ def choose_smoothing(error_model, data: Dataset, fit_fn, grid=SMOOTHING_GRID) ->
 
     ``fit_fn(error_model, data)`` fits (with the tables at :data:`START_SMOOTHING`); the
     pose errors are then linear in the parameters to well within the noise, so the GCV
-    path (:func:`penalised_path`) stands in for refits. Tables are tuned one after the
-    other, twice round. Records ``cv_curve`` on each as (smoothing, GCV RMS mm).
+    path (:func:`penalised_path`) stands in for refits (:func:`gcv_smoothing`).
     """
     tables = [e for e in error_model.effects
               if hasattr(e, "penalty_matrix") and getattr(e, "smoothing", 0.0) is None]
@@ -217,8 +216,20 @@ def choose_smoothing(error_model, data: Dataset, fit_fn, grid=SMOOTHING_GRID) ->
         return
     for e in tables:
         e.smoothing = START_SMOOTHING
-    fit = fit_fn(error_model, data)
+    gcv_smoothing(fit_fn(error_model, data), tables, grid)
+
+
+def gcv_smoothing(fit, tables=None, grid=SMOOTHING_GRID) -> bool:
+    """Re-choose the smoothing of ``tables`` (default: every table of the fit's model) by
+    GCV on the problem linearised at ``fit``, one table after the other, twice round.
+    Records ``cv_curve`` on each as (smoothing, GCV RMS mm). Returns True when any
+    smoothing changed (the fit is then out of date)."""
     em, free, x = fit.error_model, fit.free, fit.values
+    if tables is None:
+        tables = [e for e in em.effects if hasattr(e, "penalty_matrix")]
+    if not tables or not free.any():
+        return False
+    before = [e.smoothing for e in tables]
     P, J = em.evaluate(x, em.bind(fit.data), jacobian=True)
     X = J[:, :, free].reshape(-1, int(free.sum()))
     y = (fit.data.xyz - P).ravel() + X @ x[free]
@@ -236,3 +247,4 @@ def choose_smoothing(error_model, data: Dataset, fit_fn, grid=SMOOTHING_GRID) ->
             e.smoothing = float(grid[path["best"]])
             e.cv_curve = [(float(s), float(np.sqrt(3 * g))) for s, g in zip(grid, path["gcv"],
                                                                              strict=True)]
+    return any(e.smoothing != s for e, s in zip(tables, before, strict=True))
