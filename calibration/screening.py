@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
+import scipy.special
 import scipy.stats
 
 from .dataset import Dataset
@@ -128,7 +129,18 @@ def _cholesky(A: np.ndarray) -> np.ndarray:
 
 def _loo(H: np.ndarray, e: np.ndarray) -> np.ndarray:
     """Leave-one-pose-out residuals (I - H_ii)⁻¹ e_i for blocks H (..., 3, 3), e (..., 3)."""
-    return np.linalg.solve(np.eye(3) - H + 1e-12 * np.eye(3), e[..., None])[..., 0]
+    return _solve3(np.eye(3) - H + 1e-12 * np.eye(3), e)
+
+
+def _solve3(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x = A⁻¹ b for stacks of 3 × 3 systems (Cramer's rule, vectorised), A (..., 3, 3)."""
+    c0 = np.cross(A[..., 1, :], A[..., 2, :])
+    c1 = np.cross(A[..., 2, :], A[..., 0, :])
+    c2 = np.cross(A[..., 0, :], A[..., 1, :])
+    det = np.sum(A[..., 0, :] * c0, axis=-1)
+    det = np.where(np.abs(det) > 1e-300, det, 1e-300)
+    # A⁻¹ = [c0 c1 c2] / det (columns)
+    return (c0 * b[..., :1] + c1 * b[..., 1:2] + c2 * b[..., 2:3]) / det[..., None]
 
 
 @dataclass
@@ -233,26 +245,36 @@ def _evaluate(lin: Linearised, C: np.ndarray, Cv: np.ndarray | None,
     absorbed = np.linalg.norm(V, axis=0) <= 1e-7 * np.maximum(np.linalg.norm(Cf, axis=0),
                                                                1e-300)
     V[:, absorbed] = 0.0
-    C3, V3 = Cf.reshape(3 * n, M, k), V.reshape(3 * n, M, k)
-    CtV = np.einsum("iak,ial->akl", C3, V3)
+    C3 = Cf.reshape(3 * n, M, k).transpose(1, 0, 2)  # (M, 3n, k)
+    V3 = V.reshape(3 * n, M, k).transpose(1, 0, 2)
+    CtV = C3.transpose(0, 2, 1) @ V3
     CtV = 0.5 * (CtV + CtV.transpose(0, 2, 1))
-    VtV = np.einsum("iak,ial->akl", V3, V3)
+    VtV = V3.transpose(0, 2, 1) @ V3
     Mm = CtV + (0.0 if omega is None else s * omega)
-    scale = np.maximum(np.einsum("akk->a", Mm) / k, 1e-300)
+    scale = np.trace(Mm, axis1=1, axis2=2) / k
+    scale = np.where(scale > 1e-200, scale, 1e10)  # nothing beyond the model: c = 0
     Mm = Mm + 1e-10 * scale[:, None, None] * np.eye(k)
     Minv = np.linalg.inv(Mm)
-    Ctr = np.einsum("iak,i->ak", C3, r)
+    Ctr = (C3.transpose(0, 2, 1) @ r)  # (M, k)
     Ctr[absorbed.reshape(M, k)] = 0.0
-    c = np.einsum("akl,al->ak", Minv, Ctr)
-    e = r[:, None] - np.einsum("iak,ak->ia", V3, c)  # (3n, M)
-    edf = np.einsum("akl,alk->a", Minv, VtV)
-    T = np.einsum("niak,akl->nial", V.reshape(n, 3, M, k), Minv)
-    dH = np.einsum("nial,njal->naij", T, V.reshape(n, 3, M, k))
-    e3 = e.reshape(n, 3, M).transpose(0, 2, 1)
-    loo = np.sum(_loo(lin.h0[:, None] + dH, e3) ** 2, axis=-1)  # (n, M)
+    c = (Minv @ Ctr[:, :, None])[:, :, 0]
+    e = r[:, None] - (V3 @ c[:, :, None])[:, :, 0].T  # (3n, M)
+    edf = np.sum(Minv * VtV.transpose(0, 2, 1), axis=(1, 2))
+    V4 = V3.reshape(M, n, 3, k)
+    dH = (V4 @ Minv[:, None]) @ V4.transpose(0, 1, 3, 2)  # (M, n, 3, 3)
+    e3 = e.T.reshape(M, n, 3)
+    loo = np.sum(_loo(lin.h0[None] + dH, e3) ** 2, axis=-1).T  # (n, M)
     gain = lin.loo0[:, None] - loo
+    rss = np.sum(e**2, axis=0)
+    d_rss = np.maximum(lin.rss0 - rss, 0.0)
+    ok = (edf >= 0.5) & (d_rss > 0)
+    logp = np.zeros(M)
+    if ok.any():
+        logp[ok] = log10_f_sf(d_rss[ok], np.maximum(rss[ok], 1e-300), edf[ok],
+                              np.maximum(lin.dof0 - edf[ok], 1.0))
     out = {
-        "rss": np.sum(e**2, axis=0),
+        "logp": logp,
+        "rss": rss,
         "edf": edf,
         "loo_gain": gain.mean(axis=0),
         "loo_gain_se": gain.std(axis=0, ddof=1) / math.sqrt(n) if n > 1 else np.zeros(M),
@@ -273,11 +295,9 @@ def _screened(lin: Linearised, eff: Effect, res: dict, note: str = "", **extra) 
     rss1 = max(float(res["rss"]), 1e-300)
     d_rss = max(lin.rss0 - rss1, 0.0)
     k_eff = float(res["edf"])
+    logp = float(res["logp"])
     if k_eff < 0.5 or d_rss <= 0:
-        logp = 0.0
         note = note or "no effect beyond what the model already absorbs"
-    else:
-        logp = log10_f_sf(d_rss, rss1, k_eff, max(lin.dof0 - k_eff, 1.0))
     vr = float(res["valid_rms"])
     return Screened(
         effect=eff, n_params=eff.n_params, edf=k_eff, d_rss=d_rss,
@@ -373,12 +393,18 @@ def kfold_errors(fit: Fit, folds: int = 10, seed: int = 0) -> np.ndarray:
     return sq
 
 
-def log10_f_sf(d_rss: float, rss1: float, k: float, dof: float) -> float:
-    """log10 of the F-test's p-value, with an asymptotic tail where scipy underflows."""
+def log10_f_sf(d_rss, rss1, k, dof):
+    """log10 of the F-test's p-value (explained ``d_rss`` with ``k`` degrees of freedom
+    against the remaining ``rss1`` with ``dof``), with an asymptotic tail where scipy
+    underflows; scalars or arrays."""
+    d_rss, rss1, k, dof = np.broadcast_arrays(*(np.asarray(v, float)
+                                                for v in (d_rss, rss1, k, dof)))
     F = (d_rss / k) / (rss1 / dof)
-    lp = float(scipy.stats.f.logsf(F, k, dof))
-    if np.isfinite(lp):
-        return lp / math.log(10)
-    # large dof: k F ~ chi2(k); log Q(a, x) ~ (a - 1) ln x - x - lgamma(a) for large x
-    a, xx = k / 2.0, k * F / 2.0
-    return ((a - 1) * math.log(xx) - xx - math.lgamma(a)) / math.log(10)
+    lp = np.asarray(scipy.stats.f.logsf(F, k, dof), float)
+    bad = ~np.isfinite(lp)
+    if bad.any():
+        # large dof: k F ~ chi2(k); log Q(a, x) ~ (a - 1) ln x - x - lgamma(a) for large x
+        a, xx = k[bad] / 2.0, k[bad] * F[bad] / 2.0
+        lp[bad] = (a - 1) * np.log(xx) - xx - scipy.special.gammaln(a)
+    out = lp / math.log(10)
+    return float(out) if out.ndim == 0 else out

@@ -8,6 +8,7 @@ from calibration.identify import fit_at
 from calibration.params_io import load_params
 
 from .common import add_model_args, fmt, load_inputs, print_json, table, wrap_errors
+from .diagnose_auto import add_auto_args, check_auto_args, run_auto
 
 
 def register(sub) -> None:
@@ -16,7 +17,8 @@ def register(sub) -> None:
         help="rank the physical effects missing from the model",
         description="Fit the current model (or read --params), then rank every candidate "
         "effect not in it by how much of the remaining error it explains, with a "
-        "significance test against the noise and a held-out check; say which effect to add.",
+        "significance test against the noise and a held-out check; say which effect to add. "
+        "With --auto, add the best effect, refit and repeat while the held-out error falls.",
     )
     add_model_args(p)
     p.add_argument("--effects", default=DEFAULT_EFFECTS, metavar="LIST",
@@ -25,6 +27,7 @@ def register(sub) -> None:
                    help="use these parameters (and their model) instead of fitting")
     p.add_argument("--solver", default="lm")
     p.add_argument("--top", type=int, default=12, help="rows of the ranking to print")
+    add_auto_args(p)
     p.set_defaults(func=run)
 
 
@@ -42,8 +45,11 @@ def current_fit(args, model, data):
 
 
 def run(args) -> int:
+    check_auto_args(args)
     model, data = load_inputs(args)
     fit = current_fit(args, model, data)
+    if args.auto:
+        return run_auto(args, fit, data)
     diag = diagnose(fit, data)
     if args.json:
         print_json(diag.to_json())
