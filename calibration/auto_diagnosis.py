@@ -34,16 +34,12 @@ import numpy as np
 import scipy.stats
 
 from .dataset import Dataset
+from .diagnosis import ALPHA, MIN_HELDOUT, candidate_names
 from .effects import Effect, EffectError, parse_effect
 from .effects.physical import derive_directions
 from .effects.table import gcv_smoothing
 from .identify import Fit, identify
 from .screening import Screened, kfold_errors, linearise, screen
-
-#: significance level after the multiple-comparison correction
-ALPHA = 0.01
-#: fewer validation rows than this: held-out error by k-fold cross-validation instead
-MIN_HELDOUT = 100
 
 
 @dataclass
@@ -201,8 +197,6 @@ def candidate_effects(fit: Fit, data: Dataset) -> list[Effect]:
     model = em.model
     have = set(em.labels)
     tables = {e.joint for e in em.effects if e.family == "table"}
-    from .diagnosis import candidate_names
-
     out: list[Effect] = []
     for name in candidate_names(em, data):
         try:
