@@ -39,6 +39,7 @@ from .effects.physical import derive_directions
 from .error_model import ErrorModel
 from .gravity import gravity_torques, has_mass_model
 from .identify import Fit, identify
+from .screening import effect_columns, log10_f_sf
 
 #: harmonic orders scanned on every joint
 HARMONIC_ORDERS = range(1, 61)
@@ -228,20 +229,6 @@ def candidate_names(error_model: ErrorModel, data: Dataset) -> list[str]:
     return [c for c in out if c not in have]
 
 
-def _pose_columns(effect: Effect, data: Dataset, nominal, G: np.ndarray, em: ErrorModel,
-                  x: np.ndarray) -> np.ndarray:
-    """A candidate's Jacobian columns at the fit, (n, 3, k)."""
-    if effect.stage == "joint":
-        state = effect.bind(data, nominal)
-        _, partials = effect.delta(np.zeros(effect.n_params), data, state)
-        return G[:, :, effect.joint - 1, None] * partials[:, None, :]
-    # other stages: evaluate the extended model once
-    ext = ErrorModel(em.model, em.effects + [effect])
-    xe = np.concatenate([x, np.zeros(effect.n_params)])
-    _, J = ext.evaluate(xe, ext.bind(data))
-    return J[:, :, em.n_params :]
-
-
 def diagnose(
     fit: Fit,
     data: Dataset | None = None,
@@ -303,7 +290,7 @@ def diagnose(
     screened = []
     for eff in effects:
         try:
-            C = _pose_columns(eff, calib, bound.nominal, G, em, x).reshape(3 * n, -1)
+            C = effect_columns(eff, calib, bound, G, em, x).reshape(3 * n, -1)
         except EffectError as e:
             notes.append(f"{eff.label}: skipped ({e})")
             continue
@@ -333,7 +320,7 @@ def diagnose(
     cands: list[Candidate] = []
     for eff, k, d_rss, note in screened:
         rss1 = max(rss0 - d_rss, 1e-300)
-        logp = 0.0 if k == 0 else _log10_f_sf(d_rss, rss1, k, max(dof0 - k, 1))
+        logp = 0.0 if k == 0 else log10_f_sf(d_rss, rss1, k, max(dof0 - k, 1))
         p = 10.0**logp
         # BIC gain: explained error against the parameters it costs (ranks a 2-parameter
         # harmonic above a 37-knot table that explains the same)
@@ -388,17 +375,6 @@ def diagnose(
                      "in capture order (the data have no dir columns)")
     return Diagnosis(fit, rms, floor, at_floor, floor_p, cands, where, n_screened, screen_s,
                      confirm_s, notes)
-
-
-def _log10_f_sf(d_rss: float, rss1: float, k: int, dof: int) -> float:
-    """log10 of the F-test's p-value, with an asymptotic tail where scipy underflows."""
-    F = (d_rss / k) / (rss1 / dof)
-    lp = float(scipy.stats.f.logsf(F, k, dof))
-    if np.isfinite(lp):
-        return lp / math.log(10)
-    # large dof: k F ~ chi2(k); log Q(a, x) ~ (a - 1) ln x - x - lgamma(a) for large x
-    a, xx = k / 2.0, k * F / 2.0
-    return ((a - 1) * math.log(xx) - xx - math.lgamma(a)) / math.log(10)
 
 
 def _confirm(c: Candidate, fit: Fit, data: Dataset, folds: int, seed: int) -> None:

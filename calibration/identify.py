@@ -13,7 +13,7 @@ import scipy.linalg
 from .dataset import Dataset
 from .effects import display_unit
 from .error_model import Bound, ErrorModel
-from .identifiability import Identifiability, analyse
+from .identifiability import Identifiability, analyse, penalised_groups
 from .solvers import SOLVERS, Problem
 
 
@@ -184,16 +184,15 @@ def identify(
         raise ValueError(f"unknown solver {solver!r}; available: {', '.join(SOLVERS)}")
     t0 = time.perf_counter()
     data = error_model.prepare(data)
-    for e in error_model.effects:
-        if getattr(e, "smoothing", 0.0) is None:  # a table whose smoothing is to be chosen
-            from .effects.table import tune_smoothing
+    if any(getattr(e, "smoothing", 0.0) is None for e in error_model.effects):
+        # tables whose smoothing is to be chosen: by GCV at one fit (see choose_smoothing)
+        from .effects.table import choose_smoothing
 
-            def fit_fn(em, d, _valid=valid):
-                return identify(em, d, solver, rtol=rtol, fixed=fixed,
-                                solver_options=solver_options)
+        def fit_fn(em, d):
+            return identify(em, d, solver, x0=x0, rtol=rtol, fixed=fixed,
+                            solver_options=solver_options)
 
-            tune_smoothing(error_model, data.calib() if data.is_valid.any() else data, e,
-                           fit_fn)
+        choose_smoothing(error_model, data.calib() if data.is_valid.any() else data, fit_fn)
     calib = data.calib() if data.is_valid.any() else data
     held = data.valid() if data.is_valid.any() else None
     if valid is not None:
@@ -214,6 +213,7 @@ def identify(
         families,
         rtol=rtol,
         n_poses=calib.n,
+        penalised=penalised_groups(error_model),
     )
     for e, st in zip(error_model.effects, bound.states, strict=True):
         for local, why in e.pinned(st).items():

@@ -15,7 +15,10 @@ The file embeds the nominal model, so it is self-contained::
      "solver_info": {"xi": 2e-05, "condition_class": "strong", "rejected": ["17"], ...}}
 
 ``correlation``, ``strongest_correlations`` and ``solver_info`` (only for solvers with
-extras: ridge, besa, sa) were added after version 1 and are ignored when reading.
+extras: ridge, besa, sa) were added after version 1 and are ignored when reading;
+``smoothing`` (effect name -> the penalty weight of a correction table) is read back.
+A table's knots are its parameter names (``table5.j2.kp010``: +10°), so a table whose knots
+span only the data's angles reads back as it was fitted.
 
 Angles are in degrees (``unit: "deg"``). Geometric parameters are deltas to the
 nominal table; base and tool parameters are absolute.
@@ -28,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .effects import display_unit, load_effect_file
+from .effects import EffectError, display_unit, load_effect_file, parse_effects
 from .error_model import ErrorModel
 from .identify import Fit
 from .robot_model import model_from_dict
@@ -67,6 +70,9 @@ def fit_to_dict(fit: Fit, effect_files: list[str] | None = None) -> dict:
     info = solver_summary(fit)
     if info:
         out["solver_info"] = info
+    smoothing = {e.label: e.smoothing for e in em.effects if hasattr(e, "penalty_matrix")}
+    if smoothing:
+        out["smoothing"] = smoothing
     return out
 
 
@@ -97,7 +103,22 @@ def params_from_dict(
     for f in data.get("effect_files", []):
         load_effect_file(f)
     model = model_from_dict(data["model_definition"], f"{source}: model_definition")
-    em = ErrorModel(model, ",".join(data["effects"]))
+    try:
+        effects = parse_effects(",".join(data["effects"]), model)
+    except EffectError as e:
+        raise ParamsError(f"{source}: {e}") from None
+    names = [str(row.get("name")) for row in data["parameters"]]
+    for i, e in enumerate(effects):
+        if hasattr(e, "with_parameter_names"):  # a table: its knots are in the names
+            local = [n[len(e.prefix) + 1 :] for n in names if n.startswith(e.prefix + ".")]
+            try:
+                effects[i] = e.with_parameter_names(local)
+            except EffectError as err:
+                raise ParamsError(f"{source}: {err}") from None
+    for e in effects:
+        if e.label in data.get("smoothing", {}):
+            e.smoothing = float(data["smoothing"][e.label])
+    em = ErrorModel(model, effects)
     x = np.zeros(em.n_params)
     std = np.zeros(em.n_params)
     seen = set()

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from .dataset import Dataset
+from .effects import JointEffect
 from .error_model import ErrorModel
 from .robot_model import RobotModel
 from .transforms import matrix_to_rotvec, random_rotation
@@ -82,3 +83,36 @@ def simulate(
     data.tracker_p_smr = P + rng.normal(0.0, sigma_mm, P.shape)
     data.meta = {"tracker_sigma_mm": repr(float(sigma_mm)), **data.meta}
     return data
+
+
+class Bump(JointEffect):
+    """A hidden local error of one joint for simulations (not a candidate family):
+    Δθ_J = a · exp(-½ ((θ_J - centre) / width)²), a bump ``width_deg`` wide (one standard
+    deviation) at ``centre_deg`` — a damaged stretch of gear or encoder. Parameter ``a``
+    (rad); ``typical`` draws 0.1-0.3 mm at 1 m."""
+
+    family = "bump"
+    summary = "a local joint error a few degrees wide (simulation only)"
+
+    def __init__(self, model: RobotModel, joint: int, centre_deg: float, width_deg: float):
+        super().__init__(model, joint)
+        self.centre, self.width = np.radians(centre_deg), np.radians(width_deg)
+        self.param_names, self.units, self.scales = ["a"], ["rad"], np.array([1e-4])
+
+    @property
+    def label(self) -> str:
+        return f"bump:{self.joint}@{np.degrees(self.centre):g}"
+
+    @property
+    def prefix(self) -> str:
+        return f"bump.j{self.joint}@{np.degrees(self.centre):g}"
+
+    def bind(self, data: Dataset, nominal) -> np.ndarray:
+        u = (data.q[:, self.joint - 1] - self.centre) / self.width
+        return np.exp(-0.5 * u**2)
+
+    def delta(self, p, data, shape):
+        return p[0] * shape, shape[:, None]
+
+    def typical(self, rng):
+        return np.array([rng.uniform(1e-4, 3e-4) * rng.choice([-1.0, 1.0])])

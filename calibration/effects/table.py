@@ -1,57 +1,115 @@
-"""``table:J``: a smooth correction table Δθ(θ_J) for joint errors no formula captures.
+"""``table:J`` / ``tableS:J``: a smooth correction table Δθ(θ_J) for joint errors no formula
+captures.
 
-Knots every ``spacing_deg`` over the joint's range; Δθ is linear between knots (hat
-functions). A second-difference smoothness penalty ties neighbouring knots together;
-its weight is chosen by k-fold cross-validation (:func:`tune_smoothing`) unless given.
-Knots whose support holds no data are pinned at zero (nothing measured there).
-A constant table is the joint's zero offset, so one knot is redundant with
-``geometric.jJ.theta`` and the identifiability analysis fixes it.
+Knots every S degrees (``tableS:J``; ``table:J`` is S = 10), linear between knots (hat
+functions). By name the knots span the joint's range (within ±360°) and those whose
+support holds no data are pinned at zero; :meth:`Table.covering` builds a table whose
+knots span only the angles the data cover (what the automatic diagnosis adds). In
+params.json the knots are the parameter names (``kp010`` is the knot at +10°), so a
+table reads back with exactly its knots (:meth:`Table.with_parameter_names`).
+
+A second-difference penalty ties neighbouring knots together; its weight ``smoothing`` is
+chosen by generalised cross-validation (GCV) on the linearised problem
+(:func:`choose_smoothing`, :func:`penalised_path`): one fit, then a closed-form path over
+the weights. The penalty leaves a table's constant and linear parts free; the
+identifiability analysis checks only those two directions (a constant table is the joint's
+zero offset, so with ``geometric`` one knot is held at zero) and counts the rest as
+determined by the penalty (:meth:`Table.null_space`).
 """
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import numpy as np
+import scipy.linalg
 
 from ..dataset import Dataset
-from .base import JointEffect
+from .base import EffectError, JointEffect
 
 #: penalty rows are in mm: a second difference of 1 rad counts like this many mm
 _PENALTY_ARM_MM = 1000.0
+#: knot spacing of ``table:J`` (degrees)
+DEFAULT_SPACING_DEG = 10
+#: smoothing weights GCV chooses among, and the weight of the first fit
+SMOOTHING_GRID = np.logspace(-6, 6, 25)
+START_SMOOTHING = 1.0
+
+_KNOT = re.compile(r"^k([pm])(\d+)$")
+
+
+def _knot_name(deg: float) -> str:
+    return f"k{int(round(deg)):+04d}".replace("+", "p").replace("-", "m")
 
 
 class Table(JointEffect):
-    """Correction table for joint J: knot values ``k000``, ``k010``, ... (rad) at every
-    ``spacing_deg`` degrees; Δθ is interpolated linearly. ``smoothing`` (dimensionless)
-    weights the second-difference penalty; None = choose by cross-validation."""
+    """Correction table for joint J: knot values ``km010``, ``kp000``, ``kp010``... (rad) every
+    ``spacing_deg`` degrees; Δθ is interpolated linearly and constant beyond the end knots.
+    ``smoothing`` (dimensionless) weights the second-difference penalty; None = choose it by
+    GCV when fitting. ``range_deg`` (lo, hi) limits the knots to that span of the joint;
+    ``knots_deg`` gives them explicitly (evenly spaced by ``order`` degrees)."""
 
     family = "table"
+    takes_order = True
     summary = "a smooth correction table Δθ(θ) for one joint"
 
-    spacing_deg = 10.0
-
-    def __init__(self, model, joint=None, order=None, smoothing: float | None = None):
+    def __init__(self, model, joint=None, order=None, smoothing: float | None = None,
+                 range_deg: tuple[float, float] | None = None, knots_deg=None):
         super().__init__(model, joint, order)
-        lo, hi = np.degrees(model.limits_rad()[self.joint - 1])
-        lo, hi = max(lo, -360.0), min(hi, 360.0)
+        spacing = DEFAULT_SPACING_DEG if order is None else int(order)
+        if not 2 <= spacing <= 90:
+            raise EffectError(f"table knot spacing must be 2..90 degrees, got {spacing} "
+                              f"(table{spacing}:{self.joint})")
+        self.order = None if spacing == DEFAULT_SPACING_DEG else spacing
+        self.spacing_deg = float(spacing)
         step = self.spacing_deg
-        start = np.floor(lo / step) * step
-        stop = np.ceil(hi / step) * step
-        self.knots_deg = np.arange(start, stop + step / 2, step)
-        self.knots = np.radians(self.knots_deg)
-        self.param_names = [f"k{int(round(k)):+04d}".replace("+", "p").replace("-", "m")
-                            for k in self.knots_deg]
+        if knots_deg is None:
+            if range_deg is None:
+                lo, hi = np.degrees(model.limits_rad()[self.joint - 1])
+                lo, hi = max(lo, -360.0), min(hi, 360.0)
+            else:
+                lo, hi = float(min(range_deg)), float(max(range_deg))
+            start = np.floor(lo / step + 1e-9) * step
+            stop = max(np.ceil(hi / step - 1e-9) * step, start + 2 * step)
+            knots_deg = np.arange(start, stop + step / 2, step)
+        knots_deg = np.asarray(knots_deg, float)
+        if knots_deg.size < 3 or not np.allclose(np.diff(knots_deg), step):
+            raise EffectError(f"{self.label}: knots must be at least 3, every {step:g} degrees")
+        self.knots_deg = knots_deg
+        self.knots = np.radians(knots_deg)
+        self.param_names = [_knot_name(k) for k in knots_deg]
         self.units = ["rad"] * len(self.knots)
         self.scales = np.full(len(self.knots), 1e-5)
         self.smoothing = smoothing
         K = len(self.knots)
-        D = np.zeros((max(K - 2, 0), K))
+        D = np.zeros((K - 2, K))
         for i in range(K - 2):
             D[i, i : i + 3] = (1.0, -2.0, 1.0)
         self._D2 = D
+        #: (smoothing, GCV estimate of the held-out RMS, mm) of the last GCV choice
         self.cv_curve: list[tuple[float, float]] = []
 
+    # ---- construction from data or from a params file ---------------------------
+    @classmethod
+    def covering(cls, model, joint: int, theta_rad: np.ndarray, spacing_deg: int,
+                 smoothing: float | None = None) -> Table:
+        """A table whose knots span the angles ``theta_rad`` of joint ``joint`` (and no more)."""
+        deg = np.degrees(np.asarray(theta_rad, float))
+        return cls(model, joint, spacing_deg, smoothing, range_deg=(deg.min(), deg.max()))
+
+    def with_parameter_names(self, local_names: list[str]) -> Table:
+        """The same table with the knots named in a params file (``km030``, ``kp000``...)."""
+        knots = []
+        for name in local_names:
+            m = _KNOT.match(name)
+            if not m:
+                raise EffectError(f"{self.label}: bad knot name {name!r}")
+            knots.append(int(m[2]) * (1 if m[1] == "p" else -1))
+        return Table(self.model, self.joint, int(self.spacing_deg), self.smoothing,
+                     knots_deg=sorted(knots))
+
+    # ---- the correction --------------------------------------------------------
     def basis(self, theta: np.ndarray) -> np.ndarray:
         """Hat-function values at angles ``theta`` (rad), shape (n, n_knots)."""
         h = self.knots[1] - self.knots[0]
@@ -77,10 +135,19 @@ class Table(JointEffect):
             for k in np.flatnonzero(empty)
         }
 
+    # ---- the penalty -------------------------------------------------------------
     def penalty(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Smoothness pseudo-observations: sqrt(smoothing) * arm * D2 p, and their Jacobian."""
         w = np.sqrt(self.smoothing or 0.0) * _PENALTY_ARM_MM
         return w * (self._D2 @ p), w * self._D2
+
+    def penalty_matrix(self) -> np.ndarray:
+        """Ω with penalty = smoothing · pᵀ Ω p (mm²), (K, K)."""
+        return _PENALTY_ARM_MM**2 * (self._D2.T @ self._D2)
+
+    def null_space(self) -> np.ndarray:
+        """The directions the penalty leaves free: constant and linear in θ, (K, 2)."""
+        return np.column_stack([np.ones(len(self.knots)), self.knots - self.knots.mean()])
 
     def typical(self, rng):
         # a smooth bump-and-ripple no single harmonic captures
@@ -89,30 +156,95 @@ class Table(JointEffect):
         return amp * (np.exp(-((t - rng.uniform(-1, 1)) ** 2) / 0.3) - 0.3 * np.sin(3.3 * t))
 
 
-def tune_smoothing(error_model, data: Dataset, effect: Table, identify_fn, grid=None,
-                   folds: int = 5, seed: int = 0) -> float:
-    """Choose ``effect.smoothing`` by k-fold cross-validation of the pose error.
+# ---- GCV on a linearised penalised least-squares problem ------------------------------
+def penalised_path(N0: np.ndarray, b: np.ndarray, h: np.ndarray, Q: np.ndarray, r2: float,
+                   omega: np.ndarray, grid=SMOOTHING_GRID, n_obs: int = 0,
+                   trace0: float = 0.0) -> dict:
+    """The solution path of c(s) = (N0 + s Ω)⁻¹ b over the weights ``grid``.
 
-    ``identify_fn(error_model, data, x0=None)`` fits; held-out poses are predicted with
-    the fit. Records ``effect.cv_curve`` as (smoothing, held-out RMS mm) pairs.
+    The residual sum of squares is ``r2 - 2 h·c + cᵀ Q c`` and the degrees of freedom
+    ``trace0 + tr((N0 + s Ω)⁻¹ Q)``; for ordinary penalised least squares ``N0 = Q = XᵀX``
+    and ``b = h = Xᵀy``. One Cholesky and one symmetric eigen-decomposition, then O(k²)
+    per weight.
+
+    Returns a dict with ``grid``, ``rss`` (g,), ``edf`` (g,), ``gcv`` (g,) (the GCV
+    estimate of the mean squared residual per observation, ``n_obs rss / (n_obs - edf)²``),
+    ``best`` (index of the smallest GCV) and ``solve(s)`` giving c at any weight.
     """
-    grid = [1e-3, 1e-2, 1e-1, 1.0, 10.0, 100.0] if grid is None else grid
-    rng = np.random.default_rng(seed)
-    fold_of = rng.permutation(data.n) % folds
-    effect.cv_curve = []
-    best = (np.inf, grid[0])
-    for lam in grid:
-        effect.smoothing = lam
-        sq, count = 0.0, 0
-        for f in range(folds):
-            train, test = data.subset(fold_of != f), data.subset(fold_of == f)
-            fit = identify_fn(error_model, train)
-            r = test.tracker_p_smr - fit.predict(test)
-            sq += float(np.sum(r**2))
-            count += test.n
-        rms = float(np.sqrt(sq / max(count, 1)))
-        effect.cv_curve.append((lam, rms))
-        if rms < best[0]:
-            best = (rms, lam)
-    effect.smoothing = best[1]
-    return best[1]
+    k = N0.shape[0]
+    grid = np.asarray(grid, float)
+    d = np.sqrt(np.maximum(np.diag(N0) + np.diag(omega), 1e-300))
+    N0s, Os, Qs = (M / np.outer(d, d) for M in (N0, omega, Q))
+    bs, hs = b / d, h / d
+    eps = 1e-10 * max(float(np.trace(N0s)) / max(k, 1), 1e-300)
+    try:
+        L = np.linalg.cholesky(N0s + eps * np.eye(k))
+        Li = scipy.linalg.solve_triangular(L, np.eye(k), lower=True, check_finite=False)
+    except np.linalg.LinAlgError:  # Li Lᵢᵀ inverts N0s with its tiny eigenvalues clipped
+        w, U = np.linalg.eigh(N0s)
+        Li = (U / np.sqrt(np.maximum(w, eps))).T
+    om, U = np.linalg.eigh(Li @ Os @ Li.T)
+    om = np.maximum(om, 0.0)
+    S = Li.T @ U  # (N0s + s Os)⁻¹ = S diag(1 / (1 + s om)) Sᵀ
+    beta, eta = S.T @ bs, S.T @ hs
+    K = S.T @ Qs @ S
+    f = 1.0 / (1.0 + grid[:, None] * om[None, :])  # (g, k)
+    z = f * beta
+    rss = r2 - 2 * z @ eta + np.einsum("gi,ij,gj->g", z, K, z)
+    edf = trace0 + f @ np.diag(K)
+    n = max(n_obs, 1)
+    gcv = n * np.maximum(rss, 0.0) / np.maximum(n - edf, 1e-9) ** 2
+
+    def solve(s: float) -> np.ndarray:
+        return (S @ (beta / (1.0 + s * om))) / d
+
+    return {"grid": grid, "rss": rss, "edf": edf, "gcv": gcv, "best": int(np.argmin(gcv)),
+            "solve": solve}
+
+
+def choose_smoothing(error_model, data: Dataset, fit_fn, grid=SMOOTHING_GRID) -> None:
+    """Set the ``smoothing`` of every table (any effect with ``penalty_matrix``) whose
+    smoothing is None, by GCV on the problem linearised at one fit.
+
+    ``fit_fn(error_model, data)`` fits (with the tables at :data:`START_SMOOTHING`); the
+    pose errors are then linear in the parameters to well within the noise, so the GCV
+    path (:func:`penalised_path`) stands in for refits (:func:`gcv_smoothing`).
+    """
+    tables = [e for e in error_model.effects
+              if hasattr(e, "penalty_matrix") and getattr(e, "smoothing", 0.0) is None]
+    if not tables:
+        return
+    for e in tables:
+        e.smoothing = START_SMOOTHING
+    gcv_smoothing(fit_fn(error_model, data), tables, grid)
+
+
+def gcv_smoothing(fit, tables=None, grid=SMOOTHING_GRID) -> bool:
+    """Re-choose the smoothing of ``tables`` (default: every table of the fit's model) by
+    GCV on the problem linearised at ``fit``, one table after the other, twice round.
+    Records ``cv_curve`` on each as (smoothing, GCV RMS mm). Returns True when any
+    smoothing changed (the fit is then out of date)."""
+    em, free, x = fit.error_model, fit.free, fit.values
+    if tables is None:
+        tables = [e for e in em.effects if hasattr(e, "penalty_matrix")]
+    if not tables or not free.any():
+        return False
+    before = [e.smoothing for e in tables]
+    P, J = em.evaluate(x, em.bind(fit.data), jacobian=True)
+    X = J[:, :, free].reshape(-1, int(free.sum()))
+    y = (fit.data.tracker_p_smr - P).ravel() + X @ x[free]
+    XtX, b, y2 = X.T @ X, X.T @ y, float(y @ y)
+    omegas = {}
+    for e, sl in zip(em.effects, em.slices, strict=True):
+        if hasattr(e, "penalty_matrix"):
+            O = np.zeros((em.n_params, em.n_params))
+            O[sl, sl] = e.penalty_matrix()
+            omegas[id(e)] = (e, O[np.ix_(free, free)])
+    for _ in range(2):
+        for e in tables:
+            A0 = XtX + sum(o.smoothing * O for key, (o, O) in omegas.items() if key != id(e))
+            path = penalised_path(A0, b, b, XtX, y2, omegas[id(e)][1], grid, X.shape[0])
+            e.smoothing = float(grid[path["best"]])
+            e.cv_curve = [(float(s), float(np.sqrt(3 * g))) for s, g in zip(grid, path["gcv"],
+                                                                             strict=True)]
+    return any(e.smoothing != s for e, s in zip(tables, before, strict=True))

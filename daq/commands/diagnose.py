@@ -14,6 +14,7 @@ from .common import (
     table,
     wrap_errors,
 )
+from .diagnose_auto import add_auto_args, check_auto_args, run_auto
 
 
 def register(sub) -> None:
@@ -22,17 +23,22 @@ def register(sub) -> None:
         help="rank the physical effects missing from the model",
         description="Fit the current model (or read --params), then rank every candidate "
         "effect not in it by how much of the remaining error it explains, with a "
-        "significance test against the noise and a held-out check; say which effect to add.",
+        "significance test against the noise and a held-out check; say which effect to add. "
+        "With --auto, add the best effect, refit and repeat while the held-out error falls.",
     )
     add_model_args(p)
     add_current_model_args(p, "use these parameters (and their model) instead of fitting")
     p.add_argument("--top", type=int, default=12, help="rows of the ranking to print")
+    add_auto_args(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    check_auto_args(args)
     model, data = load_inputs(args)
     fit = wrap_errors(lambda: current_fit(model, data, args.effects, args.params, args.solver))
+    if args.auto:
+        return run_auto(args, fit, data)
     diag = diagnose(fit, data)
     if args.json:
         print_json(diag.to_json())
