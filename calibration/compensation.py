@@ -28,7 +28,7 @@ import numpy as np
 from .dataset import Dataset
 from .error_model import ErrorModel
 from .inverse import ChainFK, IKResult, solve_ik
-from .kinematics import cross, run_chain
+from .kinematics import run_chain
 
 
 class CalibratedFK:
@@ -78,12 +78,12 @@ class CalibratedFK:
                 scale = e.length_scale(x[sl], data, bound.states[k])[0]
             elif e.stage == "tool":
                 tool = e.tool_point(x[sl])[0]
-        return run_chain(em.model.convention, table, qc, tool, scale, jacobian=False)
+        return run_chain(em.model.convention, table, qc, tool, scale, jacobian=False,
+                         prismatic=em.model.prismatic_mask())
 
     def __call__(self, q: np.ndarray, rows: np.ndarray | None = None):
         r = self.chain(q, rows)
-        Jp = cross(r.joint_axes, r.point[:, None, :] - r.joint_origins).transpose(0, 2, 1)
-        return r.point, r.flange_R, Jp, r.joint_axes.transpose(0, 2, 1)
+        return r.point, r.flange_R, r.dP_dq, r.dR_dq
 
     def point(self, q: np.ndarray) -> np.ndarray:
         """Calibrated tool point (base frame) for commanded joints q (rad), (n, 3) mm."""

@@ -57,6 +57,7 @@ class ErrorModel:
         self.units = [u for e in self.effects for u in e.units]
         self.scales = np.concatenate([e.scales for e in self.effects]) if self.effects else []
         self._table0 = model.dh_table()
+        self._prismatic = model.prismatic_mask()
         self._by_stage = {
             s: [i for i, e in enumerate(self.effects) if e.stage == s] for s in _STAGES
         }
@@ -93,7 +94,8 @@ class ErrorModel:
                 f"has {self.model.n_joints}"
             )
         nominal = run_chain(
-            self.model.convention, self._table0, data.q, self.model.tool_mm(), jacobian=False
+            self.model.convention, self._table0, data.q, self.model.tool_mm(), jacobian=False,
+            prismatic=self._prismatic,
         )
         states = [e.bind(data, nominal) for e in self.effects]
         return Bound(data, nominal, states)
@@ -180,13 +182,15 @@ class ErrorModel:
             tool_part = (i, part)
 
         jacobian = jacobian or joints
-        r = run_chain(self.model.convention, table, q, tool, scale, jacobian=jacobian)
+        r = run_chain(self.model.convention, table, q, tool, scale, jacobian=jacobian,
+                      prismatic=self._prismatic)
         P = r.point
-        G = r.dP_dtable[:, :, :, 0] if joints else None
+        G = r.dP_dq if joints else None
         if jacobian:
             dP = r.dP_dtable
+            dq = r.dP_dq
             for i, j, part in joint_parts:
-                J[:, :, sls[i]] = dP[:, :, j, 0][:, :, None] * part[:, None, :]
+                J[:, :, sls[i]] = dq[:, :, j][:, :, None] * part[:, None, :]
             for i, part in table_parts:
                 # (k, N*5) @ (N*5, 3n) on the chain's own storage layout
                 N = part.shape[0]

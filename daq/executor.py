@@ -130,8 +130,8 @@ def tool_jacobian(model, q: np.ndarray) -> np.ndarray:
     from calibration.kinematics import run_chain
 
     r = run_chain(model.convention, model.dh_table(), np.asarray(q, float)[None],
-                  model.tool_mm(), jacobian=True)
-    return r.dP_dtable[0, :, :, 0]
+                  model.tool_mm(), jacobian=False, prismatic=model.prismatic_mask())
+    return r.dP_dq[0]
 
 
 class Executor:

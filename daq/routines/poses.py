@@ -31,7 +31,8 @@ def candidates(model, n: int, rng: np.random.Generator, *, floor_z_mm: float | N
     have = 0
     for _ in range(200):
         q = rng.uniform(lim[:, 0], lim[:, 1], size=(max(4 * n, 64), model.n_joints))
-        r = run_chain(model.convention, model.dh_table(), q, model.tool_mm(), jacobian=False)
+        r = run_chain(model.convention, model.dh_table(), q, model.tool_mm(), jacobian=False,
+                      prismatic=model.prismatic_mask())
         ok = np.ones(len(q), bool)
         if floor_z_mm is not None:
             ok &= (r.frames_p[:, 1:, 2] >= floor_z_mm).all(axis=1) & (r.point[:, 2] >= floor_z_mm)
@@ -52,7 +53,8 @@ def scaled_jacobian(error_model: ErrorModel, q: np.ndarray) -> np.ndarray:
     """Identification Jacobian at the nominal (base = identity) per pose, scaled by the
     parameters' typical sizes: shape (n, 3, p), mm per typical error."""
     model = error_model.model
-    pts = run_chain(model.convention, model.dh_table(), q, model.tool_mm(), jacobian=False).point
+    pts = run_chain(model.convention, model.dh_table(), q, model.tool_mm(), jacobian=False,
+                    prismatic=model.prismatic_mask()).point
     data = error_model.prepare(Dataset(q=q, xyz=pts, source="<candidate poses>"))
     bound = error_model.bind(data)
     _, J = error_model.evaluate(error_model.initial(bound), bound)
