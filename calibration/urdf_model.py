@@ -241,17 +241,17 @@ def _axis(path: str, j) -> np.ndarray:
     return u / norm
 
 
-def _rz(t):
+def rot_z(t):
     c, s = math.cos(t), math.sin(t)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def _rx(t):
+def rot_x(t):
     c, s = math.cos(t), math.sin(t)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
-def _ry(t):
+def rot_y(t):
     c, s = math.cos(t), math.sin(t)
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
@@ -290,10 +290,10 @@ def _dh_row(R: np.ndarray, p: np.ndarray, o_next: np.ndarray, u_next: np.ndarray
         else:
             x, theta = np.array([1.0, 0.0, 0.0]), 0.0
         a = float(foot @ x)
-        v = _rz(theta).T @ u
+        v = rot_z(theta).T @ u
         beta = math.asin(max(-1.0, min(1.0, v[0])))
         alpha = math.atan2(-v[1], v[2])
-    R_next = R @ _rz(theta) @ _rx(alpha) @ _ry(beta)
+    R_next = R @ rot_z(theta) @ rot_x(alpha) @ rot_y(beta)
     p_next = p + R @ np.array([0.0, 0.0, d]) + a * (R @ np.array([math.cos(theta),
                                                                   math.sin(theta), 0.0]))
     return (theta, d, a, alpha, beta), R_next, p_next
@@ -313,7 +313,7 @@ def _last_row(R: np.ndarray, p: np.ndarray, tip_T: np.ndarray):
         theta = math.atan2(-Rt[0, 1], Rt[1, 1])
     else:
         beta, theta = 0.0, math.atan2(Rt[1, 0], Rt[0, 0])
-    R_n = R @ _rz(theta) @ _rx(alpha) @ _ry(beta)
+    R_n = R @ rot_z(theta) @ rot_x(alpha) @ rot_y(beta)
     p_n = p + d * R[:, 2]
     return (theta, d, 0.0, alpha, beta), R_n, p_n, R_n.T @ (tip_T[:3, 3] - p_n)
 
@@ -333,12 +333,12 @@ def _base_frame(o1: np.ndarray, u1: np.ndarray) -> np.ndarray:
     return T
 
 
-def _rpy(R: np.ndarray) -> tuple[float, float, float]:
+def urdf_rpy(R: np.ndarray) -> tuple[float, float, float]:
     """URDF roll, pitch, yaw (rad) of R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    pitch = math.asin(max(-1.0, min(1.0, -R[2, 0])))
+    pitch = math.asin(max(-1.0, min(1.0, -R[2, 0]))) + 0.0  # + 0.0: no "-0.0" in files
     if abs(math.cos(pitch)) > 1e-9:
-        return math.atan2(R[2, 1], R[2, 2]), pitch, math.atan2(R[1, 0], R[0, 0])
-    return 0.0, pitch, math.atan2(-R[0, 1], R[1, 1])
+        return math.atan2(R[2, 1], R[2, 2]) + 0.0, pitch, math.atan2(R[1, 0], R[0, 0]) + 0.0
+    return 0.0, pitch, math.atan2(-R[0, 1], R[1, 1]) + 0.0
 
 
 def _poses_at_zero(tree: _Tree, root: str) -> dict[str, np.ndarray]:
@@ -469,7 +469,7 @@ def load_urdf_model(spec: str) -> RobotModel:
         "urdf": {"file": path, "root": root, "tip": tip, "joints": [j.name for j in movable],
                  "mount_xyz": [_snap(v, _SNAP_MM) for v in mount[:3, 3]],
                  "mount_rpy": [math.degrees(_snap(v, _SNAP_RAD)) for v in
-                               _rpy(mount[:3, :3])]},
+                               urdf_rpy(mount[:3, :3])]},
     }
     links = _mass_model(tree, root, chain, frames)
     if links is not None:
@@ -483,6 +483,6 @@ def mount_transform(model: RobotModel) -> np.ndarray:
     if model.urdf is None:
         return T
     roll, pitch, yaw = np.radians(model.urdf.mount_rpy)
-    T[:3, :3] = _rz(yaw) @ _ry(pitch) @ _rx(roll)
+    T[:3, :3] = rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
     T[:3, 3] = model.urdf.mount_xyz
     return T
