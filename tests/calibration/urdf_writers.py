@@ -104,8 +104,8 @@ def dh_chain_urdf(path: Path, convention: str, rows: list[dict], *, name: str = 
                           f'<child link="mount{i + 1}"/>{origin_xml(S)}</joint>')
             parent = f"mount{i + 1}"
             Oc = np.linalg.inv(S) @ Oc
-        axis = C[i + 1][:3, :3].T @ [0.0, 0.0, 1.0]
-        kind = r.get("type", "revolute")
+        axis = [float(v) for v in C[i + 1][:3, :3].T @ [0.0, 0.0, 1.0]]
+        kind = r.get("type") or "revolute"
         scale = 1000.0 if kind == "prismatic" else 180.0 / math.pi
         lim = f'<limit lower="{r["min"] / scale!r}" upper="{r["max"] / scale!r}" ' \
               'effort="100" velocity="1"/>'
