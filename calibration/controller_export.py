@@ -31,12 +31,12 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .kinematics import ALPHA, BETA, THETA, A, D, run_chain
+from .kinematics import ALPHA, BETA, THETA, A, D, forward, run_chain
 from .parity import Parity, compare, parity_joints
 from .robot_model import RobotModel
 from .ur_conf import read_calibration_conf, table_from_deltas, to_pure_dh
 from .urdf_export import _T, chain_origins, write_atomic, yourdfpy_poses
-from .urdf_model import mount_transform, rot_z, urdf_rpy
+from .urdf_model import dh_from_axes, mount_transform, rot_z, urdf_rpy
 
 #: link names of the UR kinematics YAML, base to wrist 3
 UR_LINKS = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
@@ -95,10 +95,41 @@ def ur_base_transform(model: RobotModel) -> np.ndarray:
                       "or #base_link_inertia:TIP")
 
 
+def ur_table(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
+    """(table (6, 5) rad mm, tool (3,) mm): the model's chain in a UR controller's own DH
+    convention, from base_link_inertia. A built-in (or YAML) UR model already is; a model
+    read from a UR URDF has its own frames (e.g. from ``base_link``, turned 180 deg): its
+    axes are re-expressed from base_link_inertia by the same conversion as a URDF
+    (:func:`calibration.urdf_model.dh_from_axes`), which gives UR's table for UR's axes."""
+    _check_ur(model)
+    if model.urdf is None:
+        return model.dh_table(), model.tool_mm()
+    F = ur_base_transform(model) @ forward(model, np.zeros(6))[0]  # frames, base_link_inertia
+    mount, table, frames, _ = dh_from_axes(F[:-1, :3, 3], F[:-1, :3, 2], F[-1])
+    if not np.allclose(mount, np.eye(4), rtol=0, atol=1e-9):
+        raise ExportError("joint 1's axis is not base_link_inertia's z axis: the chain has no "
+                          "UR DH form")
+    R, p = frames[-1]
+    tool = R.T @ (F[-1] @ [*model.tool_mm(), 1.0])[:3] - R.T @ p
+    return table, tool
+
+
 def _check_ur(model: RobotModel) -> None:
     if model.n_joints != 6 or model.convention != "dh" or model.prismatic_mask() is not None:
         raise ExportError(f"the UR kinematics YAML needs a 6-joint revolute standard-DH model "
                           f"(model {model.name}: {model.n_joints} joints, {model.convention})")
+
+
+def ur_model(model: RobotModel) -> RobotModel:
+    """The model with its chain in the controller's DH convention (:func:`ur_table`),
+    based at base_link_inertia: its link frames are ur_description's."""
+    from .ur_conf import model_from_table
+
+    if model.urdf is None:
+        _check_ur(model)
+        return model
+    table, tool = ur_table(model)
+    return model_from_table(model, table, tool=tool).with_changes(urdf=None)
 
 
 def ur_kinematics(model: RobotModel) -> tuple[dict, np.ndarray]:
@@ -108,16 +139,15 @@ def ur_kinematics(model: RobotModel) -> tuple[dict, np.ndarray]:
     in the YAML: ur_description's tool0 is wrist_3_link's frame; the tool point is
     returned in that frame instead.
     """
-    _check_ur(model)
-    origins, flange = chain_origins(model)
-    origins = [ur_base_transform(model) @ origins[0], *origins[1:]]
+    ur = ur_model(model)
+    origins, flange = chain_origins(ur)
     kin = {}
     for name, O in zip(UR_LINKS, origins, strict=True):
         roll, pitch, yaw = urdf_rpy(O[:3, :3])
         kin[name] = {"x": float(O[0, 3]) / 1000.0, "y": float(O[1, 3]) / 1000.0,
                      "z": float(O[2, 3]) / 1000.0, "roll": roll, "pitch": pitch, "yaw": yaw}
-    kin["hash"] = ur_kinematics_hash(to_pure_dh(model.dh_table()))
-    tool0_p_tcp = (flange @ [*model.tool_mm(), 1.0])[:3]
+    kin["hash"] = ur_kinematics_hash(to_pure_dh(ur.dh_table()))
+    tool0_p_tcp = (flange @ [*ur.tool_mm(), 1.0])[:3]
     return {"kinematics": kin}, tool0_p_tcp
 
 
@@ -176,7 +206,7 @@ def ur_yaml_parity(path: str | Path, model: RobotModel) -> Parity:
     P = T[:, :3, 3] @ B[:3, :3].T + B[:3, 3]
     R = B[:3, :3] @ T[:, :3, :3]
     # tool0 (= wrist_3) is the flange only when the last row has no a, alpha, beta
-    _, flange = chain_origins(model)
+    _, flange = chain_origins(ur_model(model))
     max_mm, max_rad = compare(model, q, P, R @ flange[:3, :3])
     return Parity(str(path), "ur_description chain (yourdfpy)", len(q), max_mm, max_rad)
 
@@ -249,8 +279,10 @@ def write_table_csv(model: RobotModel, path: str | Path, notes: list[str] = ()) 
 def ur_conf_parity(path: str | Path, model: RobotModel, nominal: RobotModel) -> Parity:
     """calibration.conf read back, added to the nominal pure-DH table as a UR controller
     does, against the calibrated model (tool point; flange orientation)."""
-    table = table_from_deltas(nominal.dh_table(), read_calibration_conf(path))
+    table = table_from_deltas(ur_table(nominal)[0], read_calibration_conf(path))
     q = parity_joints(model)
-    r = run_chain("dh", table, q, model.tool_mm(), jacobian=False)
-    max_mm, max_rad = compare(model, q, r.point, r.flange_R)
+    r = run_chain("dh", table, q, ur_table(model)[1], jacobian=False)
+    B = np.linalg.inv(ur_base_transform(model))  # base_link_inertia -> the model's base
+    P = r.point @ B[:3, :3].T + B[:3, 3]
+    max_mm, max_rad = compare(model, q, P, B[:3, :3] @ r.flange_R)
     return Parity(str(path), "calibration.conf + nominal DH", len(q), max_mm, max_rad)

@@ -122,9 +122,11 @@ class RobotModel(BaseModel):
 
         These rows carry the Hayati tilt beta: for dh row i (alpha_i between axes i and
         i+1) every row but the last; for mdh row i (alpha_{i-1} between axes i-1 and i)
-        every row but the first.
+        every row but the first. A row written in Hayati form (nominal beta, e.g. nearly
+        parallel axes of a URDF) counts as parallel too.
         """
-        rows = [i for i, j in enumerate(self.joints) if abs(np.sin(np.radians(j.alpha))) < tol_deg]
+        rows = [i for i, j in enumerate(self.joints)
+                if abs(np.sin(np.radians(j.alpha))) < tol_deg or j.beta != 0.0]
         last = self.n_joints - 1
         return [i for i in rows if i != (last if self.convention == "dh" else 0)]
 

@@ -29,8 +29,9 @@ Conversion rules
   pose in the root link (gravity is turned into that frame).
 - Row i goes from joint i's axis to joint i+1's along their common normal, its x axis
   signed so that theta_offset is smallest (a may be negative, as in UR's tables). Axes
-  within ``PARALLEL_SIN`` of parallel use the Hayati form instead: d = 0, the common
-  normal in the plane through the previous origin, and the small tilt in alpha and beta.
+  within ``PARALLEL_SIN`` (~3 deg) of parallel use the Hayati form instead: d = 0, the
+  normal in the plane through the previous origin, the small tilt in alpha and beta (such
+  a row counts as parallel: the geometric effect identifies its beta).
 - The last row points the flange frame like the tip link (a = 0; theta, alpha, beta
   are the rotation) and puts its origin on the last axis level with the tip; ``tool``
   is the tip's origin in that frame.
@@ -55,8 +56,9 @@ import numpy as np
 
 from .robot_model import ModelError, RobotModel, model_from_dict
 
-#: sin of the angle below which two neighbouring axes use the Hayati (beta) form
-PARALLEL_SIN = 1e-3
+#: sin of the angle below which two neighbouring axes use the Hayati (beta) form: within
+#: ~3 deg their common normal is far away (>= 20 x the axes' distance) and ill-conditioned
+PARALLEL_SIN = 0.05
 #: lengths (mm) and angles (rad) smaller than this are rounding and written as 0
 _SNAP_MM, _SNAP_RAD = 1e-9, 1e-12
 _MOVABLE = ("revolute", "continuous", "prismatic")
@@ -435,27 +437,48 @@ def chain_geometry(spec: str):
     return tree, root, tip, chain, movable, np.array(origins), np.array(axes), T
 
 
-def load_urdf_model(spec: str) -> RobotModel:
-    """A RobotModel from ``path.urdf[#root[:tip]]`` (see the module docstring)."""
-    path = parse_spec(spec)[0]
-    tree, root, tip, chain, movable, origins, axes, tip_T = chain_geometry(spec)
-    N = len(movable)
+def dh_from_axes(origins: np.ndarray, axes: np.ndarray, tip_T: np.ndarray):
+    """The standard-DH/Hayati table of a chain given by its joint axes (mm, any frame F).
+
+    Parameters
+    ----------
+    origins, axes : (N, 3) a point on each joint axis and its unit direction (sense of
+        positive motion), at zero joint positions
+    tip_T : (4, 4) F_T_tip, the frame the flange is turned like; its origin is the tool point
+
+    Returns
+    -------
+    mount : (4, 4) F_T_base, identity when joint 1's axis is F's z axis
+    table : (N, 5) theta_offset, d, a, alpha, beta (rad, mm), rounding snapped to 0
+    frames : N (R, p), the frame after each row, in F
+    tool : (3,) the tip's origin in the flange frame, mm
+    """
     mount = _base_frame(origins[0], axes[0])
     R, p = mount[:3, :3].copy(), mount[:3, 3].copy()
     rows, frames = [], []
-    for i in range(N - 1):
+    for i in range(len(origins) - 1):
         row, R, p = _dh_row(R, p, origins[i + 1], axes[i + 1])
         rows.append(row)
         frames.append((R, p))
     row, R, p, tool = _last_row(R, p, tip_T)
     rows.append(row)
     frames.append((R, p))
+    tol = np.array([_SNAP_RAD, _SNAP_MM, _SNAP_MM, _SNAP_RAD, _SNAP_RAD])
+    table = np.array(rows, float)
+    table[np.abs(table) < tol] = 0.0
+    return mount, table, frames, np.array([_snap(v, _SNAP_MM) for v in tool])
+
+
+def load_urdf_model(spec: str) -> RobotModel:
+    """A RobotModel from ``path.urdf[#root[:tip]]`` (see the module docstring)."""
+    path = parse_spec(spec)[0]
+    tree, root, tip, chain, movable, origins, axes, tip_T = chain_geometry(spec)
+    mount, table, frames, tool = dh_from_axes(origins, axes, tip_T)
     joints = []
-    for (theta, d, a, alpha, beta), j in zip(rows, movable, strict=True):
+    for (theta, d, a, alpha, beta), j in zip(table, movable, strict=True):
         lo, hi = _limits(path, j)
-        row = {"a": _snap(a, _SNAP_MM), "alpha": math.degrees(_snap(alpha, _SNAP_RAD)),
-               "d": _snap(d, _SNAP_MM), "theta_offset": math.degrees(_snap(theta, _SNAP_RAD)),
-               "beta": math.degrees(_snap(beta, _SNAP_RAD)), "min": lo, "max": hi}
+        row = {"a": a, "alpha": math.degrees(alpha), "d": d, "theta_offset": math.degrees(theta),
+               "beta": math.degrees(beta), "min": lo, "max": hi}
         if j.type == "prismatic":
             row["type"] = "prismatic"
         joints.append(row)
@@ -464,7 +487,7 @@ def load_urdf_model(spec: str) -> RobotModel:
         "name": tree.name,
         "convention": "dh",
         "joints": joints,
-        "tool": [_snap(v, _SNAP_MM) for v in tool],
+        "tool": [float(v) for v in tool],
         "gravity": [_snap(v, 1e-12) for v in g],
         "urdf": {"file": path, "root": root, "tip": tip, "joints": [j.name for j in movable],
                  "mount_xyz": [_snap(v, _SNAP_MM) for v in mount[:3, 3]],

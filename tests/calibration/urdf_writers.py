@@ -142,7 +142,7 @@ def ur_style_urdf(path: Path, model) -> Path:
     """A URDF laid out like ur_description's ur_macro.xacro for a standard-DH UR model:
     base_link -> base_link_inertia (turned 180 deg about z) -> shoulder ... wrist_3 ->
     flange -> tool0, the ROS-Industrial ``base`` and ``ft_frame`` beside them; every joint
-    origin is UR's split of the DH chain (a, alpha of one row with theta, d of the next),
+    origin is UR's split of the DH chain (a, alpha, beta of one row with theta, d of the next),
     as the UR calibration tool writes it; inertials from the model's mass model."""
     t = model.dh_table()
     links = ['<link name="base_link"/>', '<link name="base_link_inertia"/>',
@@ -159,7 +159,7 @@ def ur_style_urdf(path: Path, model) -> Path:
     tail = np.eye(4)
     for i in range(6):
         O = tail @ rot("z", t[i, 0]) @ trans(z=t[i, 1])
-        tail = trans(x=t[i, 2]) @ rot("x", t[i, 3])
+        tail = trans(x=t[i, 2]) @ rot("x", t[i, 3]) @ rot("y", t[i, 4])
         j = model.joints[i]
         inertial = ""
         if model.links:
