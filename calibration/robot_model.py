@@ -109,6 +109,14 @@ class RobotModel(BaseModel):
         """Joint limits, shape (n_joints, 2), rad."""
         return np.radians([[j.min, j.max] for j in self.joints])
 
+    def sampling_limits_rad(self, max_abs_deg: float = 180.0) -> np.ndarray:
+        """Joint limits for drawing poses, (n_joints, 2): revolute joints clipped to
+        +-max_abs_deg (rad), prismatic joints' full travel (internal units)."""
+        lim = self.limits_rad()
+        clipped = np.clip(lim, -np.radians(max_abs_deg), np.radians(max_abs_deg))
+        mask = self.prismatic_mask()
+        return clipped if mask is None else np.where(mask[:, None], lim, clipped)
+
     def tool_mm(self) -> np.ndarray:
         return np.array(self.tool, dtype=float)
 

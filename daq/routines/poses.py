@@ -26,7 +26,7 @@ from ..plans import Plan, Target
 def candidates(model, n: int, rng: np.random.Generator, *, floor_z_mm: float | None = 0.0,
                max_reach_mm: float | None = None, max_abs_deg: float = 180.0) -> np.ndarray:
     """``n`` random joint vectors (rad) within the limits, above the floor and within reach."""
-    lim = np.clip(model.limits_rad(), -np.radians(max_abs_deg), np.radians(max_abs_deg))
+    lim = model.sampling_limits_rad(max_abs_deg)
     out = []
     have = 0
     for _ in range(200):
