@@ -52,3 +52,11 @@ def test_a_move_outside_joint_4s_range_is_refused():
     bad = check_plan(Plan.from_dict(d), m)
     assert not bad.ok and bad.bad_indices == [2]
     assert "joint 4" in bad.report() or "q4" in bad.report()
+
+
+def test_zero_point_refuses_a_prismatic_joint(tmp_path):
+    from tests.calibration.test_urdf_model import track_model
+
+    _, m = track_model(tmp_path)
+    with pytest.raises(ValueError, match="prismatic joint"):
+        make_plan("zero20", m, target_xyz=[500.0, 0.0, 500.0])
