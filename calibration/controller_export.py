@@ -31,12 +31,13 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from .dh_conversion import dh_from_axes, rot_z, urdf_rpy
 from .kinematics import ALPHA, BETA, THETA, A, D, forward, run_chain
 from .parity import Parity, compare, parity_joints
 from .robot_model import RobotModel
 from .ur_conf import read_calibration_conf, table_from_deltas, to_pure_dh
 from .urdf_export import _T, chain_origins, write_atomic, yourdfpy_poses
-from .urdf_model import dh_from_axes, mount_transform, rot_z, urdf_rpy
+from .urdf_model import mount_transform
 
 #: link names of the UR kinematics YAML, base to wrist 3
 UR_LINKS = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")

@@ -31,10 +31,11 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from .dh_conversion import rot_x, rot_y, rot_z, urdf_rpy
 from .kinematics import ALPHA, BETA, PRISMATIC_MM_PER_UNIT, THETA, A, D
 from .parity import Parity, compare, parity_joints
 from .robot_model import RobotModel
-from .urdf_model import mount_transform, rot_x, rot_y, rot_z, urdf_rpy
+from .urdf_model import mount_transform
 
 TCP_LINK = "tcp"
 FLANGE_LINK = "flange"

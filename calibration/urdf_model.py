@@ -22,19 +22,15 @@ exports — so a URDF robot needs no new code path. The conversion is exact (for
 kinematics agrees with the URDF to rounding), and :mod:`calibration.urdf_export` turns
 the calibrated table back into joint origins.
 
-Conversion rules
-----------------
+Conversion rules (:mod:`calibration.dh_conversion`)
+----------------------------------------------------
 - The model's base frame is the root link, unless joint 1's axis is not the root's z
   axis; then it is a frame on that axis and ``urdf.mount_xyz``/``mount_rpy`` hold its
   pose in the root link (gravity is turned into that frame).
-- Row i goes from joint i's axis to joint i+1's along their common normal, its x axis
-  signed so that theta_offset is smallest (a may be negative, as in UR's tables). Axes
-  within ``PARALLEL_SIN`` (~3 deg) of parallel use the Hayati form instead: d = 0, the
-  normal in the plane through the previous origin, the small tilt in alpha and beta (such
-  a row counts as parallel: the geometric effect identifies its beta).
-- The last row points the flange frame like the tip link (a = 0; theta, alpha, beta
-  are the rotation) and puts its origin on the last axis level with the tip; ``tool``
-  is the tip's origin in that frame.
+- Row i follows the common normal from joint i's axis to joint i+1's, x signed so that
+  theta_offset is smallest; axes within ~3 deg of parallel take the Hayati form (d = 0,
+  tilt in alpha and beta; such a row counts as parallel, so beta is identified).
+- The last row turns the flange frame like the tip link; ``tool`` is the tip's origin.
 - Joint limits come from ``<limit>`` (continuous joints: +-360 deg); a prismatic
   joint's limits and position are in mm where angles are in deg (see
   :mod:`calibration.kinematics`).
@@ -54,13 +50,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .dh_conversion import SNAP_MM, SNAP_RAD, dh_from_axes, rot_x, rot_y, rot_z, urdf_rpy
 from .robot_model import ModelError, RobotModel, model_from_dict
 
-#: sin of the angle below which two neighbouring axes use the Hayati (beta) form: within
-#: ~3 deg their common normal is far away (>= 20 x the axes' distance) and ill-conditioned
-PARALLEL_SIN = 0.05
-#: lengths (mm) and angles (rad) smaller than this are rounding and written as 0
-_SNAP_MM, _SNAP_RAD = 1e-9, 1e-12
 _MOVABLE = ("revolute", "continuous", "prismatic")
 _KNOWN = (*_MOVABLE, "fixed", "floating", "planar")
 
@@ -173,15 +165,17 @@ class _Tree:
     def roots(self) -> list[str]:
         return [n for n in self.links if n not in self.parent_joint]
 
-    def leaves(self, top: str) -> list[str]:
+    def subtree(self, top: str) -> list[str]:
+        """``top`` and every link below it."""
         out, todo = [], [top]
         while todo:
             link = todo.pop()
-            kids = self.children.get(link, [])
-            if not kids:
-                out.append(link)
-            todo.extend(j.child for j in kids)
+            out.append(link)
+            todo.extend(j.child for j in self.children.get(link, []))
         return out
+
+    def leaves(self, top: str) -> list[str]:
+        return [link for link in self.subtree(top) if not self.children.get(link)]
 
 
 def _pick_chain(tree: _Tree, root: str | None, tip: str | None) -> tuple[str, str, list]:
@@ -229,8 +223,9 @@ def _pick_chain(tree: _Tree, root: str | None, tip: str | None) -> tuple[str, st
 
 
 # ---- geometry ---------------------------------------------------------------------------
-def _origin_mm(j) -> np.ndarray:
-    T = np.eye(4) if j.origin is None else np.array(j.origin, float)
+def _mm(T) -> np.ndarray:
+    """A URDF transform (m; None = identity) with its translation in mm."""
+    T = np.eye(4) if T is None else np.array(T, float)
     T[:3, 3] *= 1000.0
     return T
 
@@ -243,113 +238,13 @@ def _axis(path: str, j) -> np.ndarray:
     return u / norm
 
 
-def rot_z(t):
-    c, s = math.cos(t), math.sin(t)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def rot_x(t):
-    c, s = math.cos(t), math.sin(t)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def rot_y(t):
-    c, s = math.cos(t), math.sin(t)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def _signed_x(x_xy: np.ndarray) -> tuple[np.ndarray, float]:
-    """(x, theta): the unit direction ±x_xy (in the xy plane) nearest the current x axis."""
-    x = np.array([x_xy[0], x_xy[1], 0.0])
-    x /= np.linalg.norm(x)
-    if x[0] < -1e-12 or (abs(x[0]) <= 1e-12 and x[1] < 0):
-        x = -x
-    return x, math.atan2(x[1], x[0])
-
-
-def _dh_row(R: np.ndarray, p: np.ndarray, o_next: np.ndarray, u_next: np.ndarray):
-    """One standard-DH row from the current frame (z on this joint's axis) to the next axis.
-
-    Returns (theta, d, a, alpha, beta) and the next frame (R, p).
-    """
-    u = R.T @ u_next
-    o = R.T @ (o_next - p)
-    s2 = u[0] * u[0] + u[1] * u[1]
-    if math.sqrt(s2) > PARALLEL_SIN:  # common normal
-        t2 = -(o[0] * u[0] + o[1] * u[1]) / s2
-        d = o[2] + t2 * u[2]
-        foot = o + t2 * u
-        x, theta = _signed_x(np.array([-u[1], u[0]]))
-        a = float(foot @ x)
-        alpha = math.atan2(-u[1] * x[0] + u[0] * x[1], u[2])
-        beta = 0.0
-    else:  # Hayati: d = 0, the next axis met in the plane z = 0
-        d = 0.0
-        foot = o - (o[2] / u[2]) * u
-        r = math.hypot(foot[0], foot[1])
-        if r > _SNAP_MM:
-            x, theta = _signed_x(foot[:2])
-        else:
-            x, theta = np.array([1.0, 0.0, 0.0]), 0.0
-        a = float(foot @ x)
-        v = rot_z(theta).T @ u
-        beta = math.asin(max(-1.0, min(1.0, v[0])))
-        alpha = math.atan2(-v[1], v[2])
-    R_next = R @ rot_z(theta) @ rot_x(alpha) @ rot_y(beta)
-    p_next = p + R @ np.array([0.0, 0.0, d]) + a * (R @ np.array([math.cos(theta),
-                                                                  math.sin(theta), 0.0]))
-    return (theta, d, a, alpha, beta), R_next, p_next
-
-
-def _last_row(R: np.ndarray, p: np.ndarray, tip_T: np.ndarray):
-    """The last row: flange frame turned like the tip, origin on the last axis level with it.
-
-    Returns (theta, d, a, alpha, beta), the flange frame (R, p) and the tool point in it.
-    """
-    Rt = R.T @ tip_T[:3, :3]
-    pt = R.T @ (tip_T[:3, 3] - p)
-    d = float(pt[2])
-    alpha = math.asin(max(-1.0, min(1.0, Rt[2, 1])))
-    if abs(math.cos(alpha)) > 1e-9:
-        beta = math.atan2(-Rt[2, 0], Rt[2, 2])
-        theta = math.atan2(-Rt[0, 1], Rt[1, 1])
-    else:
-        beta, theta = 0.0, math.atan2(Rt[1, 0], Rt[0, 0])
-    R_n = R @ rot_z(theta) @ rot_x(alpha) @ rot_y(beta)
-    p_n = p + d * R[:, 2]
-    return (theta, d, 0.0, alpha, beta), R_n, p_n, R_n.T @ (tip_T[:3, 3] - p_n)
-
-
-def _base_frame(o1: np.ndarray, u1: np.ndarray) -> np.ndarray:
-    """root_T_base: identity when joint 1's axis is the root z axis, else a frame on it."""
-    T = np.eye(4)
-    if np.linalg.norm(u1 - [0.0, 0.0, 1.0]) < 1e-12 and math.hypot(o1[0], o1[1]) < _SNAP_MM:
-        return T
-    z = u1
-    x = np.array([1.0, 0.0, 0.0]) - z[0] * z
-    if np.linalg.norm(x) < 1e-6:
-        x = np.array([0.0, 1.0, 0.0]) - z[1] * z
-    x /= np.linalg.norm(x)
-    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-    T[:3, 3] = o1 - (o1 @ z) * z
-    return T
-
-
-def urdf_rpy(R: np.ndarray) -> tuple[float, float, float]:
-    """URDF roll, pitch, yaw (rad) of R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    pitch = math.asin(max(-1.0, min(1.0, -R[2, 0]))) + 0.0  # + 0.0: no "-0.0" in files
-    if abs(math.cos(pitch)) > 1e-9:
-        return math.atan2(R[2, 1], R[2, 2]) + 0.0, pitch, math.atan2(R[1, 0], R[0, 0]) + 0.0
-    return 0.0, pitch, math.atan2(-R[0, 1], R[1, 1]) + 0.0
-
-
 def _poses_at_zero(tree: _Tree, root: str) -> dict[str, np.ndarray]:
     """root_T_link (mm) of every link below ``root`` with every joint at zero."""
     poses, todo = {root: np.eye(4)}, [root]
     while todo:
         link = todo.pop()
         for j in tree.children.get(link, []):
-            poses[j.child] = poses[link] @ _origin_mm(j)
+            poses[j.child] = poses[link] @ _mm(j.origin)
             todo.append(j.child)
     return poses
 
@@ -360,14 +255,14 @@ def _mass_model(tree: _Tree, root: str, chain: list, frames: list) -> list[dict]
     movable = [j for j in chain if j.type in _MOVABLE]
     owner = {}
     for k, j in enumerate(movable):  # later joints overwrite: each link gets its own body
-        for link in _subtree(tree, j.child):
+        for link in tree.subtree(j.child):
             owner[link] = k
     out = [{"m": 0.0, "mc": np.zeros(3)} for _ in movable]
     for link, k in owner.items():
         inertial = tree.links[link].inertial
         if inertial is None or not inertial.mass:
             continue
-        T = poses[link] @ (np.eye(4) if inertial.origin is None else _scaled(inertial.origin))
+        T = poses[link] @ _mm(inertial.origin)
         out[k]["m"] += float(inertial.mass)
         out[k]["mc"] += float(inertial.mass) * T[:3, 3]
     if not any(b["m"] > 0 for b in out):
@@ -375,23 +270,8 @@ def _mass_model(tree: _Tree, root: str, chain: list, frames: list) -> list[dict]
     links = []
     for b, (R, p) in zip(out, frames, strict=True):
         com = R.T @ (b["mc"] / b["m"] - p) if b["m"] > 0 else np.zeros(3)
-        links.append({"mass_kg": b["m"], "com": [round(_snap(v, _SNAP_MM), 9) for v in com]})
+        links.append({"mass_kg": b["m"], "com": [round(_snap(v, SNAP_MM), 9) for v in com]})
     return links
-
-
-def _subtree(tree: _Tree, top: str) -> list[str]:
-    out, todo = [], [top]
-    while todo:
-        link = todo.pop()
-        out.append(link)
-        todo.extend(j.child for j in tree.children.get(link, []))
-    return out
-
-
-def _scaled(T) -> np.ndarray:
-    T = np.array(T, float)
-    T[:3, 3] *= 1000.0
-    return T
 
 
 def _snap(v: float, tol: float) -> float:
@@ -429,44 +309,12 @@ def chain_geometry(spec: str):
     T = np.eye(4)
     origins, axes, movable = [], [], []
     for j in chain:
-        T = T @ _origin_mm(j)
+        T = T @ _mm(j.origin)
         if j.type in _MOVABLE:
             origins.append(T[:3, 3].copy())
             axes.append(T[:3, :3] @ _axis(path, j))
             movable.append(j)
     return tree, root, tip, chain, movable, np.array(origins), np.array(axes), T
-
-
-def dh_from_axes(origins: np.ndarray, axes: np.ndarray, tip_T: np.ndarray):
-    """The standard-DH/Hayati table of a chain given by its joint axes (mm, any frame F).
-
-    Parameters
-    ----------
-    origins, axes : (N, 3) a point on each joint axis and its unit direction (sense of
-        positive motion), at zero joint positions
-    tip_T : (4, 4) F_T_tip, the frame the flange is turned like; its origin is the tool point
-
-    Returns
-    -------
-    mount : (4, 4) F_T_base, identity when joint 1's axis is F's z axis
-    table : (N, 5) theta_offset, d, a, alpha, beta (rad, mm), rounding snapped to 0
-    frames : N (R, p), the frame after each row, in F
-    tool : (3,) the tip's origin in the flange frame, mm
-    """
-    mount = _base_frame(origins[0], axes[0])
-    R, p = mount[:3, :3].copy(), mount[:3, 3].copy()
-    rows, frames = [], []
-    for i in range(len(origins) - 1):
-        row, R, p = _dh_row(R, p, origins[i + 1], axes[i + 1])
-        rows.append(row)
-        frames.append((R, p))
-    row, R, p, tool = _last_row(R, p, tip_T)
-    rows.append(row)
-    frames.append((R, p))
-    tol = np.array([_SNAP_RAD, _SNAP_MM, _SNAP_MM, _SNAP_RAD, _SNAP_RAD])
-    table = np.array(rows, float)
-    table[np.abs(table) < tol] = 0.0
-    return mount, table, frames, np.array([_snap(v, _SNAP_MM) for v in tool])
 
 
 def load_urdf_model(spec: str) -> RobotModel:
@@ -490,8 +338,8 @@ def load_urdf_model(spec: str) -> RobotModel:
         "tool": [float(v) for v in tool],
         "gravity": [_snap(v, 1e-12) for v in g],
         "urdf": {"file": path, "root": root, "tip": tip, "joints": [j.name for j in movable],
-                 "mount_xyz": [_snap(v, _SNAP_MM) for v in mount[:3, 3]],
-                 "mount_rpy": [math.degrees(_snap(v, _SNAP_RAD)) for v in
+                 "mount_xyz": [_snap(v, SNAP_MM) for v in mount[:3, 3]],
+                 "mount_rpy": [math.degrees(_snap(v, SNAP_RAD)) for v in
                                urdf_rpy(mount[:3, :3])]},
     }
     links = _mass_model(tree, root, chain, frames)
