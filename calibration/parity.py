@@ -54,6 +54,15 @@ def model_poses(model: RobotModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return r.point, r.flange_R
 
 
+def model_file_parity(path, model: RobotModel) -> Parity:
+    """A written model YAML read back by :func:`calibration.robot_model.load_model`."""
+    from .robot_model import load_model
+
+    q = parity_joints(model)
+    max_mm, max_rad = compare(model, q, *model_poses(load_model(path), q))
+    return Parity(str(path), "cellcal model YAML", len(q), max_mm, max_rad)
+
+
 def compare(model: RobotModel, q: np.ndarray, points: np.ndarray,
             rotations: np.ndarray | None = None) -> tuple[float, float | None]:
     """Largest point distance (mm) and orientation angle (rad) between the model and a

@@ -118,8 +118,6 @@ def run(args) -> int:
     if args.json:
         print_json(doc)
     else:
-        if not args.targets and "model_file" in doc:
-            print(f"written   {doc['model_file']}")
         # beside compensated targets on stdout, the export report goes to stderr
         for line in export_lines:
             print(line, file=sys.stderr if args.targets and not args.out else sys.stdout)

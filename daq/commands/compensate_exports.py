@@ -1,7 +1,7 @@
 """The file exports of ``cellcal compensate`` beyond the model YAML: a calibrated URDF, the
 UR ROS driver's kinematics YAML, the DH/MDH table as CSV, and the parity check of each
-(and of ``--export-ur``): the written file is read back and its forward kinematics
-compared with the calibrated model at 1000 random joint sets."""
+(and of ``--export-model`` and ``--export-ur``): the written file is read back and its
+forward kinematics compared with the calibrated model at 1000 random joint sets."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ from calibration.controller_export import (
     write_ur_kinematics_yaml,
 )
 from calibration.export import calibrated_model
+from calibration.parity import model_file_parity
 from calibration.urdf_export import mount_note, write_urdf
 
 from ..cli import UsageError
@@ -41,7 +42,7 @@ def output_paths(args) -> list[str]:
 def run_exports(args, em, x, doc: dict) -> list[str]:
     """Write the asked exports and check every one; returns the lines to print and fills
     ``doc`` (``*_file`` keys, ``parity`` list, ``not_exported``)."""
-    if not (output_paths(args) or args.export_ur):
+    if not (output_paths(args) or args.export_ur or args.export_model):
         return []
     model, notes = calibrated_model(em, x)
     file_notes = notes + mount_note(model)
@@ -56,6 +57,9 @@ def run_exports(args, em, x, doc: dict) -> list[str]:
         if args.export_dh:
             checks.append(("table_file", args.export_dh,
                            write_table_csv(model, args.export_dh, file_notes)))
+        if args.export_model:  # written by the caller; its parity here
+            checks.append(("model_file", args.export_model,
+                           model_file_parity(args.export_model, model)))
         if args.export_ur:  # written by the caller; its parity here
             checks.append(("ur_conf_file", args.export_ur,
                            ur_conf_parity(args.export_ur, model, em.model)))

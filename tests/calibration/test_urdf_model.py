@@ -238,15 +238,25 @@ BAD = {
     "no limits": (_bad(GOOD, f'{LIM}</joint>\n  <joint name="j2"',
                        '</joint>\n  <joint name="j2"'), "", "joint 'j1' (revolute) has no <limit"),
     "unknown link": (GOOD, "#base:tool9", "no tip link 'tool9'"),
+    "ambiguous": (_bad(GOOD, "</robot>", f'<link name="f"/><joint name="j3" type="prismatic">'
+                       f'<parent link="l1"/><child link="f"/>{LIM}</joint></robot>'), "",
+                  "the chain below 'base' is ambiguous (tips: f, l2)"),
+    "two roots": (_bad(GOOD, "</robot>", '<link name="other"/></robot>'), "",
+                  "2 root links (base, other)"),
+    "zero axis": (_bad(GOOD, '<axis xyz="0 0 1"/>', '<axis xyz="0 0 0"/>'), "",
+                  "joint 'j1': <axis xyz> is zero"),
     "no file": (None, "", "no such URDF file"),
 }
 
 
 def test_a_good_small_urdf_loads(tmp_path):
     p = tmp_path / "r.urdf"
-    p.write_text(GOOD)
+    p.write_text(GOOD.replace('name="j2" type="revolute"', 'name="j2" type="continuous"'))
     m = load_model(str(p))
     assert m.n_joints == 2 and (m.urdf.root, m.urdf.tip) == ("base", "l2")
+    assert (m.joints[0].min, m.joints[0].max) == pytest.approx(np.degrees([-3, 3]))
+    assert (m.joints[1].min, m.joints[1].max) == (-360.0, 360.0)  # continuous
+    assert m.links is None  # no inertials: no mass model
 
 
 @pytest.mark.parametrize("case", list(BAD))
