@@ -28,7 +28,7 @@ import numpy as np
 from .dataset import Dataset
 from .error_model import ErrorModel
 from .inverse import ChainFK, IKResult, solve_ik
-from .kinematics import cross, run_chain
+from .kinematics import run_chain
 
 
 class CalibratedFK:
@@ -67,12 +67,12 @@ class CalibratedFK:
                                     **cols))
         c = em.perturb(self.x, bound)
         return run_chain(em.model.convention, c.table, q if c.q is None else c.q, c.tool,
-                         c.length_scale, jacobian=False)
+                         c.length_scale, jacobian=False,
+                         prismatic=em.model.prismatic_mask())
 
     def __call__(self, q: np.ndarray, rows: np.ndarray | None = None):
         r = self.chain(q, rows)
-        Jp = cross(r.joint_axes, r.base_p_tcp[:, None, :] - r.joint_origins).transpose(0, 2, 1)
-        return r.base_p_tcp, r.base_R_flange, Jp, r.joint_axes.transpose(0, 2, 1)
+        return r.base_p_tcp, r.base_R_flange, r.dP_dq, r.dR_dq
 
     def point(self, q: np.ndarray) -> np.ndarray:
         """Calibrated tool point (base frame) for commanded joints q (rad), (n, 3) mm."""

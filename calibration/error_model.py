@@ -91,6 +91,7 @@ class ErrorModel:
         self.units = [u for e in self.effects for u in e.units]
         self.scales = np.concatenate([e.scales for e in self.effects]) if self.effects else []
         self._table0 = model.dh_table()
+        self._prismatic = model.prismatic_mask()
         self._by_stage = {
             s: [i for i, e in enumerate(self.effects) if e.stage == s] for s in _STAGES
         }
@@ -127,7 +128,8 @@ class ErrorModel:
                 f"has {self.model.n_joints}"
             )
         nominal = run_chain(
-            self.model.convention, self._table0, data.q, self.model.tool_mm(), jacobian=False
+            self.model.convention, self._table0, data.q, self.model.tool_mm(), jacobian=False,
+            prismatic=self._prismatic,
         )
         states = [e.bind(data, nominal) for e in self.effects]
         return Bound(data, nominal, states)
@@ -222,14 +224,15 @@ class ErrorModel:
         c = self.perturb(x, bound)
         table, tool, scale = c.table, c.tool, c.length_scale
         jacobian = jacobian or joints
-        r = run_chain(self.model.convention, table, c.q, tool, scale, jacobian=jacobian)
+        r = run_chain(self.model.convention, table, c.q, tool, scale, jacobian=jacobian,
+                      prismatic=self._prismatic)
         P = r.base_p_tcp
-        G = r.dP_dtable[:, :, :, 0] if joints else None
+        G = r.dP_dq if joints else None
         if jacobian:
             dP = r.dP_dtable
             for i in self._by_stage["joint"]:
                 j = eff[i].joint - 1
-                J[:, :, sls[i]] = dP[:, :, j, 0][:, :, None] * c.partials[i][:, None, :]
+                J[:, :, sls[i]] = r.dP_dq[:, :, j][:, :, None] * c.partials[i][:, None, :]
             for i in self._by_stage["table"]:
                 # (k, N*5) @ (N*5, 3n) on the chain's own storage layout
                 part = c.partials[i]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .kinematics import ChainResult, cross
+from .kinematics import PRISMATIC_MM_PER_UNIT, ChainResult, cross
 from .robot_model import RobotModel
 
 
@@ -29,6 +29,8 @@ def gravity_torques(
     Returns
     -------
     array, shape (n, N), N·m. Positive = gravity pulls the joint in its positive direction.
+    A prismatic joint's entry is the generalised force per internal unit of travel
+    (N · mm/unit / 1000), so that ``tau = -dV/dq`` holds for every joint.
     """
     n, N = chain.joint_axes.shape[:2]
     g = np.asarray(model.gravity, float)  # m/s^2
@@ -49,7 +51,13 @@ def gravity_torques(
     S = S + (mp[:, None] * cp)[:, None, :]
     M = M + mp[:, None]
     moment = cross(S - M[:, :, None] * chain.joint_origins, np.broadcast_to(g, S.shape))
-    return np.einsum("nji,nji->nj", chain.joint_axes, moment) / 1000.0
+    tau = np.einsum("nji,nji->nj", chain.joint_axes, moment) / 1000.0
+    slide = chain.prismatic
+    if slide is not None:
+        # a prismatic joint feels the weight along its travel, per internal unit of travel
+        tau[:, slide] = (chain.joint_axes[:, slide] @ g) * M[:, slide] * (
+            PRISMATIC_MM_PER_UNIT / 1000.0)
+    return tau
 
 
 def potential_energy(

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kinematics import cross, run_chain
+from .kinematics import run_chain
 
 
 @dataclass
@@ -61,11 +61,15 @@ class ChainFK:
     tool : array, shape (3,), tool point in the flange frame, mm
     joint_offsets : array, shape (N,), optional
         added to the joint angles before the chain (zero-point corrections), rad
+    prismatic : array of bool, shape (N,), optional
+        the prismatic joints (None: all revolute)
     """
 
     def __init__(self, convention: str, table: np.ndarray, tool: np.ndarray,
-                 joint_offsets: np.ndarray | None = None):
+                 joint_offsets: np.ndarray | None = None,
+                 prismatic: np.ndarray | None = None):
         self.convention = convention
+        self.prismatic = prismatic
         self.table = np.asarray(table, float)
         self.tool = np.asarray(tool, float)
         self.offsets = (np.zeros(len(self.table)) if joint_offsets is None
@@ -74,7 +78,8 @@ class ChainFK:
     @classmethod
     def from_model(cls, model, tool: np.ndarray | None = None) -> ChainFK:
         """The nominal chain of a :class:`~calibration.robot_model.RobotModel`."""
-        return cls(model.convention, model.dh_table(), model.tool_mm() if tool is None else tool)
+        return cls(model.convention, model.dh_table(), model.tool_mm() if tool is None else tool,
+                   prismatic=model.prismatic_mask())
 
     @property
     def n_joints(self) -> int:
@@ -91,14 +96,13 @@ class ChainFK:
         Jw : (n, 3, N) angular velocity per joint rate (the joint axes), 1
         """
         r = run_chain(self.convention, self.table, np.atleast_2d(q) + self.offsets, self.tool,
-                      jacobian=False)
-        Jp = cross(r.joint_axes, r.base_p_tcp[:, None, :] - r.joint_origins).transpose(0, 2, 1)
-        return r.base_p_tcp, r.base_R_flange, Jp, r.joint_axes.transpose(0, 2, 1)
+                      jacobian=False, prismatic=self.prismatic)
+        return r.base_p_tcp, r.base_R_flange, r.dP_dq, r.dR_dq
 
     def point(self, q: np.ndarray) -> np.ndarray:
         """Tool point for joint angles q (rad), shape (n, 3), mm."""
         return run_chain(self.convention, self.table, np.atleast_2d(q) + self.offsets,
-                         self.tool, jacobian=False).base_p_tcp
+                         self.tool, jacobian=False, prismatic=self.prismatic).base_p_tcp
 
 
 def rotation_error(R: np.ndarray, R_target: np.ndarray) -> np.ndarray:

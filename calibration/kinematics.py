@@ -7,7 +7,13 @@ A chain is a product of elementary transforms, per joint row (angles rad, length
 - ``mdh`` (modified, Craig; a and alpha are a_{i-1}, alpha_{i-1}):
   ``Rx(alpha) . Tx(a) . Ry(beta) . Rz(theta) . Tz(d)``
 
-with ``theta = q + theta_offset``. Rotations act on the frame's own axes, so a
+with ``theta = q + theta_offset`` for a revolute joint. A prismatic joint (``prismatic``
+mask) keeps theta fixed and slides instead: ``d + q·180/π`` mm. Its internal variable is
+the travel in mm scaled by π/180, like an angle in rad: wherever files hold joint angles in
+degrees they hold a prismatic joint's travel in millimetres, and every edge that converts
+deg <-> rad converts the travel unchanged (``PRISMATIC_MM_PER_UNIT``).
+
+Rotations act on the frame's own axes, so a
 frame is carried as its three axis columns and its origin, each of shape
 (n_poses, 3); an elementary rotation mixes two columns. No loop over poses: the
 only Python loop is over the ~5 elementary transforms of each joint.
@@ -28,6 +34,9 @@ from .robot_model import RobotModel
 
 # column index of each parameter in the (n_joints, 5) table
 THETA, D, A, ALPHA, BETA = range(5)
+#: mm of travel per internal unit of a prismatic joint (see the module docstring)
+PRISMATIC_MM_PER_UNIT = 180.0 / np.pi
+_TRAVEL = D  # the column a prismatic joint's travel adds to
 
 # elementary sequence per convention: (kind, axis, column)
 _SEQUENCE = {
@@ -75,6 +84,36 @@ class ChainResult:
     frames_p: np.ndarray
     #: ``dP_dtable`` in its storage layout (N, 5, 3, n), for fast contractions
     dP_internal: np.ndarray | None = None
+    #: (N,) bool, the prismatic joints (None: all revolute); their ``joint_axes`` are the
+    #: directions of travel
+    prismatic: np.ndarray | None = None
+
+    @property
+    def dP_dq(self) -> np.ndarray:
+        """(n, 3, N) derivative of ``base_p_tcp`` with respect to each joint variable: mm/rad
+        for a revolute joint, mm per internal unit for a prismatic one."""
+        if self.dP_dtable is not None:
+            G = self.dP_dtable[:, :, :, THETA]
+        else:
+            G = cross(self.joint_axes, self.base_p_tcp[:, None, :] - self.joint_origins)
+            G = G.transpose(0, 2, 1)
+        if self.prismatic is None or not self.prismatic.any():
+            return G
+        G = G.copy()
+        G[:, :, self.prismatic] = (self.joint_axes[:, self.prismatic].transpose(0, 2, 1)
+                                   * PRISMATIC_MM_PER_UNIT)
+        return G
+
+    @property
+    def dR_dq(self) -> np.ndarray:
+        """(n, 3, N) angular velocity of the flange per joint rate: the axis of a revolute
+        joint, zero for a prismatic one."""
+        W = self.joint_axes.transpose(0, 2, 1)
+        if self.prismatic is None or not self.prismatic.any():
+            return W
+        W = W.copy()
+        W[:, :, self.prismatic] = 0.0
+        return W
 
 
 def run_chain(
@@ -84,6 +123,7 @@ def run_chain(
     tool: np.ndarray,
     length_scale: np.ndarray | None = None,
     jacobian: bool = True,
+    prismatic: np.ndarray | None = None,
 ) -> ChainResult:
     """One vectorised pass along the chain.
 
@@ -100,6 +140,8 @@ def run_chain(
         per-pose relative growth of every link length (d, a) and of the tool.
     jacobian : bool
         also compute ``dP_dtable``.
+    prismatic : array of bool, shape (N,), optional
+        the prismatic joints (``RobotModel.prismatic_mask()``); None: all revolute.
     """
     q = np.atleast_2d(np.asarray(q, dtype=float))
     n, N = q.shape
@@ -108,6 +150,9 @@ def run_chain(
         raise ValueError(f"table has shape {table.shape}, expected ({N}, 5)")
     seq = _SEQUENCE[convention]
     grow = None if length_scale is None else 1.0 + np.asarray(length_scale, float)
+    slide = np.zeros(N, bool) if prismatic is None else np.asarray(prismatic, bool)
+    if slide.shape != (N,):
+        raise ValueError(f"prismatic mask has shape {slide.shape}, expected ({N},)")
 
     # component-major layout inside: a vector field over poses is (3, n), so every
     # operation and every store below touches contiguous memory
@@ -142,7 +187,9 @@ def run_chain(
                 if col == THETA:
                     JA[j] = u
                     JO[j] = p
-                    angle = q[:, j] + value
+                    if slide[j] and value == 0.0:
+                        continue
+                    angle = value if slide[j] else q[:, j] + value
                 elif value == 0.0:
                     continue
                 else:
@@ -155,6 +202,10 @@ def run_chain(
                 if jacobian:
                     T[len(tra_at)] = u
                     tra_at.append((j, col))
+                if col == _TRAVEL and slide[j]:
+                    travel = q[:, j] * PRISMATIC_MM_PER_UNIT
+                    p = p + ((value if grow is None else value * grow) + travel) * u
+                    continue
                 if value == 0.0:
                     continue
                 p = p + (value if grow is None else value * grow) * u
@@ -193,8 +244,8 @@ def run_chain(
         Fp.transpose(2, 0, 1),
     )
     result.dP_internal = dPi
+    result.prismatic = slide if slide.any() else None
     return result
-
 
 
 def forward(model: RobotModel, q_deg_or_rad: np.ndarray, *, degrees: bool = False) -> np.ndarray:
@@ -213,7 +264,8 @@ def forward(model: RobotModel, q_deg_or_rad: np.ndarray, *, degrees: bool = Fals
     q = np.atleast_2d(np.asarray(q_deg_or_rad, float))
     if degrees:
         q = np.radians(q)
-    r = run_chain(model.convention, model.dh_table(), q, model.tool_mm(), jacobian=False)
+    r = run_chain(model.convention, model.dh_table(), q, model.tool_mm(), jacobian=False,
+                  prismatic=model.prismatic_mask())
     n, N1 = r.frames_p.shape[:2]
     T = np.zeros((n, N1, 4, 4))
     T[..., :3, :3] = r.frames_R
@@ -225,4 +277,5 @@ def forward(model: RobotModel, q_deg_or_rad: np.ndarray, *, degrees: bool = Fals
 def tool_points(model: RobotModel, q: np.ndarray, tool: np.ndarray | None = None) -> np.ndarray:
     """Target centre in the base frame for joint angles ``q`` (rad), shape (n, 3), mm."""
     t = model.tool_mm() if tool is None else tool
-    return run_chain(model.convention, model.dh_table(), q, t, jacobian=False).base_p_tcp
+    return run_chain(model.convention, model.dh_table(), q, t, jacobian=False,
+                     prismatic=model.prismatic_mask()).base_p_tcp

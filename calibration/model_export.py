@@ -65,7 +65,13 @@ def ur_deltas(error_model: ErrorModel, x: np.ndarray, nominal: RobotModel | None
     if error_model.model.convention != "dh" or nominal.convention != "dh":
         raise ValueError("UR deltas need a standard-DH (convention: dh) model")
     table, _, notes = calibrated_table(error_model, x)
-    return deltas_from_table(table, nominal.dh_table()), notes
+    nominal_table = nominal.dh_table()
+    if error_model.model.urdf is not None:  # a URDF's own frames: as the controller's DH
+        from .controller_export import ur_table
+
+        table = ur_table(calibrated_model(error_model, x)[0])[0]
+        nominal_table = ur_table(nominal)[0]
+    return deltas_from_table(table, nominal_table), notes
 
 
 def write_ur_conf(error_model: ErrorModel, x: np.ndarray, path: str | Path,

@@ -1,7 +1,10 @@
 """The nominal robot: :class:`RobotModel`, loaded from the model YAML (FORMATS.md §2).
 
 Files hold millimetres and degrees; the model keeps them as written and offers
-radian views (``dh_table()``, ``limits_rad()``) for the numerical code.
+radian views (``dh_table()``, ``limits_rad()``) for the numerical code. A prismatic joint
+(``type: prismatic``) holds its limits in mm where a revolute one holds degrees (see
+:mod:`calibration.kinematics`). ``load_model`` also reads a URDF's serial chain
+(``robot.urdf#root:tip``, :mod:`calibration.urdf_model`).
 """
 
 from __future__ import annotations
@@ -33,8 +36,10 @@ class JointRow(BaseModel):
     d: float
     theta_offset: float = 0.0
     beta: float = 0.0
-    min: float = Field(description="lower joint limit, deg")
-    max: float = Field(description="upper joint limit, deg")
+    min: float = Field(description="lower joint limit, deg (prismatic: mm)")
+    max: float = Field(description="upper joint limit, deg (prismatic: mm)")
+    type: Literal["revolute", "prismatic"] | None = Field(
+        default=None, description="joint type; absent = revolute")
 
     @model_validator(mode="after")
     def _limits(self) -> JointRow:
@@ -51,6 +56,23 @@ class MassPoint(BaseModel):
     com: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
+class UrdfSource(BaseModel):
+    """Where a model read from a URDF came from (:mod:`calibration.urdf_model`).
+
+    ``mount_xyz`` (mm) and ``mount_rpy`` (deg, URDF roll-pitch-yaw) are the pose of the
+    model's base frame in the ``root`` link; identity unless joint 1's axis is not the
+    root's z axis. ``joints`` are the URDF names of the chain's movable joints.
+    """
+
+    model_config = ConfigDict(extra="forbid")
+    file: str
+    root: str
+    tip: str
+    joints: list[str]
+    mount_xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mount_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
 class RobotModel(BaseModel):
     """A robot's nominal kinematics and (optionally) its mass model, as in the model YAML."""
 
@@ -62,6 +84,7 @@ class RobotModel(BaseModel):
     payload: MassPoint | None = None
     links: list[MassPoint] | None = None
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    urdf: UrdfSource | None = None
 
     @field_validator("links")
     @classmethod
@@ -86,17 +109,32 @@ class RobotModel(BaseModel):
         """Joint limits, shape (n_joints, 2), rad."""
         return np.radians([[j.min, j.max] for j in self.joints])
 
+    def sampling_limits_rad(self, max_abs_deg: float = 180.0) -> np.ndarray:
+        """Joint limits for drawing poses, (n_joints, 2): revolute joints clipped to
+        +-max_abs_deg (rad), prismatic joints' full travel (internal units)."""
+        lim = self.limits_rad()
+        clipped = np.clip(lim, -np.radians(max_abs_deg), np.radians(max_abs_deg))
+        mask = self.prismatic_mask()
+        return clipped if mask is None else np.where(mask[:, None], lim, clipped)
+
     def tool_mm(self) -> np.ndarray:
         return np.array(self.tool, dtype=float)
+
+    def prismatic_mask(self) -> np.ndarray | None:
+        """(n_joints,) bool, the prismatic joints; None when every joint is revolute."""
+        mask = np.array([j.type == "prismatic" for j in self.joints])
+        return mask if mask.any() else None
 
     def parallel_rows(self, tol_deg: float = 1e-6) -> list[int]:
         """0-based rows whose two neighbouring joint axes are (nominally) parallel.
 
         These rows carry the Hayati tilt beta: for dh row i (alpha_i between axes i and
         i+1) every row but the last; for mdh row i (alpha_{i-1} between axes i-1 and i)
-        every row but the first.
+        every row but the first. A row written in Hayati form (nominal beta, e.g. nearly
+        parallel axes of a URDF) counts as parallel too.
         """
-        rows = [i for i, j in enumerate(self.joints) if abs(np.sin(np.radians(j.alpha))) < tol_deg]
+        rows = [i for i, j in enumerate(self.joints)
+                if abs(np.sin(np.radians(j.alpha))) < tol_deg or j.beta != 0.0]
         last = self.n_joints - 1
         return [i for i in rows if i != (last if self.convention == "dh" else 0)]
 
@@ -113,6 +151,9 @@ class RobotModel(BaseModel):
         for key in ("payload",):
             if key in data:
                 data[key]["com"] = list(data[key]["com"])
+        if "urdf" in data:
+            for key in ("mount_xyz", "mount_rpy"):
+                data["urdf"][key] = list(data["urdf"][key])
         if "links" in data:
             for link in data["links"]:
                 link["com"] = list(link["com"])
@@ -149,8 +190,13 @@ def model_from_dict(data: dict, source: str = "<model>") -> RobotModel:
 
 
 def load_model(name_or_path: str | Path) -> RobotModel:
-    """Load a built-in model by name (``"ur10e"``) or a model YAML by path."""
+    """Load a built-in model by name (``"ur10e"``), a model YAML by path, or the serial chain
+    of a URDF (``"robot.urdf#base_link:tool0"``, or ``"robot.urdf"`` when unambiguous)."""
     text_source = str(name_or_path)
+    from .urdf_model import is_urdf_spec, load_urdf_model
+
+    if is_urdf_spec(text_source):
+        return load_urdf_model(text_source)
     path = Path(text_source)
     if path.suffix in (".yaml", ".yml") or path.exists():
         if not path.is_file():

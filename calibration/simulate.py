@@ -18,8 +18,9 @@ from .transforms import matrix_to_rotvec, random_rotation
 def random_joints(
     model: RobotModel, n: int, rng: np.random.Generator, max_abs_deg: float = 180.0
 ) -> np.ndarray:
-    """Joint positions uniform within the model's limits (clipped to +-max_abs_deg), (n, N) rad."""
-    lim = np.clip(model.limits_rad(), -np.radians(max_abs_deg), np.radians(max_abs_deg))
+    """Joint positions uniform within the model's limits (revolute ones clipped to
+    +-max_abs_deg), (n, N) rad (prismatic: internal units)."""
+    lim = model.sampling_limits_rad(max_abs_deg)
     return rng.uniform(lim[:, 0], lim[:, 1], size=(n, model.n_joints))
 
 

@@ -123,7 +123,8 @@ def check_plan(
         res.problems.append(Problem(
             t.index, t.label, f"{what[r]} joint {j + 1} = {np.degrees(Q[r, j]):.3f} deg beyond "
             f"its {side} limit {bound:g} deg"))
-    chain = run_chain(model.convention, model.dh_table(), Q, model.tool_mm(), jacobian=False)
+    chain = run_chain(model.convention, model.dh_table(), Q, model.tool_mm(), jacobian=False,
+                      prismatic=model.prismatic_mask())
     tip = chain.base_p_tcp
     for r, t in enumerate(rows):
         if what[r] == "target" and t.move == "linear":

@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ from calibration.transforms import matrix_to_rotvec
 
 from ..cli import UsageError
 from .common import fmt, print_json, wrap_errors
+from .compensate_exports import add_export_args, output_paths, run_exports
 
 
 def register(sub) -> None:
@@ -42,6 +44,7 @@ def register(sub) -> None:
                    help="write the calibrated kinematics as a model YAML")
     p.add_argument("--export-ur", metavar="calibration.conf",
                    help="write UR calibration.conf deltas (standard-DH models)")
+    add_export_args(p)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -60,11 +63,12 @@ def run(args) -> int:
     em, x, _ = wrap_errors(lambda: load_params(args.params))
     model = em.model
     inputs = {Path(p).resolve() for p in (args.params, args.targets) if p}
-    for out in (args.out, args.export_model, args.export_ur):
+    for out in (args.out, args.export_model, args.export_ur, *output_paths(args)):
         if out and Path(out).resolve() in inputs:
             raise UsageError(f"{out} is an input file; write a new file instead")
-    if not args.targets and not (args.export_model or args.export_ur):
-        raise UsageError("give TARGETS.csv, --export-model or --export-ur")
+    if not args.targets and not (args.export_model or args.export_ur or output_paths(args)):
+        raise UsageError("give TARGETS.csv, --export-model, --export-ur, --export-urdf, "
+                         "--export-ur-yaml or --export-dh")
     doc = {"params_file": args.params, "model": model.name, "notes": []}
     if args.export_model:
         m, notes = calibrated_model(em, x)
@@ -78,6 +82,7 @@ def run(args) -> int:
             raise UsageError(str(e)) from None
         doc["ur_conf_file"] = args.export_ur
         doc["notes"] += [n for n in notes if n not in doc["notes"]]
+    export_lines = run_exports(args, em, x, doc)
     rc = 0
     if args.targets:
         t = wrap_errors(lambda: load_targets(args.targets, model))
@@ -112,10 +117,10 @@ def run(args) -> int:
                 print(text, end="")
     if args.json:
         print_json(doc)
-    elif not args.targets:
-        for k in ("model_file", "ur_conf_file"):
-            if k in doc:
-                print(f"written   {doc[k]}")
+    else:
+        # beside compensated targets on stdout, the export report goes to stderr
+        for line in export_lines:
+            print(line, file=sys.stderr if args.targets and not args.out else sys.stdout)
     return rc
 
 

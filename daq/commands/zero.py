@@ -106,6 +106,9 @@ def register(sub) -> None:
 
 def _chain(model, params_path):
     """The chain to recalibrate and the base transform (R, t) or None."""
+    if model.prismatic_mask() is not None:
+        raise UsageError(f"model {model.name} has a prismatic joint: the zero-point "
+                         "recalibration handles revolute joints only")
     if not params_path:
         return ChainFK.from_model(model), None
     em, x, _ = wrap_errors(lambda: load_params(params_path))

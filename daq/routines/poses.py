@@ -26,12 +26,13 @@ from ..plans import Plan, Target
 def candidates(model, n: int, rng: np.random.Generator, *, floor_z_mm: float | None = 0.0,
                max_reach_mm: float | None = None, max_abs_deg: float = 180.0) -> np.ndarray:
     """``n`` random joint vectors (rad) within the limits, above the floor and within reach."""
-    lim = np.clip(model.limits_rad(), -np.radians(max_abs_deg), np.radians(max_abs_deg))
+    lim = model.sampling_limits_rad(max_abs_deg)
     out = []
     have = 0
     for _ in range(200):
         q = rng.uniform(lim[:, 0], lim[:, 1], size=(max(4 * n, 64), model.n_joints))
-        r = run_chain(model.convention, model.dh_table(), q, model.tool_mm(), jacobian=False)
+        r = run_chain(model.convention, model.dh_table(), q, model.tool_mm(), jacobian=False,
+                      prismatic=model.prismatic_mask())
         ok = np.ones(len(q), bool)
         if floor_z_mm is not None:
             ok &= ((r.frames_p[:, 1:, 2] >= floor_z_mm).all(axis=1)
@@ -53,8 +54,8 @@ def scaled_jacobian(error_model: ErrorModel, q: np.ndarray) -> np.ndarray:
     """Identification Jacobian at the nominal (base = identity) per pose, scaled by the
     parameters' typical sizes: shape (n, 3, p), mm per typical error."""
     model = error_model.model
-    pts = run_chain(model.convention, model.dh_table(), q, model.tool_mm(),
-                    jacobian=False).base_p_tcp
+    pts = run_chain(model.convention, model.dh_table(), q, model.tool_mm(), jacobian=False,
+                    prismatic=model.prismatic_mask()).base_p_tcp
     data = error_model.prepare(Dataset(q=q, tracker_p_smr=pts, source="<candidate poses>"))
     bound = error_model.bind(data)
     _, J = error_model.evaluate(error_model.initial(bound), bound)

@@ -57,6 +57,9 @@ def make_plan(model, *, target_xyz=None, seed_deg=None, seed: int = 0,
     if model.n_joints < 6:
         raise ValueError(f"zero20: model {model.name} has {model.n_joints} joints; 20 distinct "
                          "postures on one point need an arm that orients its tool (6+ joints)")
+    if model.prismatic_mask() is not None:
+        raise ValueError(f"zero20: model {model.name} has a prismatic joint: the zero-point "
+                         "routine handles revolute joints only")
     if target_xyz is None:
         raise ValueError("zero20: the target point is required (--target-xyz X,Y,Z)")
     target = np.asarray(target_xyz, float)

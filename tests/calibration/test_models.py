@@ -6,11 +6,11 @@ from calibration import ModelError, builtin_models, load_model
 
 def test_builtins_load_with_sources():
     names = builtin_models()
-    assert {"ur5", "ur5e", "ur10", "ur10e", "rv16"} <= set(names)
+    assert {"ur5", "ur5e", "ur10", "ur10e", "rv16", "panda"} <= set(names)
     for name in names:
         m = load_model(name)
-        assert m.n_joints == 6
-        assert m.dh_table().shape == (6, 5)
+        assert m.n_joints == (7 if name == "panda" else 6)
+        assert m.dh_table().shape == (m.n_joints, 5)
 
 
 def test_rv16_is_the_thesis_table():
