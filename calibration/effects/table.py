@@ -94,23 +94,32 @@ def tune_smoothing(error_model, data: Dataset, effect: Table, identify_fn, grid=
     """Choose ``effect.smoothing`` by k-fold cross-validation of the pose error.
 
     ``identify_fn(error_model, data, x0=None)`` fits; held-out poses are predicted with
-    the fit. Records ``effect.cv_curve`` as (smoothing, held-out RMS mm) pairs.
+    the fit; points that are blunders (:func:`calibration.outliers.find_blunders` on the
+    held-out errors at any smoothing) are left out of the comparison. Records
+    ``effect.cv_curve`` as (smoothing, held-out RMS mm) pairs.
     """
+    from ..outliers import find_blunders, point_sigmas
+
     grid = [1e-3, 1e-2, 1e-1, 1.0, 10.0, 100.0] if grid is None else grid
     rng = np.random.default_rng(seed)
     fold_of = rng.permutation(data.n) % folds
     effect.cv_curve = []
-    best = (np.inf, grid[0])
-    for lam in grid:
+    held = np.zeros((len(grid), data.n, 3))
+    for g, lam in enumerate(grid):
         effect.smoothing = lam
-        sq, count = 0.0, 0
         for f in range(folds):
             train, test = data.subset(fold_of != f), data.subset(fold_of == f)
             fit = identify_fn(error_model, train)
-            r = test.xyz - fit.predict(test)
-            sq += float(np.sum(r**2))
-            count += test.n
-        rms = float(np.sqrt(sq / max(count, 1)))
+            held[g, fold_of == f] = test.xyz - fit.predict(test)
+    # blunders would weigh on the held-out error more than the smoothing does: a point
+    # out of line at any smoothing counts at none
+    sigma = point_sigmas(data)[0]
+    out = np.zeros(data.n, bool)
+    for g in range(len(grid)):
+        out[[b.index for b in find_blunders(held[g], sigma).blunders]] = True
+    best = (np.inf, grid[0])
+    for g, lam in enumerate(grid):
+        rms = float(np.sqrt(np.sum(held[g, ~out] ** 2) / max(int((~out).sum()), 1)))
         effect.cv_curve.append((lam, rms))
         if rms < best[0]:
             best = (rms, lam)
