@@ -156,9 +156,9 @@ class BlunderScreen:
                 "sigma_mm": self.sigma_mm, "scale": self.scale, "rounds": self.rounds,
                 "message": self.message(context)}
 
-    def message(self, context: str = "fit") -> str:
+    def message(self, context: str = "fit", list_points: bool = True) -> str:
         """The verdict in one or two sentences; ``context`` "fit" (calibrate) or "ranking"
-        (diagnose) says what the blunders were left out of."""
+        (diagnose) says what the blunders were left out of; ``list_points`` names them."""
         if not self.clean_cloud:
             head = (f"{self.n_out_of_line} of {self.n} points lie beyond "
                     f"{self.threshold_mm:.3f} mm: the residuals are not a clean cloud with a "
@@ -176,8 +176,8 @@ class BlunderScreen:
             tail = f"{it} still in the fit (--outliers flag)"
         else:
             tail = f"{it} left out of the {'ranking' if context == 'ranking' else 'fit'}"
-        return (f"{what} (beyond {self.threshold_mm:.3f} mm): "
-                + ", ".join(b.describe() for b in self.blunders) + f"; {tail}.")
+        points = ": " + ", ".join(b.describe() for b in self.blunders) if list_points else ""
+        return f"{what} (beyond {self.threshold_mm:.3f} mm){points}; {tail}."
 
 
 def _robust_scale(u: np.ndarray) -> float:

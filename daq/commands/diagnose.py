@@ -7,7 +7,7 @@ from calibration.diagnosis import Diagnosis, diagnose
 from calibration.identify import fit_at
 from calibration.params_io import load_params
 
-from .common import add_model_args, fmt, load_inputs, print_json, table, wrap_errors
+from .common import add_model_args, fmt, load_inputs, print_json, print_outliers, table, wrap_errors
 
 
 def register(sub) -> None:
@@ -60,6 +60,7 @@ def print_diagnosis(diag: Diagnosis, top: int = 12) -> None:
           + (f"; noise floor {floor:.4f} mm" if floor else "; noise floor unknown (--sigma)"))
     print(f"screened  {diag.n_screened} candidate effects in {diag.screen_s:.2f} s; "
           f"best refitted and checked on held-out poses in {diag.confirm_s:.2f} s")
+    print_outliers(diag.outliers, "ranking")
     print()
     rows = []
     for c in diag.candidates[:top]:
