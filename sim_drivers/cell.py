@@ -18,7 +18,9 @@ Tracker
     ``tracker_range_mm`` (default 800 mm – 30 m): outside it the tracker finds
     no target. Optional occlusions: spheres ``(centre_xyz_mm, radius_mm)`` in the
     tracker frame that break the beam when the line of sight passes through
-    them.
+    them. Blunders (fault ``blunder``): a reading displaced by 0.5-5 mm, along the
+    line of sight or in a random direction, drawn from the cell's own seeded generator;
+    :attr:`SimCell.blunder_log` records which readings they were.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calibration.simulate import blunder_offsets
 from sim_drivers.truth import PoseContext, TrueRobot
 
 
@@ -81,6 +84,23 @@ class TrackerReading:
     pressure_hpa: float
     humidity_pct: float
     timestamp: float
+
+
+@dataclass(frozen=True)
+class SimBlunder:
+    """The truth about one blunder the simulated tracker returned.
+
+    ``measurement`` is the cell's 1-based measurement count of that reading (``MEAS``
+    replies over every server and the in-process driver, in order), ``true_xyz`` the
+    target's true position (mm), ``offset_mm`` the displacement added on top of the
+    noise, ``along_beam`` whether it lies along the line of sight, ``sim_time`` (s).
+    """
+
+    measurement: int
+    true_xyz: np.ndarray
+    offset_mm: np.ndarray
+    along_beam: bool
+    sim_time: float
 
 
 #: error codes the controller reports (shared by every robot protocol)
@@ -183,6 +203,9 @@ class SimCell:
         self.beam_ok = True
         self.n_moves = 0
         self.n_measurements = 0
+        #: every blunder returned so far (fault ``blunder``), in measurement order
+        self.blunder_log: list[SimBlunder] = []
+        self._blunder_rng = np.random.default_rng([seed, 0xB1])
 
     # ------------------------------------------------------------------ clock
     @property
@@ -400,6 +423,11 @@ class SimCell:
             std = sigma * (1.0 + 0.05 * self._rng.standard_normal(3)).clip(0.5)
             temp = self.temperature() + 0.01 * float(self._rng.standard_normal())
             self.n_measurements += 1
+            if self.faults is not None and self.faults.fires("blunder"):
+                offset, along = blunder_offsets(p, self._blunder_rng)
+                xyz = xyz + offset[0]
+                self.blunder_log.append(SimBlunder(self.n_measurements, p.copy(), offset[0],
+                                                   bool(along[0]), self.now()))
         self.advance(duration_s)
         return TrackerReading(
             xyz=xyz,
