@@ -127,7 +127,9 @@ def mc_summary(mc, fit) -> dict:
 def print_report(fit, baseline, out_path=None, mc=None, ridge_plot=None) -> None:
     em = fit.error_model
     d = fit.data
-    print(f"data      {d.source}: {d.n} calibration poses"
+    left_out = len(fit.outliers.blunders) if fit.outliers and fit.outliers.excluded else 0
+    print(f"data      {d.source}: {d.n + left_out} calibration poses"
+          + (f" ({left_out} left out as blunders)" if left_out else "")
           + (f", {fit.valid['n']} validation poses" if fit.valid else ""))
     print(f"model     {em.model.name} ({em.model.convention}), effects {','.join(em.labels)}")
     ident = fit.identifiability
