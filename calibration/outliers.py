@@ -14,8 +14,7 @@ blunder; a point left out of the fit: ``(I + H_ii)``, its prediction's variance)
 its norm divided by the instrument's uncertainty of that point ``s_i`` (the ``sigma_mm``
 column, else the tracker sigma of the metadata or ``--sigma``; 1 mm when unknown):
 ``u_i``. For a model at the noise floor ``u`` follows a chi distribution with 3 degrees
-of freedom. The bulk's
-robust scale is
+of freedom. The bulk's robust scale is
 
     c = max(median(u) / 1.5382, MAD(u) / 0.4602, 1)
 
@@ -36,7 +35,10 @@ The loop (:func:`screen_fit`)
 Fit every point; test; refit without the points out of line (warm start, same solver);
 test *every* point again at the new parameters (a point wrongly left out comes back),
 until the set no longer changes. An excluded point's residual is then its distance
-from what the other points predict.
+from what the other points predict. Large blunders can drag a least-squares fit (a
+flexible one most) until many points look out of line: when the first test finds too
+many, the worst ``max_fraction`` are left out once on trial and every point is judged
+again at that fit; only if that fit still is not a clean cloud is nothing left out.
 
 Direction
 ---------

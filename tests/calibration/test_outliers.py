@@ -10,6 +10,8 @@ import pytest
 from calibration import ErrorModel, identify, load_model
 from calibration.diagnosis import diagnose
 from calibration.outliers import (
+    CHI3_MAD,
+    CHI3_MEDIAN,
     concentration,
     find_blunders,
     line_of_sight_known,
@@ -56,6 +58,12 @@ def _score(fit, truth) -> tuple[float, float]:
 
 
 # ---- the test itself ----------------------------------------------------------------
+def test_chi3_constants():
+    chi3 = np.linalg.norm(np.random.default_rng(5).normal(size=(400_000, 3)), axis=1)
+    assert np.median(chi3) == pytest.approx(CHI3_MEDIAN, rel=3e-3)
+    assert np.median(np.abs(chi3 - CHI3_MEDIAN)) == pytest.approx(CHI3_MAD, rel=5e-3)
+
+
 def test_find_blunders_in_a_gaussian_cloud_with_the_instrument_as_lower_bound():
     rng = np.random.default_rng(0)
     r = rng.normal(0, SIGMA, (1000, 3))
