@@ -12,7 +12,8 @@ workspace:
 Prints one table: validation RMS and its ratio to the noise floor sqrt(3) sigma, the
 calibration RMS, the wall time of identify() and the solver's iterations (annealing:
 temperature levels and model evaluations). Ridge: the ridge parameter xi, the
-condition class and the poses IGG3 rejected (and whether they are the injected ones).
+condition class and the poses IGG3 rejected; every solver: whether the blunders it left out
+(calibration.outliers, the default) are the injected ones.
 
     python benchmarks/solvers.py [--seed N]
 """
@@ -83,8 +84,9 @@ def main() -> None:
                 notes.append(f"xi {fit.info['xi']:.2g}, cond {fit.info['condition_number']:.2g}"
                              f" ({fit.info['condition_class']}), rejected {len(rej)}"
                              f", downweighted {len(fit.info['downweighted'])}")
-                if injected:
-                    notes.append(f"rejected == injected: {sorted(rej) == sorted(injected)}")
+            if injected and fit.outliers is not None:  # left out before any solver runs
+                notes.append(f"blunders left out == injected: "
+                             f"{sorted(fit.outliers.ids) == sorted(injected)}")
             if solver == "lm" and case.startswith("(c)"):
                 notes.append(f"{fit.identifiability.n_identifiable} identifiable, "
                              f"cond {fit.identifiability.condition_number:.3g}")

@@ -19,6 +19,12 @@ effect that is not in the model (every family on every joint where it makes sens
    least 100, else k-fold cross-validation): one that does not lower the held-out
    error only overfits and is not recommended.
 
+Blunders first: the fit's blunders (:mod:`calibration.outliers`; a fit that kept them is
+screened and refitted without them) are left out of everything below and reported
+(``Diagnosis.outliers``), and a candidate whose explained error sits in one or two points
+(:func:`~calibration.outliers.concentration`) is not significant: no effect is added to
+explain a blunder.
+
 "Where it fails" (:class:`WhereItFails`) gives per-pose errors and the worst poses, and
 the residual seen from each joint (the joint correction that would explain it) against
 the joint angle, capture order, temperature and gravity torque.
@@ -39,6 +45,7 @@ from .effects.physical import derive_directions
 from .error_model import ErrorModel
 from .gravity import gravity_torques, has_mass_model
 from .identify import Fit, identify
+from .outliers import BlunderScreen, concentration, screen_for_diagnosis
 from .screening import effect_columns, log10_f_sf
 
 #: harmonic orders scanned on every joint
@@ -47,6 +54,9 @@ HARMONIC_ORDERS = range(1, 61)
 ALPHA = 0.01
 #: fewer validation rows than this: confirm by k-fold cross-validation instead
 MIN_HELDOUT = 100
+#: a candidate whose two largest points carry more than this share of what it explains
+#: explains points, not an effect
+MAX_CONCENTRATION = 0.5
 
 
 @dataclass
@@ -139,6 +149,8 @@ class Diagnosis:
     screen_s: float
     confirm_s: float
     notes: list[str] = field(default_factory=list)
+    #: the blunder test: the points left out of the ranking
+    outliers: BlunderScreen | None = None
 
     @property
     def best(self) -> Candidate | None:
@@ -188,6 +200,9 @@ class Diagnosis:
             "correlations": self.where.correlations,
             "screen_s": self.screen_s,
             "confirm_s": self.confirm_s,
+            "outliers": self.outliers.to_json() if self.outliers else [],
+            **({"outlier_check": self.outliers.check_json("ranking")} if self.outliers
+               else {}),
         }
 
 
@@ -253,12 +268,15 @@ def diagnose(
     alpha : significance level after the multiple-comparison correction
     """
     t0 = time.perf_counter()
-    em = fit.error_model
     if data is None:
         data = fit.data if fit.valid_data is None else fit.data.concat(fit.valid_data)
     if data.dirs is None:  # approach directions from capture order, for backlash candidates
         data = replace(data, dirs=derive_directions(data.q),
                        meta={**data.meta, "dirs_derived": "consecutive rows in capture order"})
+    fit = screen_for_diagnosis(fit)
+    if fit.outliers.excluded:
+        data = data.subset(~np.isin(data.pose_id, fit.outliers.ids))
+    em = fit.error_model
     calib = data.calib() if data.is_valid.any() else data
     if calib.n != fit.data.n:
         calib = fit.data
@@ -306,7 +324,10 @@ def diagnose(
         U, s, _ = np.linalg.svd(Cp, full_matrices=False)
         U = U[:, s > 1e-6 * s[0]]
         proj = U.T @ r
-        screened.append((eff, U.shape[1], float(proj @ proj), ""))
+        conc = concentration(r, U @ proj, n)
+        note = (f"two points carry {100 * conc:.0f} % of what it explains: it fits points, "
+                "not an effect" if conc > MAX_CONCENTRATION else "")
+        screened.append((eff, U.shape[1], float(proj @ proj), note))
 
     # significance (F-test, Bonferroni over everything screened)
     sigma = calib.sigma() if fit.data.sigma() is None else fit.data.sigma()
@@ -331,7 +352,8 @@ def diagnose(
             order=getattr(eff, "order", None) if eff.family == "harmonic" else None,
             n_params=k, explained_fraction=d_rss / rss0 if rss0 > 0 else 0.0,
             rms_after_mm=math.sqrt(rss1 / n), p_value=p, log10_p=logp, p_adjusted=p_adj,
-            significant=(not at_floor) and k > 0 and (logp + math.log10(M) < math.log10(alpha)),
+            significant=(not at_floor) and k > 0 and (logp + math.log10(M) < math.log10(alpha))
+            and not note,
             note=note, score=score,
         ))
 
@@ -374,7 +396,7 @@ def diagnose(
         notes.append("backlash candidates: approach directions derived from consecutive rows "
                      "in capture order (the data have no dir columns)")
     return Diagnosis(fit, rms, floor, at_floor, floor_p, cands, where, n_screened, screen_s,
-                     confirm_s, notes)
+                     confirm_s, notes, fit.outliers)
 
 
 def _confirm(c: Candidate, fit: Fit, data: Dataset, folds: int, seed: int) -> None:

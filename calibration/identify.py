@@ -14,6 +14,8 @@ from .dataset import Dataset
 from .effects import display_unit
 from .error_model import Bound, ErrorModel
 from .identifiability import Identifiability, analyse, penalised_groups
+from .outliers import MODES as OUTLIER_MODES
+from .outliers import BlunderScreen, screen_fit
 from .solvers import SOLVERS, Problem
 
 
@@ -47,6 +49,8 @@ class Fit:
     sigma_mm : residual standard deviation per axis after the fit
     converged, reason, iterations, history, solver, solve_s : how the solver did
     info : solver-specific extras (robust weights, ridge parameter...)
+    outliers : the blunder test (:class:`~calibration.outliers.BlunderScreen`): the points
+        left out of ``data`` (or only named), None when not tested
     """
 
     error_model: ErrorModel
@@ -69,6 +73,7 @@ class Fit:
     solve_s: float = 0.0
     info: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    outliers: BlunderScreen | None = None
 
     # ---- access --------------------------------------------------------------
     @property
@@ -164,6 +169,7 @@ def identify(
     rtol: float = 1e-3,
     fixed: list[str] | None = None,
     solver_options: dict | None = None,
+    outliers: str = "exclude",
 ) -> Fit:
     """Identify the parameters of ``error_model`` from ``data``.
 
@@ -177,11 +183,17 @@ def identify(
         0.03 mm off the flange axis must not make the wrist's redundancies "identifiable")
     fixed : parameter names to hold at their start value in any case
     solver_options : keyword arguments for the solver
+    outliers : ``exclude`` (default): calibration points far out of line with the rest
+        (blunders) are left out and the model refitted until the set settles; ``flag``:
+        every point is fitted, the blunders only named; ``keep``: no test (see
+        :mod:`calibration.outliers`). The result's ``outliers`` says what was found.
 
     Non-convergence is reported in the result (``converged``, ``reason``), not raised.
     """
     if solver not in SOLVERS:
         raise ValueError(f"unknown solver {solver!r}; available: {', '.join(SOLVERS)}")
+    if outliers not in OUTLIER_MODES:
+        raise ValueError(f"outliers must be one of {', '.join(OUTLIER_MODES)}, not {outliers!r}")
     t0 = time.perf_counter()
     data = error_model.prepare(data)
     if any(getattr(e, "smoothing", 0.0) is None for e in error_model.effects):
@@ -258,6 +270,12 @@ def identify(
     if held is not None and held.n:
         vres = held.tracker_p_smr - error_model.evaluate(x, error_model.bind(held), False)[0]
         fit.valid_data, fit.valid_residuals, fit.valid = held, vres, error_stats(vres)
+    if outliers != "keep":
+        def refit(rows, x):
+            return identify(error_model, rows, solver, valid=held, x0=x, rtol=rtol,
+                            fixed=fixed, solver_options=solver_options, outliers="keep")
+
+        fit = screen_fit(fit, outliers, refit)
     fit.solve_s = time.perf_counter() - t0
     return fit
 

@@ -12,13 +12,18 @@ The file embeds the nominal model, so it is self-contained::
      "correlation": {"names": [...free parameters...], "matrix": [[1.0, ...], ...]},
      "strongest_correlations": [{"a": "geometric.j5.d", "b": "geometric.j5.alpha",
                                  "r": -0.99}, ...],
-     "solver_info": {"xi": 2e-05, "condition_class": "strong", "rejected": ["17"], ...}}
+     "solver_info": {"xi": 2e-05, "condition_class": "strong", "rejected": ["17"], ...},
+     "outliers": [{"pose_id": "p017", "residual_mm": 2.41, "along_beam": true,
+                   "excluded": true, "line": 19, "angle_to_beam_deg": 8.2}, ...],
+     "outlier_check": {"mode": "exclude", "clean_cloud": true, "threshold_mm": 0.07, ...}}
 
-``correlation``, ``strongest_correlations`` and ``solver_info`` (only for solvers with
-extras: ridge, besa, sa) were added after version 1 and are ignored when reading;
-``smoothing`` (effect name -> the penalty weight of a correction table) is read back.
-A table's knots are its parameter names (``table5.j2.kp010``: +10°), so a table whose knots
-span only the data's angles reads back as it was fitted.
+``correlation``, ``strongest_correlations``, ``solver_info`` (only for solvers with
+extras: ridge, besa, sa), ``outliers`` (the blunders left out of the fit, or only named
+with ``--outliers flag``) and ``outlier_check`` were added after version 1 and are
+ignored when reading the parameters (:func:`read_outliers` reads the blunders; a file
+without them has none); ``smoothing`` (effect name -> the penalty weight of a correction
+table) is read back. A table's knots are its parameter names (``table5.j2.kp010``: +10°),
+so a table whose knots span only the data's angles reads back as it was fitted.
 
 Angles are in degrees (``unit: "deg"``). Geometric parameters are deltas to the
 nominal table; base and tool parameters are absolute.
@@ -73,7 +78,25 @@ def fit_to_dict(fit: Fit, effect_files: list[str] | None = None) -> dict:
     smoothing = {e.label: e.smoothing for e in em.effects if hasattr(e, "penalty_matrix")}
     if smoothing:
         out["smoothing"] = smoothing
+    if fit.outliers is not None:
+        out["outliers"] = fit.outliers.to_json()
+        out["outlier_check"] = fit.outliers.check_json()
     return out
+
+
+def params_by_name(fit: Fit) -> dict:
+    """The ``params`` object of ``calibrate --json``: every parameter by its params.json
+    name, ``{"value", "std", "unit"}`` in display units (std None for a parameter the data
+    cannot determine, held at its start value)."""
+    return {r["name"]: {"value": r["value"], "std": r["std"], "unit": r["unit"]}
+            for r in fit.parameter_rows()}
+
+
+def read_outliers(source: str | Path | dict) -> list[dict]:
+    """The ``outliers`` list of a params.json (a path or its mapping); [] for files written
+    before blunders were tested."""
+    data = source if isinstance(source, dict) else _read_json(Path(source))
+    return list(data.get("outliers", []))
 
 
 def solver_summary(fit: Fit) -> dict:
@@ -144,10 +167,13 @@ def params_from_dict(
 def load_params(path: str | Path) -> tuple[ErrorModel, np.ndarray, np.ndarray]:
     """Read a params.json written by :func:`save_params`."""
     path = Path(path)
+    return params_from_dict(_read_json(path), str(path))
+
+
+def _read_json(path: Path) -> dict:
     try:
-        data = json.loads(path.read_text())
+        return json.loads(path.read_text())
     except FileNotFoundError:
         raise ParamsError(f"{path}: no such file") from None
     except json.JSONDecodeError as e:
         raise ParamsError(f"{path}: not valid JSON: {e}") from None
-    return params_from_dict(data, str(path))

@@ -1,10 +1,13 @@
 """Synthetic measurements with a known truth: the basis of every physical test.
 
 ``realistic_truth`` draws hidden errors of the size real robots have;
-``simulate`` measures a "true" robot with a noisy tracker.
+``simulate`` measures a "true" robot with a noisy tracker; ``add_blunders`` spoils some
+readings as a real tracker does now and then (see :func:`blunder_offsets`).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -117,3 +120,66 @@ class Bump(JointEffect):
 
     def typical(self, rng):
         return np.array([rng.uniform(1e-4, 3e-4) * rng.choice([-1.0, 1.0])])
+
+
+#: size of a simulated blunder, mm (uniform)
+BLUNDER_MM = (0.5, 5.0)
+
+
+def blunder_offsets(
+    xyz: np.ndarray, rng: np.random.Generator, size_mm: tuple[float, float] = BLUNDER_MM,
+    along_fraction: float = 0.5,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Displacements of blunders at measured points ``xyz`` (tracker frame, (k, 3) mm).
+
+    Each is ``size_mm`` long (uniform), along the line of sight from the tracker at the
+    origin (a wrong return, a re-seated SMR: a range error, either sign) with probability
+    ``along_fraction``, else in a uniformly random direction (the robot not yet still,
+    the beam clipped). Returns (offsets (k, 3) mm, along_beam (k,) bool).
+    """
+    xyz = np.atleast_2d(np.asarray(xyz, float))
+    k = xyz.shape[0]
+    along = rng.random(k) < along_fraction
+    size = rng.uniform(size_mm[0], size_mm[1], k)
+    random_dir = rng.normal(size=(k, 3))
+    random_dir /= np.linalg.norm(random_dir, axis=1, keepdims=True)
+    beam = xyz / np.maximum(np.linalg.norm(xyz, axis=1, keepdims=True), 1e-300)
+    sign = np.where(rng.random(k) < 0.5, -1.0, 1.0)[:, None]
+    direction = np.where(along[:, None], sign * beam, random_dir)
+    return direction * size[:, None], along
+
+
+@dataclass
+class BlunderTruth:
+    """Which readings :func:`add_blunders` spoiled and how."""
+
+    index: np.ndarray  # (k,) rows of the data set
+    pose_id: list[str]
+    offset_mm: np.ndarray  # (k, 3) displacement added to the reading
+    along_beam: np.ndarray  # (k,) bool
+
+    def to_json(self) -> list[dict]:
+        return [{"pose_id": p, "offset_mm": [float(v) for v in o],
+                 "size_mm": float(np.linalg.norm(o)), "along_beam": bool(a)}
+                for p, o, a in zip(self.pose_id, self.offset_mm, self.along_beam, strict=True)]
+
+
+def add_blunders(
+    data: Dataset, rate: float, rng: np.random.Generator, *,
+    rows: np.ndarray | None = None, size_mm: tuple[float, float] = BLUNDER_MM,
+    along_fraction: float = 0.5,
+) -> tuple[Dataset, BlunderTruth]:
+    """A copy of ``data`` in which each reading is, with probability ``rate``, a blunder
+    (see :func:`blunder_offsets`); ``rows`` (bool (n,)) limits them to those rows (e.g.
+    the calibration rows, to keep a clean validation set). Returns (data, truth)."""
+    if not 0.0 <= rate <= 1.0:
+        raise ValueError(f"blunder rate must be in [0, 1], not {rate}")
+    hit = rng.random(data.n) < rate
+    if rows is not None:
+        hit &= np.asarray(rows, bool)
+    idx = np.flatnonzero(hit)
+    offsets, along = blunder_offsets(data.tracker_p_smr[idx], rng, size_mm, along_fraction)
+    xyz = data.tracker_p_smr.copy()
+    xyz[idx] += offsets
+    truth = BlunderTruth(idx, [data.pose_id[i] for i in idx], offsets, along)
+    return replace(data, tracker_p_smr=xyz), truth

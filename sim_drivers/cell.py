@@ -18,7 +18,9 @@ Tracker
     ``tracker_range_mm`` (default 800 mm – 30 m): outside it the tracker finds
     no target. Optional occlusions: spheres ``(centre_xyz_mm, radius_mm)`` in the
     tracker frame that break the beam when the line of sight passes through
-    them.
+    them. Blunders (fault ``blunder``): a reading displaced by 0.5-5 mm, along the
+    line of sight or in a random direction, drawn from the cell's own seeded generator;
+    :attr:`SimCell.blunder_log` records which readings they were.
 
 Tracker metrology
     Refraction: the tracker turns optical path into distance with the air it is
@@ -44,6 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calibration.simulate import blunder_offsets
 from sim_drivers.tracker_optics import TRACKER_REFLECTORS, SimReflector, tracker_reads
 from sim_drivers.truth import PoseContext, TrueRobot
 
@@ -98,6 +101,23 @@ class TrackerReading:
     timestamp: float
     face: int = 1
     reflector: str = ""
+
+
+@dataclass(frozen=True)
+class SimBlunder:
+    """The truth about one blunder the simulated tracker returned.
+
+    ``measurement`` is the cell's 1-based measurement count of that reading (``MEAS``
+    replies over every server and the in-process driver, in order), ``true_xyz`` the
+    target's true position (mm), ``offset_mm`` the displacement added on top of the
+    noise, ``along_beam`` whether it lies along the line of sight, ``sim_time`` (s).
+    """
+
+    measurement: int
+    true_xyz: np.ndarray
+    offset_mm: np.ndarray
+    along_beam: bool
+    sim_time: float
 
 
 #: error codes the controller reports (shared by every robot protocol)
@@ -217,6 +237,9 @@ class SimCell:
         self.tracker_reflector = self.mounted_reflector
         self.n_moves = 0
         self.n_measurements = 0
+        #: every blunder returned so far (fault ``blunder``), in measurement order
+        self.blunder_log: list[SimBlunder] = []
+        self._blunder_rng = np.random.default_rng([seed, 0xB1])
 
     # ------------------------------------------------------------------ clock
     @property
@@ -501,6 +524,11 @@ class SimCell:
             temp = env_t + temp_noise if source == "station" else env_t
             face, reflector = self.tracker_face, self.tracker_reflector.name
             self.n_measurements += 1
+            if self.faults is not None and self.faults.fires("blunder"):
+                offset, along = blunder_offsets(p, self._blunder_rng)
+                xyz = xyz + offset[0]
+                self.blunder_log.append(SimBlunder(self.n_measurements, p.copy(), offset[0],
+                                                   bool(along[0]), self.now()))
         self.advance(duration_s)
         return TrackerReading(
             xyz=xyz,

@@ -3,6 +3,7 @@
 Spec syntax (comma separated entries, whitespace ignored)::
 
     beam=0.05,slow=0.02,drop=0.02,garbage=0.02,pstop=0.01,modbus=0.02   # probabilities
+    blunder=0.03                                                       # 3 % bad readings
     drop@3,beam@5                                                      # the 3rd / 5th command
     slow=0.1,delay=2.5                                                 # parameter: slow delay, s
 
@@ -26,6 +27,11 @@ pstop     robot servers: a move command triggers a protective stop
 modbus    Modbus server: the request gets exception response 4
           (SERVER_DEVICE_FAILURE)
 stale     Modbus server: the heartbeat register stops counting for that read
+blunder   tracker (the cell's injector, so over the wire and in process): the
+          reading is displaced by 0.5-5 mm along the line of sight or in a
+          random direction (:func:`calibration.simulate.blunder_offsets`), with
+          nothing on the wire to tell; the cell records the truth
+          (:attr:`sim_drivers.cell.SimCell.blunder_log`)
 ========  =================================================================
 
 Servers call :meth:`FaultInjector.begin_command` once per command and then
@@ -41,7 +47,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 #: every fault name the spec language knows
-FAULT_NAMES = ("beam", "slow", "drop", "garbage", "pstop", "modbus", "stale")
+FAULT_NAMES = ("beam", "slow", "drop", "garbage", "pstop", "modbus", "stale", "blunder")
 
 
 @dataclass

@@ -5,7 +5,7 @@ Importing this module registers the ``sim`` scheme with :mod:`drivers.urls`
 tracker URLs with the same ``seed`` and ``name`` share one
 :class:`~sim_drivers.cell.SimCell`, so the tracker sees the robot move. Query
 parameters used when the cell is first created: ``time_scale`` (default 0)
-and ``faults`` (only ``beam`` and ``pstop`` apply in process).
+and ``faults`` (only ``beam``, ``pstop`` and ``blunder`` apply in process).
 
 The truth is built by :data:`truth_factory` ``(seed, hidden) -> TrueRobot``
 (``ToyArm`` until the calibration-backed true robot replaces it);

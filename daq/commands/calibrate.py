@@ -5,8 +5,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
+
 from calibration import DEFAULT_EFFECTS, ErrorModel, identify, load_csv
-from calibration.params_io import fit_to_dict, load_params, solver_summary
+from calibration.outliers import MODES as OUTLIER_MODES
+from calibration.params_io import fit_to_dict, load_params, params_by_name, solver_summary
 from calibration.solvers import SOLVERS
 from calibration.uncertainty import correlations, monte_carlo
 from calibration.workflow import UNCALIBRATED_LABEL, fit_uncalibrated
@@ -14,7 +17,7 @@ from presentation.ridge_plot import plot_ridge
 from presentation.summaries import fit_summary
 
 from ..cli import UsageError
-from .common import add_model_args, fmt, load_inputs, print_json, table, wrap_errors
+from .common import add_model_args, fmt, load_inputs, print_json, print_outliers, table, wrap_errors
 
 
 def register(sub) -> None:
@@ -37,6 +40,10 @@ def register(sub) -> None:
                    help="re-identify N times from the calibrated model plus instrument noise "
                    "(sigma from the data or --sigma) and report the parameter spread and the "
                    "position uncertainty over the workspace")
+    p.add_argument("--outliers", choices=OUTLIER_MODES, default="exclude",
+                   help="measurements far out of line with the rest (blunders): exclude them "
+                   "from the fit and name them (default), flag: fit every point but name "
+                   "them, keep: fit every point, no test")
     p.add_argument("--ridge-plot", metavar="FILE.png",
                    help="with --solver ridge: save the L-curve, GCV and ridge trace here")
     p.set_defaults(func=run)
@@ -56,12 +63,16 @@ def calibrate(args):
         for k, name in enumerate(em_p.names):
             if name in em.names:
                 x0[em.index(name)] = x_p[k]
-    baseline = fit_uncalibrated(model, data, valid=valid)
     opts = {}
     if getattr(args, "seed", None) is not None and args.solver in ("besa", "sa", "besa+lm"):
         opts["seed"] = args.seed
     fit = wrap_errors(lambda: identify(em, data, args.solver, valid=valid, x0=x0,
-                                       solver_options=opts or None))
+                                       solver_options=opts or None,
+                                       outliers=getattr(args, "outliers", "exclude")))
+    # the uncalibrated reference on the same points (without the blunders the fit left out)
+    if fit.outliers is not None and fit.outliers.excluded:
+        data = data.subset(~np.isin(data.pose_id, fit.outliers.ids))
+    baseline = fit_uncalibrated(model, data, valid=valid, outliers="keep")
     return fit, baseline
 
 
@@ -86,6 +97,10 @@ def run(args) -> int:
     if args.json:
         out = fit_summary(fit)
         out["params_file"] = args.out
+        out["params"] = params_by_name(fit)
+        out["outliers"] = fit.outliers.to_json() if fit.outliers else []
+        if fit.outliers:
+            out["outlier_check"] = fit.outliers.check_json()
         out["uncalibrated"] = {"calib": baseline.calib, "valid": baseline.valid}
         out["strongest_correlations"] = correlations(fit)["strongest"]
         info = solver_summary(fit)
@@ -114,7 +129,9 @@ def mc_summary(mc, fit) -> dict:
 def print_report(fit, baseline, out_path=None, mc=None, ridge_plot=None) -> None:
     em = fit.error_model
     d = fit.data
-    print(f"data      {d.source}: {d.n} calibration poses"
+    left_out = len(fit.outliers.blunders) if fit.outliers and fit.outliers.excluded else 0
+    print(f"data      {d.source}: {d.n + left_out} calibration poses"
+          + (f" ({left_out} left out as blunders)" if left_out else "")
           + (f", {fit.valid['n']} validation poses" if fit.valid else ""))
     print(f"model     {em.model.name} ({em.model.convention}), effects {','.join(em.labels)}")
     ident = fit.identifiability
@@ -125,6 +142,7 @@ def print_report(fit, baseline, out_path=None, mc=None, ridge_plot=None) -> None
           f"({fit.reason}) after {fit.iterations} iterations, {fit.solve_s * 1000:.1f} ms")
     for note in fit.notes:
         print(f"note      {note}")
+    print_outliers(fit.outliers)
     print()
     rows = []
     for label, f in ((UNCALIBRATED_LABEL, baseline), ("calibrated", fit)):

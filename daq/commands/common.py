@@ -99,6 +99,19 @@ def table(rows: list[list[str]], header: list[str]) -> str:
     return "\n".join(lines)
 
 
+def print_outliers(screen, context: str = "fit") -> None:
+    """The blunder verdict: one sentence, and a table of the blunders."""
+    if screen is None or (screen.clean_cloud and not screen.blunders):
+        return
+    print(f"blunders  {screen.message(context, list_points=False)}")
+    if screen.blunders:
+        rows = [[b.pose_id, b.line or "-", fmt(b.residual_mm), fmt(b.ratio, 1),
+                 {True: "along", False: "across", None: "-"}[b.along_beam],
+                 fmt(b.angle_deg, 0)] for b in screen.blunders]
+        print(table(rows, ["pose", "line", "residual mm", "x threshold", "beam",
+                           "angle deg"]))
+
+
 def open_store(path, synchronous: str = "FULL"):
     """An existing run store; a missing file or an unreadable store is a UsageError (never
     create an empty store for a mistyped path)."""

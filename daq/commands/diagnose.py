@@ -11,6 +11,7 @@ from .common import (
     fmt,
     load_inputs,
     print_json,
+    print_outliers,
     table,
     wrap_errors,
 )
@@ -55,6 +56,7 @@ def print_diagnosis(diag: Diagnosis, top: int = 12) -> None:
           + (f"; noise floor {floor:.4f} mm" if floor else "; noise floor unknown (--sigma)"))
     print(f"screened  {diag.n_screened} candidate effects in {diag.screen_s:.2f} s; "
           f"best refitted and checked on held-out poses in {diag.confirm_s:.2f} s")
+    print_outliers(diag.outliers, "ranking")
     print()
     rows = []
     for c in diag.candidates[:top]:

@@ -27,7 +27,8 @@ def register(sub) -> None:
     s.add_argument("--hidden", default=None,
                    help="hidden physical effects of the true robot, e.g. compliance:3")
     s.add_argument("--faults", default=None,
-                   help="fault spec, e.g. 'beam=0.05,slow=0.02,drop@3,delay=2'")
+                   help="fault spec, e.g. 'beam=0.05,slow=0.02,drop@3,delay=2'; "
+                        "'blunder=0.03': 3 %% of tracker readings off by 0.5-5 mm")
     s.add_argument("--time-scale", type=float, default=0.0,
                    help="wall seconds per simulated second (0: instantaneous)")
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (default loopback)")

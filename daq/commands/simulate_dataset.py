@@ -8,7 +8,7 @@ import numpy as np
 
 from calibration import DEFAULT_EFFECTS, ErrorModel
 from calibration.effects import display_unit
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.simulate import add_blunders, random_joints, realistic_truth, simulate
 
 from ..cli import UsageError
 from .common import load_inputs, wrap_errors
@@ -29,6 +29,10 @@ def register(sub) -> None:
     p.add_argument("--poses", type=int, default=300, help="calibration poses (default 300)")
     p.add_argument("--valid", type=int, default=300, help="validation poses (default 300)")
     p.add_argument("--sigma", type=float, default=0.015, help="tracker noise per axis, mm")
+    p.add_argument("--blunders", type=float, default=0.0, metavar="RATE",
+                   help="probability that a calibration reading is a blunder: displaced by "
+                   "0.5-5 mm along the line of sight or in a random direction (default 0; "
+                   "validation rows stay clean; which ones goes to --truth)")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--out", required=True, metavar="FILE.csv")
     p.add_argument("--truth", metavar="FILE.json", help="write the hidden parameters here")
@@ -41,6 +45,8 @@ def run(args) -> int:
         raise UsageError("--poses must be >= 1 and --valid >= 0")
     if not args.sigma > 0:
         raise UsageError("--sigma must be positive")
+    if not 0.0 <= args.blunders <= 1.0:
+        raise UsageError("--blunders must be a probability in [0, 1]")
     spec = DEFAULT_EFFECTS + ("," + args.hidden if args.hidden else "")
     em = wrap_errors(lambda: ErrorModel(model, spec))
     rng = np.random.default_rng(args.seed)
@@ -48,16 +54,25 @@ def run(args) -> int:
     n = args.poses + args.valid
     q = random_joints(model, n, rng)
     data = simulate(em, x, q, args.sigma, rng, is_valid=np.arange(n) >= args.poses)
+    blunders = None
+    if args.blunders > 0:
+        data, blunders = add_blunders(data, args.blunders, np.random.default_rng([args.seed, 1]),
+                                      rows=~data.is_valid)
     data.meta = {"source": f"cellcal simulate --model {args.model} --seed {args.seed}"
-                 + (f" --hidden {args.hidden}" if args.hidden else ""), **data.meta}
+                 + (f" --hidden {args.hidden}" if args.hidden else "")
+                 + (f" --blunders {args.blunders:g}" if args.blunders else ""), **data.meta}
     data.to_csv(args.out)
     if args.truth:
         rows = []
         for k, name in enumerate(em.names):
             unit, f = display_unit(em.units[k])
             rows.append({"name": name, "value": float(x[k] * f), "unit": unit})
+        truth = {"effects": em.labels, "parameters": rows}
+        if blunders is not None:
+            truth["blunders"] = blunders.to_json()
         with open(args.truth, "w") as fh:
-            json.dump({"effects": em.labels, "parameters": rows}, fh, indent=1)
+            json.dump(truth, fh, indent=1)
     print(f"wrote {args.out}: {args.poses} calibration + {args.valid} validation poses of a "
-          f"simulated {model.name} ({','.join(em.labels)} hidden), tracker sigma {args.sigma} mm")
+          f"simulated {model.name} ({','.join(em.labels)} hidden), tracker sigma {args.sigma} mm"
+          + (f"; {len(blunders.index)} blunders" if blunders is not None else ""))
     return 0
