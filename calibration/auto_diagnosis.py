@@ -124,8 +124,20 @@ class AutoDiagnosis:
             "effects": self.effects,
             "stop_reason": self.stop_reason,
             "params_file": params_file,
-            "outliers": [],
+            "outliers": self.outliers_json(),
         }
+
+    def outliers_json(self) -> list[dict]:
+        """The blunders left out before ranking (the starting fit's screen; a later refit
+        that names more adds them), as in ``calibrate --json``."""
+        seen, out = set(), []
+        for f in (self.start, self.fit):
+            screen = getattr(f, "outliers", None)
+            for o in (screen.to_json() if screen else []):
+                if o["pose_id"] not in seen:
+                    seen.add(o["pose_id"])
+                    out.append(o)
+        return out
 
 
 # ---- physics in one line ------------------------------------------------------------

@@ -13,7 +13,7 @@ from calibration.auto_diagnosis import AutoDiagnosis, AutoStep, auto_diagnose
 from calibration.params_io import fit_to_dict
 
 from ..cli import UsageError
-from .common import fmt, print_json, table
+from .common import fmt, print_json, print_outliers, table
 
 
 def add_auto_args(p) -> None:
@@ -68,6 +68,7 @@ def run_auto(args, fit, data) -> int:
     quiet = args.json
     if not quiet:
         print_header(fit, data)
+        print_outliers(fit.outliers, "ranking")
 
     def progress(step: AutoStep) -> None:
         if not quiet:
