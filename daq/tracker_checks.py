@@ -50,6 +50,9 @@ from .run_context import ExecutorOptions, TrackerCheck, TrackerSetup, TwoFaceChe
 #: the two-face difference's allowance for noise, in standard deviations
 TWO_FACE_K = 2.0
 
+#: how :meth:`Readiness.of` words a missing weather station (the device's detail follows)
+_STATION_WORDS = Readiness.of(True, True, False).problems[0]
+#: what the capture says instead
 NO_STATION = ("no weather station reports the air: connect one, or give the air measured "
               "at the cell with --meteo T,P,H (°C, hPa, %RH)")
 
@@ -92,9 +95,8 @@ def _check(tracker, setup: TrackerSetup, o: ExecutorOptions, two_face: bool) -> 
     if setup.meteo is not None:
         env = _set_air(tracker, setup.meteo, station, env, t)
     problems: list[str] = []
-    if readiness is not None:
-        problems += Readiness.of(readiness.initialised, readiness.warmed_up, True,
-                                 readiness.target).problems
+    if readiness is not None:  # the station's own words are replaced by NO_STATION
+        problems += [p for p in readiness.problems if not p.startswith(_STATION_WORDS)]
     if station is False and setup.meteo is None:
         problems.append(NO_STATION)
     if problems:
