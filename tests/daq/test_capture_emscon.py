@@ -120,3 +120,31 @@ def test_capture_poses_over_emscon_matches_the_line_tracker(tmp_path):
     assert np.all(np.isnan(line.cov_mm2))
     print(f"\nemScon vs line tracker, same 25 poses: max |Δ| {np.max(diff):.4f} mm, "
           f"mean {np.mean(diff):.4f} mm")
+
+
+@pytest.mark.slow
+def test_sim_serve_switches_make_the_checks_refuse(tmp_path):
+    """``cellcal sim serve --no-weather-station --tracker-collimation-urad 40``: capture
+    refuses (exit 2) without --meteo, then for the two faces; --meteo and a looser
+    tolerance let the run go, and the air given is recorded with every point."""
+    db = tmp_path / "cell.db"
+    with sim_serve("--no-pty", "--no-rtde", "--no-weather-station",
+                   "--tracker-collimation-urad", "40") as serve:
+        urls = _read_lines(serve, 4, timeout=30)
+        base = [*CLI, "capture", "poses", "--count", "5", "--model", "ur10e", "--tool-mm",
+                "0,0,60", "--no-floor", "--robot", urls[1], "--tracker", urls[3], "--db",
+                str(db)]
+        for extra, words in (([], "no weather station reports the air"),
+                             (["--meteo", "20.5,1008,40"], "the tracker needs compensation")):
+            out = subprocess.run([*base, *extra], cwd=ROOT, capture_output=True, timeout=120)
+            assert out.returncode == 2 and words in out.stderr.decode(), out.stderr.decode()
+        doc = _capture("poses", urls[1], urls[3], db, "--count", "5", "--meteo",
+                       "20.5,1008,40", "--two-face-tol-mm", "0.5")
+    f = doc["tracker_check"]["two_face"]
+    assert 0.15 < f["diff_mm"] < 0.5  # 2 x 40 µrad at ~3.8 m ≈ 0.3 mm
+    with RunStore(db) as store:
+        assert [r.id for r in store.runs()] == [1]
+        s = store.samples(1)
+    np.testing.assert_array_equal(s.temp_c, 20.5)
+    np.testing.assert_array_equal(s.pressure_hpa, 1008.0)
+    np.testing.assert_array_equal(s.humidity_pct, 40.0)
