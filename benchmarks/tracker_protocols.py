@@ -8,8 +8,12 @@ drivers' own cost over loopback:
 - ``measure``: one ``tracker.measure()`` (emScon: one StartMeasurement, its
   answer and the result packet; line: ``MEAS`` and its reply), median and 95th
   percentile over ``--points`` calls;
-- ``capture``: a whole ``poses`` capture through the executor (line robot over
-  TCP + the tracker, SQLite store), total time per point;
+- ``capture``: a whole ``poses`` capture through the capture service
+  (:func:`daq.service.start_run`: line robot over TCP + the tracker, SQLite store),
+  time per point of its execution: move, settle, joints, measure, and the sample with
+  the tracker's metadata (std, covariance, air, reflector, face) committed;
+- ``checks``: the tracker's checks before a run (:func:`daq.tracker_checks.check_tracker`:
+  reflector, air, ready gate, two faces), once per run;
 - ``connect``: opening the driver (emScon: units, coordinates, mode,
   reflectors, face, status; line: HELLO, STATUS?).
 
@@ -32,10 +36,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from calibration import load_model  # noqa: E402
-from daq.executor import Executor, ExecutorOptions  # noqa: E402
-from daq.routines import make_plan  # noqa: E402
+from daq.run_context import ExecutorOptions, TrackerSetup  # noqa: E402
+from daq.service import CaptureRequest, plan_run, start_run  # noqa: E402
 from daq.store import RunStore  # noqa: E402
+from daq.tracker_checks import check_tracker  # noqa: E402
 from drivers.urls import open_robot, open_tracker  # noqa: E402
 
 TOY = ROOT / "tests" / "daq" / "data" / "toyarm.yaml"
@@ -69,26 +73,33 @@ def measure_times(url: str, n: int) -> tuple[float, np.ndarray]:
     return connect, dt
 
 
-def capture_time(plan, robot_url: str, tracker_url: str) -> float:
+def capture_time(planned, robot_url: str, tracker_url: str) -> tuple[float, float]:
+    """(s per point of a capture's execution, s of the tracker's checks)."""
     robot, tracker = open_robot(robot_url), open_tracker(tracker_url)
     robot.connect(5.0)
     tracker.connect(5.0)
+    options = planned.request.executor
+    t0 = time.perf_counter()
+    check_tracker(tracker, TrackerSetup(), options)
+    checks = time.perf_counter() - t0
     with tempfile.TemporaryDirectory() as d, RunStore(Path(d) / "b.db", "NORMAL") as st:
-        rid = st.create_run(plan)
-        ex = Executor(st, rid, plan, robot, tracker, ExecutorOptions(measure_s=0.001))
-        t0 = time.perf_counter()
-        assert ex.run() == "completed"
-        total = time.perf_counter() - t0
+        out = start_run(st, planned, robot_url=robot_url, tracker_url=tracker_url,
+                        devices=(robot, tracker))
+        assert out.status == "completed", out.reason
+        s = st.samples(out.run_id)
+        assert np.all(s.face > 0) and np.all(np.isfinite(s.pressure_hpa))  # the metadata
     robot.close()
     tracker.close()
-    return total / len(plan)
+    return out.elapsed_s / len(planned.plan), checks
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=500)
     args = ap.parse_args()
-    plan = make_plan("poses", load_model(TOY), count=args.points, seed=0)
+    planned = plan_run(CaptureRequest(
+        routine="poses", model=str(TOY), params={"count": args.points, "seed": 0},
+        floor_z_mm=None, executor=ExecutorOptions(measure_s=0.001)))
     rows = []
     serve = subprocess.Popen(
         [sys.executable, "-m", "daq", "sim", "serve", "--model", "toy", "--no-pty", "--no-rtde"],
@@ -99,20 +110,21 @@ def main() -> None:
         for label, url in (("line protocol (tracker+tcp)", urls[2]),
                            ("emScon TPI (emscon://)", urls[3])):
             connect, dt = measure_times(url, args.points)
-            per_point = capture_time(plan, robot_url, url)
-            rows.append((label, connect, np.median(dt), np.percentile(dt, 95), per_point))
+            per_point, checks = capture_time(planned, robot_url, url)
+            rows.append((label, connect, np.median(dt), np.percentile(dt, 95), per_point,
+                         checks))
     finally:
         serve.terminate()
         serve.wait(10)
         serve.stdout.close()
     head = (f"{'tracker protocol':30s} {'connect ms':>10s} {'measure ms (median)':>20s} "
-            f"{'measure ms (p95)':>17s} {'capture ms/point':>17s}")
+            f"{'measure ms (p95)':>17s} {'capture ms/point':>17s} {'checks ms/run':>14s}")
     print(f"{args.points} points, simulated cell (own process) at time_scale 0, loopback TCP")
     print(head)
     print("-" * len(head))
-    for label, connect, med, p95, per_point in rows:
+    for label, connect, med, p95, per_point, checks in rows:
         print(f"{label:30s} {1e3 * connect:10.2f} {1e3 * med:20.3f} {1e3 * p95:17.3f} "
-              f"{1e3 * per_point:17.2f}")
+              f"{1e3 * per_point:17.2f} {1e3 * checks:14.2f}")
 
 
 if __name__ == "__main__":

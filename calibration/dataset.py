@@ -1,9 +1,9 @@
 """Measured poses: :class:`Dataset` and the measurement CSV of FORMATS.md §1.
 
 The reader is strict: a missing required column, a non-numeric value, a NaN, a
-duplicated ``pose_id``, a bad ``set``/``dirJ`` value or a joint outside the
-model's limits is refused with a :class:`DataError` naming the file, the line
-and the column. Nothing is guessed.
+duplicated ``pose_id``, a bad ``set``/``dirJ``/``face`` value, an empty
+``reflector`` or a joint outside the model's limits is refused with a
+:class:`DataError` naming the file, the line and the column. Nothing is guessed.
 """
 
 from __future__ import annotations
@@ -35,6 +35,9 @@ class Dataset:
     pose_id : list of n labels
     cmd : (n, 3) controller's nominal TCP position (base frame, mm), or None
     temp_c, t_s, payload_kg, sigma_mm : (n,) or None
+    pressure_hpa, humidity_pct : (n,) the air at each measurement (hPa, %RH), or None
+    reflector : (n,) str (object array), the reflector measured, or None
+    face : (n,) int, the tracker face (1 or 2), or None
     dirs : (n, N) approach direction per joint (-1, 0, +1), or None
     is_valid : (n,) bool, True for validation rows (``set=valid``)
     meta : ``# key: value`` metadata from the file's first comment lines
@@ -50,6 +53,10 @@ class Dataset:
     t_s: np.ndarray | None = None
     payload_kg: np.ndarray | None = None
     sigma_mm: np.ndarray | None = None
+    pressure_hpa: np.ndarray | None = None
+    humidity_pct: np.ndarray | None = None
+    reflector: np.ndarray | None = None
+    face: np.ndarray | None = None
     dirs: np.ndarray | None = None
     is_valid: np.ndarray | None = None
     meta: dict[str, str] = field(default_factory=dict)
@@ -69,6 +76,10 @@ class Dataset:
             self.is_valid = np.zeros(n, bool)
         if self.lines is None:
             self.lines = np.zeros(n, int)
+        if self.reflector is not None:
+            self.reflector = np.array([str(r) for r in self.reflector], dtype=object)
+        if self.face is not None:
+            self.face = np.asarray(self.face, int)
 
     # ---- views -----------------------------------------------------------
     @property
@@ -96,6 +107,10 @@ class Dataset:
             t_s=pick(self.t_s),
             payload_kg=pick(self.payload_kg),
             sigma_mm=pick(self.sigma_mm),
+            pressure_hpa=pick(self.pressure_hpa),
+            humidity_pct=pick(self.humidity_pct),
+            reflector=pick(self.reflector),
+            face=pick(self.face),
             dirs=pick(self.dirs),
             is_valid=pick(self.is_valid),
             lines=pick(self.lines),
@@ -134,6 +149,10 @@ class Dataset:
             t_s=cat(self.t_s, other.t_s),
             payload_kg=cat(self.payload_kg, other.payload_kg),
             sigma_mm=cat(self.sigma_mm, other.sigma_mm),
+            pressure_hpa=cat(self.pressure_hpa, other.pressure_hpa),
+            humidity_pct=cat(self.humidity_pct, other.humidity_pct),
+            reflector=cat(self.reflector, other.reflector),
+            face=cat(self.face, other.face),
             dirs=cat(self.dirs, other.dirs),
             is_valid=np.concatenate([self.is_valid, other.is_valid]),
             meta={**other.meta, **self.meta},
@@ -153,7 +172,7 @@ class Dataset:
         if self.cmd is not None:
             for k, c in enumerate("xyz"):
                 cols[f"cmd_{c}"] = self.cmd[:, k]
-        for name in ("temp_c", "t_s", "payload_kg", "sigma_mm"):
+        for name in ("temp_c", "t_s", "payload_kg", "sigma_mm", *_TRACKER_COLUMNS):
             if getattr(self, name) is not None:
                 cols[name] = getattr(self, name)
         if self.dirs is not None:
@@ -185,7 +204,9 @@ class Dataset:
 
 
 # ---- reading ----------------------------------------------------------------
-_OPTIONAL_FLOAT = ("temp_c", "t_s", "payload_kg", "sigma_mm")
+_OPTIONAL_FLOAT = ("temp_c", "t_s", "payload_kg", "sigma_mm", "pressure_hpa", "humidity_pct")
+#: the tracker's own columns, written after ``sigma_mm``
+_TRACKER_COLUMNS = ("pressure_hpa", "humidity_pct", "reflector", "face")
 
 
 def _read_rows(path: Path, source: str):
@@ -360,9 +381,26 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
         raise t.error("cmd_x, cmd_y, cmd_z must come together")
     cmd = np.column_stack([t.numeric(c) for c in cmd_cols]) if "cmd_x" in t else None
     opt = {name: t.numeric(name) if name in t else None for name in _OPTIONAL_FLOAT}
-    if opt["sigma_mm"] is not None and (opt["sigma_mm"] <= 0).any():
-        r = int(np.argmax(opt["sigma_mm"] <= 0))
-        raise DataError(f"{source}: line {t.lines[r]}, column sigma_mm: must be positive")
+    for name, bad, rule in (("sigma_mm", lambda v: v <= 0, "must be positive"),
+                            ("pressure_hpa", lambda v: v <= 0, "must be positive"),
+                            ("humidity_pct", lambda v: (v < 0) | (v > 100),
+                             "must be within 0..100")):
+        if opt[name] is not None and bad(opt[name]).any():
+            r = int(np.argmax(bad(opt[name])))
+            raise DataError(f"{source}: line {t.lines[r]}, column {name}: {rule}")
+    reflector = face = None
+    if "reflector" in t:
+        reflector = np.array(t.text("reflector"), dtype=object)
+        if (reflector == "").any():
+            r = int(np.argmax(reflector == ""))
+            raise DataError(f"{source}: line {t.lines[r]}, column reflector: empty value")
+    if "face" in t:
+        face = t.numeric("face")
+        if (~np.isin(face, (1.0, 2.0))).any():
+            r = int(np.argmax(~np.isin(face, (1.0, 2.0))))
+            raise DataError(f"{source}: line {t.lines[r]}, column face: {face[r]:g} is neither "
+                            "1 nor 2")
+        face = face.astype(int)
 
     dirs = None
     dir_cols = [f"dir{j + 1}" for j in range(N)]
@@ -398,4 +436,5 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
             ) from None
 
     return Dataset(q=np.radians(q), tracker_p_smr=xyz, pose_id=pose_id, cmd=cmd, dirs=dirs,
-                   is_valid=is_valid, meta=meta, source=source, lines=t.lines, **opt)
+                   is_valid=is_valid, meta=meta, source=source, lines=t.lines,
+                   reflector=reflector, face=face, **opt)

@@ -7,7 +7,9 @@ Modules
     ``routines/``       the capture routines: each makes a plan (see its package)
     ``executor``        runs a plan point by point: move, measure, commit, fault handling
     ``errors``          the capture's own errors and the service's refusals
-    ``run_context``     ``RunContext`` and ``ExecutorOptions``: what a run was started with
+    ``run_context``     ``RunContext``, ``ExecutorOptions``, ``TrackerSetup``: what a run was
+                        started with (and ``TrackerCheck``: what the tracker's checks found)
+    ``tracker_checks``  the tracker's checks before a run: reflector, air, ready gate, two faces
     ``store``           ``RunStore``: runs, samples (``Samples``), interruptions in SQLite
     ``store_schema``    the store's SQL schema and its upgrades between versions
     ``run_data``        runs as calibration inputs: a data set, zero-point postures

@@ -8,7 +8,8 @@ a measurement too noisy, a closed loop that did not converge). Both carry ``tran
 interruptions table (:attr:`CaptureError.kind`).
 
 The service (:mod:`daq.service`) raises :class:`RequestError` for input it refuses (a
-model, parameters, a plan that fails the dry run, an unknown run) and
+model, parameters, a plan that fails the dry run, an unknown run, a tracker that fails
+its checks: :class:`TrackerRefused`) and
 :class:`ConnectFailed` when the devices cannot be reached; the commands turn them into
 exit codes 2 and 1.
 """
@@ -57,6 +58,11 @@ class PlanRefused(RequestError):
     def __init__(self, result) -> None:
         self.result = result
         super().__init__(result.report())
+
+
+class TrackerRefused(RequestError):
+    """The tracker failed a check before the run (not ready, two faces apart, an unknown
+    reflector, ``--meteo`` it cannot take): :mod:`daq.tracker_checks`. Nothing is stored."""
 
 
 class ConnectFailed(ConnectionError):

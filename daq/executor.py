@@ -4,7 +4,8 @@ For each target not yet in the store: move (via the pre-position if any) →
 wait until settled (+ an optional dwell) → read the joints (and the
 controller's nominal TCP when the robot offers :class:`CommandedPosition`) →
 measure (averaged; a per-axis std above ``max_std_mm`` is remeasured) → write
-one sample in one SQLite transaction. That commit is the checkpoint.
+one sample in one SQLite transaction, with what the tracker says of its measurement
+(std, covariance, air, reflector, face). That commit is the checkpoint.
 
 Adaptive acquisition
     A routine may hand the executor an :class:`Acquisition` strategy: after the move
@@ -371,5 +372,6 @@ class Executor:
             t=m.timestamp, pose_id=t.label, set_name=t.set, target=t.to_dict(),
             temp_c=env.get("temp_c"), pressure_hpa=env.get("pressure_hpa"),
             humidity_pct=env.get("humidity_pct"), base_p_tcp_cmd=cmd, dirs=dirs,
-            attempts=attempt, joints_t=jr.timestamp,
+            attempts=attempt, joints_t=jr.timestamp, reflector=m.reflector or None,
+            face=m.face or None, cov_mm2=m.cov,
         )

@@ -3,14 +3,17 @@
 :class:`RunContext` replaces the loose ``options`` dict of store schema 2: the routine,
 the model and the controller's tool, the devices' URLs, the seed, the executor's
 settings (:class:`ExecutorOptions`), the routine's acquisition options (``acquire``:
-zero20's closed loop, validated by the routine's own model) and, when a frame run
-preceded the run, that run's id and the measurement frame ``tracker_T_base``.
+zero20's closed loop, validated by the routine's own model), when a frame run
+preceded the run, that run's id and the measurement frame ``tracker_T_base``, and the
+tracker's setup (:class:`TrackerSetup`: air by hand, reflector, two-face tolerance) with
+what its checks found before the run was stored (:class:`TrackerCheck`,
+:mod:`daq.tracker_checks`).
 
 The context is JSON in the store (``runs.context_json``) and carries its own
 :data:`CONTEXT_VERSION`; the store upgrades older files (schema 2's ``options_json``
 becomes a version-1 context, :mod:`daq.store_schema`).
 
-Units: mm, rad, s.
+Units: mm, rad, s; air in °C, hPa, %RH.
 """
 
 from __future__ import annotations
@@ -49,6 +52,87 @@ class ExecutorOptions(BaseModel):
     dir_deadband_rad: float = 1e-6
 
 
+#: plausible air for ``--meteo``: (°C, hPa, %RH) ranges
+METEO_RANGES = ((-40.0, 60.0), (500.0, 1200.0), (0.0, 100.0))
+
+
+class TrackerSetup(BaseModel):
+    """How the tracker is set up and checked before a run (:mod:`daq.tracker_checks`).
+
+    ``meteo``: the air (°C, hPa, %RH) to give a tracker without a weather station;
+    ``reflector``: the reflector to select by name; ``two_face_check``: measure the
+    robot's current point in both faces before the run; ``two_face_tol_mm``: the largest
+    two-face difference accepted beyond the measurements' own noise (mm).
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    meteo: tuple[float, float, float] | None = None
+    reflector: str | None = None
+    two_face_check: bool = True
+    two_face_tol_mm: float = Field(0.05, gt=0)
+
+    @field_validator("meteo")
+    @classmethod
+    def _plausible_air(cls, v):
+        if v is not None:
+            for x, (lo, hi), what in zip(v, METEO_RANGES, ("°C", "hPa", "%RH"), strict=True):
+                if not (np.isfinite(x) and lo <= x <= hi):
+                    raise ValueError(f"--meteo: {x:g} {what} is outside [{lo:g}, {hi:g}] "
+                                     "(expected T,P,H in °C, hPa, %RH)")
+        return v
+
+    @field_validator("reflector")
+    @classmethod
+    def _named(cls, v):
+        if v is not None and not v.strip():
+            raise ValueError("--reflector: empty name")
+        return v
+
+
+class TwoFaceCheck(BaseModel):
+    """One point measured in both faces: their distance ``diff_mm``, what was allowed
+    (``tol_mm`` + ``noise_mm``, the difference's 2σ from the measurements' std) and the
+    point's distance from the tracker (mm)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    diff_mm: float
+    tol_mm: float
+    noise_mm: float
+    distance_mm: float
+
+    @property
+    def allowed_mm(self) -> float:
+        return self.tol_mm + self.noise_mm
+
+    @property
+    def ok(self) -> bool:
+        return self.diff_mm <= self.allowed_mm
+
+
+class TrackerCheck(BaseModel):
+    """What the tracker's checks found before the run (None: the tracker lacks that
+    capability, or the check was not asked for).
+
+    ``ready``: the ready gate passed (initialised, warmed up, air known, target);
+    ``temp_c``, ``pressure_hpa``, ``humidity_pct`` and ``air_source`` (``station`` or
+    ``manual``): the air the tracker corrects with; ``reflector``: the one selected;
+    ``face``: the face measured in; ``two_face``: the two-face check.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    ready: bool | None = None
+    temp_c: float | None = None
+    pressure_hpa: float | None = None
+    humidity_pct: float | None = None
+    air_source: str | None = None
+    reflector: str | None = None
+    face: int | None = None
+    two_face: TwoFaceCheck | None = None
+
+
 class RunContext(BaseModel):
     """Everything a run was started with, besides its plan.
 
@@ -74,6 +158,10 @@ class RunContext(BaseModel):
     acquire : dict
         The routine's acquisition options (its ``ACQUIRE_OPTIONS`` model, dumped); empty for
         routines without adaptive acquisition.
+    tracker : TrackerSetup
+        The tracker's setup asked for (runs stored before it: the defaults).
+    tracker_check : TrackerCheck or None
+        What the tracker's checks found before the run was stored.
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -89,6 +177,8 @@ class RunContext(BaseModel):
     tracker_T_base: Matrix4 | None = None
     executor: ExecutorOptions = Field(default_factory=ExecutorOptions)
     acquire: dict[str, Any] = Field(default_factory=dict)
+    tracker: TrackerSetup = Field(default_factory=TrackerSetup)
+    tracker_check: TrackerCheck | None = None
 
     @field_validator("tracker_T_base")
     @classmethod

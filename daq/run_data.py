@@ -18,7 +18,8 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std"):
     effects that are correlated over its samples (interferometer, angle encoders,
     air), which averaging does not reduce as 1/sqrt(n).
 
-    ``cmd``, ``temp_c`` and ``dirs`` are set only when every sample has them.
+    ``cmd``, ``temp_c``, ``pressure_hpa``, ``humidity_pct``, ``reflector``, ``face`` and
+    ``dirs`` are set only when every sample has them (a column is all or nothing).
     """
     from calibration import Dataset
 
@@ -34,17 +35,23 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std"):
     ids = list(s.pose_id)
     if len(set(ids)) != len(ids):
         ids = [f"{p}#{i}" for p, i in zip(ids, s.point_index, strict=True)]
-    cmd = s.base_p_tcp_cmd if np.all(np.isfinite(s.base_p_tcp_cmd)) else None
-    temp = s.temp_c if np.all(np.isfinite(s.temp_c)) else None
+
+    def every(a):
+        return a if np.all(np.isfinite(a)) else None
+
+    reflector = s.reflector if all(s.reflector) else None
+    face = s.face if np.all(s.face > 0) else None
     meta = {"run": str(run.id), "routine": run.routine, "plan_hash": run.plan_hash,
             "model": run.model or "", "robot": run.robot_url or "",
             "tracker": run.tracker_url or "", "software": run.software or "",
             "sigma_mm": ("tracker std, RMS over axes" if sigma_mode == "std"
                          else "tracker std / sqrt(n), RMS over axes")}
     return Dataset(
-        q=s.joints_rad, tracker_p_smr=s.tracker_p_smr, pose_id=ids, cmd=cmd, temp_c=temp, t_s=s.t,
-        sigma_mm=sigma, dirs=s.dirs, is_valid=np.array([v == "valid" for v in s.set_name]),
-        meta=meta, source=f"{store.path} run {run_id}",
+        q=s.joints_rad, tracker_p_smr=s.tracker_p_smr, pose_id=ids, cmd=every(s.base_p_tcp_cmd),
+        temp_c=every(s.temp_c), t_s=s.t, sigma_mm=sigma, pressure_hpa=every(s.pressure_hpa),
+        humidity_pct=every(s.humidity_pct), reflector=reflector, face=face, dirs=s.dirs,
+        is_valid=np.array([v == "valid" for v in s.set_name]), meta=meta,
+        source=f"{store.path} run {run_id}",
     )
 
 

@@ -16,12 +16,15 @@ Wiring
     that refer to earlier runs, makes the routine's plan and dry-runs it.
     :func:`start_run` finds the measurement frame (the given frame run, else the latest
     completed one), builds the run's :class:`~daq.run_context.RunContext`, connects the
-    devices (unless handed connected ones), stores the run and executes it.
+    devices (unless handed connected ones), sets up and checks the tracker
+    (:mod:`daq.tracker_checks`: reflector, air, ready gate, two faces), stores the run
+    and executes it. :func:`resume_run` checks the tracker again (not its two faces).
     :func:`execute` runs a stored run with its routine's ``finalize`` and adaptive
     ``acquisition`` (:mod:`daq.routines`).
 
-Errors: :class:`~daq.errors.RequestError` (and :class:`~daq.errors.PlanRefused`) for
-input it refuses, :class:`~daq.errors.ConnectFailed` when the devices cannot be reached.
+Errors: :class:`~daq.errors.RequestError` (and :class:`~daq.errors.PlanRefused`,
+:class:`~daq.errors.TrackerRefused`) for input it refuses or a tracker that fails its
+checks, :class:`~daq.errors.ConnectFailed` when the devices cannot be reached.
 """
 
 from __future__ import annotations
@@ -33,12 +36,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .check import CheckResult, check_plan
-from .errors import ConnectFailed, PlanRefused, RequestError
+from .errors import ConnectFailed, PlanRefused, RequestError, TrackerRefused
 from .executor import Executor
 from .plans import Plan
 from .routines import get as get_routine
-from .run_context import ExecutorOptions, RunContext
+from .run_context import ExecutorOptions, RunContext, TrackerSetup
 from .store import Run, RunStore, StoreError
+from .tracker_checks import check_tracker
 
 #: progress callback of the executor: (points done, points in all, last error)
 ProgressFn = Callable[[int, int, "str | None"], None]
@@ -51,7 +55,8 @@ class CaptureRequest:
     ``model`` is a built-in name or a YAML path (recorded with the run); ``params`` are
     the routine's ``make_plan`` keyword arguments; ``frame_run`` None takes the latest
     completed frame run in the store, if any; ``acquire`` are the routine's acquisition
-    options (zero20: :class:`~daq.routines.zero20.ZeroLoopOptions` fields).
+    options (zero20: :class:`~daq.routines.zero20.ZeroLoopOptions` fields); ``tracker``
+    the tracker's setup and checks (:class:`~daq.run_context.TrackerSetup`).
     """
 
     routine: str
@@ -64,6 +69,7 @@ class CaptureRequest:
     frame_run: int | None = None
     executor: ExecutorOptions = field(default_factory=ExecutorOptions)
     acquire: dict = field(default_factory=dict)
+    tracker: TrackerSetup = field(default_factory=TrackerSetup)
 
 
 @dataclass(frozen=True)
@@ -102,7 +108,8 @@ class RunOutcome:
     ``status``: ``completed``, ``paused`` (protective stop, rejected command, retries
     exhausted), ``stopped`` (Ctrl-C) or ``failed`` (finalize failed); ``reason`` why it
     did not complete; ``points`` in the plan, ``samples`` stored, ``faults`` met in this
-    session, ``elapsed_s`` of execution; ``frame`` and ``summary`` as stored.
+    session, ``elapsed_s`` of execution; ``frame`` and ``summary`` as stored;
+    ``tracker_check`` what the tracker's checks found before the run (JSON-ready).
     """
 
     run_id: int
@@ -117,6 +124,7 @@ class RunOutcome:
     db: str
     frame: dict | None = None
     summary: dict | None = None
+    tracker_check: dict | None = None
 
     def to_json(self) -> dict:
         """The ``--json`` document of ``cellcal capture`` / ``resume``."""
@@ -128,6 +136,8 @@ class RunOutcome:
             out["frame"] = self.frame
         if self.summary:
             out["summary"] = self.summary
+        if self.tracker_check is not None:
+            out["tracker_check"] = self.tracker_check
         return out
 
 
@@ -298,9 +308,11 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
         tracker_url=tracker_url, seed=req.seed,
         frame_run=None if frame is None else frame.id,
         tracker_T_base=None if frame is None else frame.frame["tracker_T_base"],
-        executor=req.executor, acquire=planned.acquire)
+        executor=req.executor, acquire=planned.acquire, tracker=req.tracker)
     with _devices(robot_url, tracker_url, devices, req.executor.connect_timeout_s) as (
             robot, tracker):
+        found = check_tracker(tracker, req.tracker, req.executor)  # before anything is stored
+        context = context.model_copy(update={"tracker_check": found})
         run_id = store.create_run(planned.plan, context, robot_desc=describe(robot),
                                   tracker_desc=describe(tracker))
         if on_started is not None:
@@ -348,20 +360,24 @@ def prepare_resume(store: RunStore, run_id: int | None = None, *,
 
 
 def resume_run(store: RunStore, resumable: Resumable, *, executor: dict | None = None,
-               acquire: dict | None = None, devices: tuple | None = None,
+               acquire: dict | None = None, tracker_setup: dict | None = None,
+               devices: tuple | None = None,
                progress: ProgressFn | None = None,
                on_started: Callable[[int, int], None] | None = None) -> RunOutcome:
     """Continue a run from :func:`prepare_resume`: the points not yet stored.
 
-    ``executor`` and ``acquire`` override the stored executor and acquisition options
-    for this session (the stored context keeps its own). New URLs are stored with the run. A failed
-    connection is recorded as an interruption, then :class:`ConnectFailed`.
+    ``executor``, ``acquire`` and ``tracker_setup`` override the stored executor and
+    acquisition options and tracker setup (e.g. new ``meteo``) for this session (the stored
+    context keeps its own). New URLs are stored with the run. A failed connection is
+    recorded as an interruption, then :class:`ConnectFailed`; a tracker that fails its
+    checks (the two faces are not checked again) likewise, then :class:`TrackerRefused`.
     """
     r = resumable.run
     stored = r.context
     try:
         options = ExecutorOptions(**{**stored.executor.model_dump(), **(executor or {})})
         acq = _acquire_options(get_routine(r.routine), {**stored.acquire, **(acquire or {})})
+        setup = TrackerSetup(**{**stored.tracker.model_dump(), **(tracker_setup or {})})
     except ValueError as e:
         raise RequestError(str(e)) from None
     context = stored.model_copy(update={"executor": options, "acquire": acq,
@@ -376,11 +392,16 @@ def resume_run(store: RunStore, resumable: Resumable, *, executor: dict | None =
         if resumable.robot_url != r.robot_url or resumable.tracker_url != r.tracker_url:
             store.update_run(r.id, robot_url=resumable.robot_url,
                              tracker_url=resumable.tracker_url)
+        try:
+            found = check_tracker(tracker, setup, options, two_face=False)
+        except TrackerRefused as e:
+            store.add_interruption(r.id, None, "not_ready", f"resume: {e}")
+            raise
         done = store.n_samples(r.id)
         if on_started is not None:
             on_started(r.id, done)
         store.add_interruption(r.id, None, "resume", f"resumed with {done}/{r.n_points} "
-                               "points stored")
+                               f"points stored; tracker: {found.model_dump_json()}")
         return execute(store, r.id, resumable.plan, robot, tracker, model=resumable.model,
                        context=context, progress=progress)
 
@@ -400,6 +421,8 @@ def execute(store: RunStore, run_id: int, plan: Plan, robot, tracker, *, model,
     status = ex.run()
     elapsed = time.monotonic() - t0
     run = store.run(run_id)
+    check = run.context.tracker_check
     return RunOutcome(run_id, plan.routine, status, run.reason, len(plan),
                       store.n_samples(run_id), ex.n_faults, elapsed, plan.hash,
-                      str(store.path), run.frame, run.summary)
+                      str(store.path), run.frame, run.summary,
+                      None if check is None else check.model_dump(mode="json"))

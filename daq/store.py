@@ -25,7 +25,7 @@ Schema versions
 Every run stores its plan and its typed context (:class:`daq.run_context.RunContext`).
 Reading turns a run's samples into calibration inputs: :mod:`daq.run_data`.
 
-Units: joints rad (stored as JSON lists), lengths mm, times epoch s,
+Units: joints rad (stored as JSON lists), lengths mm, covariances mm², times epoch s,
 temperature °C, pressure hPa, humidity %.
 """
 
@@ -100,7 +100,9 @@ class Sample:
     tracker frame), ``std_mm`` per-axis std reported by the tracker (mm), ``n`` samples
     averaged, ``t`` measurement time (epoch s), ``base_p_tcp_cmd`` the controller's
     nominal TCP (mm, base frame) or None, ``dirs`` approach direction per joint
-    (-1/0/+1) or None.
+    (-1/0/+1) or None; ``reflector`` the reflector measured, ``face`` the tracker face
+    (1 or 2) and ``cov_mm2`` the (3, 3) covariance of ``tracker_p_smr`` (mm²), each None
+    when the tracker did not say.
     """
 
     point_index: int
@@ -119,6 +121,9 @@ class Sample:
     dirs: np.ndarray | None = None
     attempts: int = 1
     joints_t: float | None = None
+    reflector: str | None = None
+    face: int | None = None
+    cov_mm2: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -138,6 +143,9 @@ class Samples:
     base_p_tcp_cmd : (n, 3) mm, the controller's nominal TCP (base frame), NaN where unknown
     dirs : (n, N) int approach directions, or None unless every sample has them
     targets : list of dict (the plan's targets, JSON) or None
+    reflector : list of str or None (None where unknown)
+    face : (n,) int, the tracker face (1 or 2), 0 where unknown
+    cov_mm2 : (n, 3, 3) mm², the covariance of ``tracker_p_smr``, NaN where unknown
     """
 
     point_index: np.ndarray
@@ -154,6 +162,9 @@ class Samples:
     base_p_tcp_cmd: np.ndarray
     dirs: np.ndarray | None
     targets: list[dict | None]
+    reflector: list[str | None]
+    face: np.ndarray
+    cov_mm2: np.ndarray
 
     def __len__(self) -> int:
         return len(self.point_index)
@@ -161,6 +172,26 @@ class Samples:
 
 def _f(v) -> float | None:
     return None if v is None else float(v)
+
+
+#: the covariance's upper triangle as stored (``cov_xx`` … ``cov_zz``): (row, column)
+_COV = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+def _cov_cols(cov) -> tuple:
+    if cov is None:
+        return (None,) * len(_COV)
+    c = np.asarray(cov, float)
+    return tuple(float(c[i, j]) for i, j in _COV)
+
+
+def _cov_matrix(rows: list, k: int) -> np.ndarray:
+    """(n, 3, 3) from the six columns starting at ``k`` (NaN where NULL)."""
+    out = np.full((len(rows), 3, 3), np.nan)
+    for m, (i, j) in enumerate(_COV):
+        v = np.array([np.nan if r[k + m] is None else r[k + m] for r in rows], float)
+        out[:, i, j] = out[:, j, i] = v
+    return out
 
 
 class RunStore:
@@ -356,8 +387,9 @@ class RunStore:
             cur = self.con.execute(
                 """INSERT OR IGNORE INTO samples (run_id, point_index, pose_id, set_name,
                    target_json, q_json, x, y, z, sx, sy, sz, n, t, temp_c, pressure_hpa,
-                   humidity_pct, cmd_x, cmd_y, cmd_z, dir_json, attempts, joints_t)
-                   VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)""",
+                   humidity_pct, cmd_x, cmd_y, cmd_z, dir_json, attempts, joints_t,
+                   reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz)
+                   VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)""",
                 (run_id, int(s.point_index), s.pose_id, s.set_name,
                  json.dumps(s.target) if s.target is not None else None,
                  json.dumps([float(v) for v in np.asarray(s.joints_rad, float)]),
@@ -365,7 +397,8 @@ class RunStore:
                  int(s.n), float(s.t), _f(s.temp_c), _f(s.pressure_hpa), _f(s.humidity_pct),
                  *(_f(v) for v in cmd),
                  json.dumps([int(v) for v in s.dirs]) if s.dirs is not None else None,
-                 int(s.attempts), _f(s.joints_t)),
+                 int(s.attempts), _f(s.joints_t), s.reflector or None,
+                 int(s.face) if s.face else None, *_cov_cols(s.cov_mm2)),
             )
         return cur.rowcount == 1
 
@@ -382,7 +415,8 @@ class RunStore:
         """All samples of a run ordered by point index (:class:`Samples`)."""
         rows = self.con.execute(
             """SELECT point_index, pose_id, set_name, q_json, x, y, z, sx, sy, sz, n, t,
-               temp_c, pressure_hpa, humidity_pct, cmd_x, cmd_y, cmd_z, dir_json, target_json
+               temp_c, pressure_hpa, humidity_pct, cmd_x, cmd_y, cmd_z, dir_json, target_json,
+               reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz
                FROM samples WHERE run_id=? ORDER BY point_index""", (run_id,)
         ).fetchall()
 
@@ -410,6 +444,9 @@ class RunStore:
             dirs=(np.array([json.loads(d) for d in dirs], int)
                   if rows and all(d is not None for d in dirs) else None),
             targets=[json.loads(r[19]) if r[19] else None for r in rows],
+            reflector=[r[20] or None for r in rows],
+            face=np.array([r[21] or 0 for r in rows], int),
+            cov_mm2=_cov_matrix(rows, 22),
         )
 
     # --------------------------------------------------------- interruptions

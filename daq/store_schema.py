@@ -14,6 +14,8 @@ Versions
        joints' time; the interruptions table.
     3. ``options_json`` becomes ``context_json``: a versioned run context
        (:class:`daq.run_context.RunContext`, version 1).
+    4. per sample: the reflector measured, the tracker face and the covariance of the
+       measured point (``cov_xx`` … ``cov_zz``, mm²), NULL where the tracker did not say.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import sqlite3
 from collections.abc import Callable
 
 #: current schema version (PRAGMA user_version)
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 
 SCHEMA_V1 = """
 CREATE TABLE runs (
@@ -121,5 +123,17 @@ def _upgrade_2_to_3(con: sqlite3.Connection) -> None:
     con.execute("ALTER TABLE runs DROP COLUMN options_json")
 
 
+#: the sample columns of schema 4: reflector, face, covariance (upper triangle, mm²)
+_V4_SAMPLE_COLUMNS = ("reflector TEXT", "face INTEGER", "cov_xx REAL", "cov_xy REAL",
+                      "cov_xz REAL", "cov_yy REAL", "cov_yz REAL", "cov_zz REAL")
+
+
+def _upgrade_3_to_4(con: sqlite3.Connection) -> None:
+    """v4: per-sample tracker metadata (reflector, face, covariance); NULL in old rows."""
+    for col in _V4_SAMPLE_COLUMNS:
+        con.execute(f"ALTER TABLE samples ADD COLUMN {col}")
+
+
 #: UPGRADES[k] takes a database from version k+1 to k+2
-UPGRADES: list[Callable[[sqlite3.Connection], None]] = [_upgrade_1_to_2, _upgrade_2_to_3]
+UPGRADES: list[Callable[[sqlite3.Connection], None]] = [_upgrade_1_to_2, _upgrade_2_to_3,
+                                                        _upgrade_3_to_4]

@@ -1,9 +1,13 @@
 """``cellcal capture ROUTINE``: make a plan, dry-run it, and run it into the run store.
 
+Before the run is stored the tracker is set up and checked (:mod:`daq.tracker_checks`):
+``--reflector``, ``--meteo``, the ready gate and the two-face check.
+
 Exit codes: 0 the run completed; 1 it paused (protective stop, rejected
-command, retries exhausted) or failed; 2 bad input or a plan refused by the
-dry run (the offending points are named); 130 stopped with Ctrl-C (the run is
-resumable with ``cellcal resume``).
+command, retries exhausted) or failed; 2 bad input, a plan refused by the
+dry run (the offending points are named) or a tracker that fails its checks
+(the check and what to do are named; nothing is stored); 130 stopped with
+Ctrl-C (the run is resumable with ``cellcal resume``).
 """
 
 from __future__ import annotations
@@ -37,6 +41,49 @@ def add_common(p, *, resume: bool = False) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object, no progress")
     p.add_argument("--synchronous", choices=("FULL", "NORMAL"), default="FULL",
                    help=argparse_hidden())
+
+
+def add_tracker_flags(p, *, resume: bool = False) -> None:
+    """The tracker's setup and checks (:class:`~daq.run_context.TrackerSetup`)."""
+    p.add_argument("--meteo", metavar="T,P,H", default=None,
+                   help="the air at the cell (°C, hPa, %%RH) for a tracker without a weather "
+                   "station (refused when one reports); recorded with every point"
+                   + ("; replaces the run's for this session" if resume else ""))
+    if resume:
+        return
+    p.add_argument("--reflector", metavar="NAME", default=None,
+                   help="select the tracker's reflector by name (case-insensitive; an unknown "
+                   "name lists the known ones); recorded with every point")
+    p.add_argument("--two-face-tol-mm", type=float, default=None, metavar="MM",
+                   help="two-face check before the run: the largest difference between the "
+                   "faces beyond the measurements' noise, mm (default 0.05)")
+    p.add_argument("--no-two-face-check", action="store_true",
+                   help="skip the two-face check before the run")
+
+
+def tracker_setup(args, stored: dict | None = None) -> dict:
+    """The tracker setup fields the flags give (``stored``: the run's, for a resume), as
+    :class:`~daq.run_context.TrackerSetup` checks them; ValueError naming the flag."""
+    from pydantic import ValidationError
+
+    from ..run_context import TrackerSetup
+
+    given: dict = {}
+    meteo = floats(getattr(args, "meteo", None), 3, "--meteo")
+    if meteo is not None:
+        given["meteo"] = tuple(meteo)
+    if getattr(args, "reflector", None) is not None:
+        given["reflector"] = args.reflector
+    if getattr(args, "no_two_face_check", False):
+        given["two_face_check"] = False
+    if getattr(args, "two_face_tol_mm", None) is not None:
+        given["two_face_tol_mm"] = args.two_face_tol_mm
+    try:
+        TrackerSetup(**{**(stored or {}), **given})
+    except ValidationError as e:
+        msg = "; ".join(err["msg"].removeprefix("Value error, ") for err in e.errors())
+        raise ValueError(msg.replace("two_face_tol_mm", "--two-face-tol-mm")) from None
+    return given
 
 
 def argparse_hidden():
@@ -77,6 +124,7 @@ def register(sub) -> None:
                        help="check and print the plan, do not move")
         for flag, _, typ, hlp in EXEC_FLAGS + ROUTINE_ARGS[name].acquire_flags:
             r.add_argument(flag, type=typ, default=None, help=hlp)
+        add_tracker_flags(r)
         ROUTINE_ARGS[name].add(r)
         r.set_defaults(func=run)
 
@@ -150,9 +198,30 @@ def report(out: dict, as_json: bool) -> int:
                   f"{f['orthogonality_deg']:.4f} deg")
             for row in f["tracker_T_base"][:3]:
                 print("   " + "  ".join(f"{v:12.6f}" for v in row))
+        if out.get("tracker_check"):
+            print(f"  tracker: {check_line(out['tracker_check'])}")
         if out["status"] in ("paused", "stopped"):
             print(f"  resume with: cellcal resume {out['run']} --db {out['db']}")
     return {"completed": 0, "stopped": 130}.get(out["status"], 1)
+
+
+def check_line(c: dict) -> str:
+    """One line of what the tracker's checks found (a ``TrackerCheck``, JSON)."""
+    parts = []
+    if c.get("ready") is not None:
+        parts.append("ready")
+    if c.get("temp_c") is not None:
+        parts.append(f"air {c['temp_c']:.1f} °C {c['pressure_hpa']:.1f} hPa "
+                     f"{c['humidity_pct']:.0f} %RH ({c['air_source']})")
+    if c.get("reflector"):
+        parts.append(f"reflector {c['reflector']}")
+    if c.get("face"):
+        parts.append(f"face {c['face']}")
+    f = c.get("two_face")
+    if f:
+        parts.append(f"two faces {f['diff_mm']:.3f} mm apart (allowed {f['tol_mm']:.3f} + "
+                     f"{f['noise_mm']:.3f} noise)")
+    return ", ".join(parts) or "no checks offered"
 
 
 def run_and_report(command: str, as_json: bool, go) -> int:
@@ -174,7 +243,7 @@ def run_and_report(command: str, as_json: bool, go) -> int:
 
 def request_from_args(args):
     """The typed capture request of the parsed arguments (ValueError for bad values)."""
-    from ..run_context import ExecutorOptions
+    from ..run_context import ExecutorOptions, TrackerSetup
     from ..service import CaptureRequest
 
     spec = ROUTINE_ARGS[args.routine]
@@ -185,7 +254,8 @@ def request_from_args(args):
         floor_z_mm=None if args.no_floor else args.floor_z_mm,
         max_reach_mm=getattr(args, "max_reach_mm", None), frame_run=args.frame_run,
         executor=ExecutorOptions(**flag_values(args, EXEC_FLAGS)),
-        acquire=flag_values(args, spec.acquire_flags))
+        acquire=flag_values(args, spec.acquire_flags),
+        tracker=TrackerSetup(**tracker_setup(args)))
 
 
 def run(args) -> int:

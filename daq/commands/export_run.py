@@ -2,9 +2,11 @@
 
 Columns: ``pose_id``, ``q1..qN`` (deg, as read from the controller), ``x y z``
 (mm, tracker frame), ``cmd_x/y/z`` (the controller's nominal TCP, when the robot
-reported it for every point), ``temp_c``, ``t_s``, ``sigma_mm``, ``dir1..dirN``
-(approach direction of each joint from the previous commanded pose), ``set``
-(when some rows are validation rows). ``sigma_mm`` is the RMS over the axes
+reported it for every point), ``temp_c``, ``t_s``, ``sigma_mm``, ``pressure_hpa``,
+``humidity_pct``, ``reflector``, ``face`` (what the tracker said of each
+measurement, when it said it for every point), ``dir1..dirN`` (approach direction
+of each joint from the previous commanded pose), ``set`` (when some rows are
+validation rows). ``sigma_mm`` is the RMS over the axes
 of the tracker's reported per-axis std (``--sigma-mode std``, default) or
 that divided by sqrt(n) (``--sigma-mode mean``). The result is read directly
 by ``cellcal calibrate`` and ``cellcal diagnose``.

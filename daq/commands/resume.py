@@ -3,7 +3,8 @@
 The points already stored are skipped, the rest are done; the plan comes from
 the store (its hash is checked). The devices are reached with the URLs stored
 in the run, or with ``--robot``/``--tracker`` when given. A run found still
-``running`` (its process was killed) gets a ``killed`` interruption first.
+``running`` (its process was killed) gets a ``killed`` interruption first. The tracker
+is checked again with the run's setup (``--meteo`` replaces its air), not its two faces.
 Exit codes as ``cellcal capture``.
 """
 
@@ -11,7 +12,15 @@ from __future__ import annotations
 
 import sys
 
-from .capture import EXEC_FLAGS, add_common, confirm_motion, flag_values, run_and_report
+from .capture import (
+    EXEC_FLAGS,
+    add_common,
+    add_tracker_flags,
+    confirm_motion,
+    flag_values,
+    run_and_report,
+    tracker_setup,
+)
 from .routine_args import ROUTINE_ARGS
 
 #: every routine's acquisition flags (given, they apply to a run of that routine)
@@ -23,12 +32,14 @@ def register(sub) -> None:
                        description=__doc__.splitlines()[0])
     p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN")
     add_common(p, resume=True)
+    add_tracker_flags(p, resume=True)
     for flag, _, typ, hlp in EXEC_FLAGS + ACQUIRE_FLAGS:
         p.add_argument(flag, type=typ, default=None, help=hlp)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from ..cli import UsageError
     from ..service import prepare_resume, resume_run
     from .common import open_store
 
@@ -40,6 +51,10 @@ def run(args) -> int:
             print(f"run {r.id} is already completed ({res.done}/{r.n_points} points)",
                   file=sys.stderr)
             return 0
+        try:
+            setup = tracker_setup(args, r.context.tracker.model_dump())
+        except ValueError as e:
+            raise UsageError(str(e)) from None
         confirm_motion([res.robot_url, res.tracker_url], args.yes)
 
         def started(run_id: int, done: int) -> None:
@@ -49,7 +64,7 @@ def run(args) -> int:
 
         return run_and_report("resume", args.json, lambda progress: resume_run(
             store, res, executor=flag_values(args, EXEC_FLAGS),
-            acquire=flag_values(args, ROUTINE_ARGS[r.routine].acquire_flags), progress=progress,
-            on_started=started))
+            acquire=flag_values(args, ROUTINE_ARGS[r.routine].acquire_flags),
+            tracker_setup=setup, progress=progress, on_started=started))
     finally:
         store.close()

@@ -35,6 +35,12 @@ def register(sub) -> None:
     s.add_argument("--no-pty", action="store_true", help="no tracker on a pseudo-terminal")
     s.add_argument("--no-rtde", action="store_true",
                    help="no RTDE receive server on port 30004 (ur://, read-only)")
+    s.add_argument("--no-weather-station", action="store_true",
+                   help="the tracker has no weather station (give it the air: capture --meteo)")
+    s.add_argument("--tracker-collimation-urad", type=float, default=0.0, metavar="URAD",
+                   help="the tracker's two-face (collimation) error, µrad (default 0)")
+    s.add_argument("--tracker-warmup-s", type=float, default=0.0, metavar="S",
+                   help="simulated seconds until the tracker is warmed up (default 0)")
     s.set_defaults(func=run)
 
 
@@ -54,8 +60,13 @@ def run(args) -> int:
         def factory(seed, hidden):
             return ModelTruth.from_spec(args.model, hidden, seed)
 
+    if args.tracker_warmup_s < 0:
+        raise UsageError(f"--tracker-warmup-s must be >= 0, got {args.tracker_warmup_s}")
     try:
-        stack = SimStack(config, truth_factory=factory)
+        stack = SimStack(config, truth_factory=factory,
+                         weather_station=not args.no_weather_station,
+                         tracker_collimation_rad=args.tracker_collimation_urad * 1e-6,
+                         warmup_s=args.tracker_warmup_s)
     except ValueError as e:  # ModelError and EffectError are ValueErrors too
         raise UsageError(str(e)) from e
     stop = threading.Event()

@@ -52,6 +52,11 @@ def test_reads_required_and_optional_columns(tmp_path):
         ([HEAD + ",q7", ROW.format(pid="a", x="1") + ",0"], "q7 but the model has 6 joints"),
         ([HEAD + ",sigma_mm", ROW.format(pid="a", x="1") + ",-1"], "column sigma_mm"),
         ([HEAD, ROW.format(pid="a", x="")], "line 2, column x: empty value"),
+        ([HEAD + ",face", ROW.format(pid="a", x="1") + ",3"], "line 2, column face: 3 is neither"),
+        ([HEAD + ",face", ROW.format(pid="a", x="1") + ",front"], "column face: not a number"),
+        ([HEAD + ",reflector", ROW.format(pid="a", x="1") + ","], "column reflector: empty"),
+        ([HEAD + ",humidity_pct", ROW.format(pid="a", x="1") + ",120"], "column humidity_pct"),
+        ([HEAD + ",pressure_hpa", ROW.format(pid="a", x="1") + ",0"], "column pressure_hpa"),
     ],
 )
 def test_refusals_name_file_line_and_column(tmp_path, lines, where):
@@ -84,3 +89,31 @@ def test_csv_round_trip(tmp_path):
     np.testing.assert_array_equal(e.is_valid, d.is_valid)
     np.testing.assert_array_equal(e.cmd, d.cmd)
     assert e.sigma() == 0.02
+
+
+def test_tracker_columns_round_trip_and_subset(tmp_path):
+    """pressure_hpa, humidity_pct, reflector (text) and face (1/2): FORMATS.md §1."""
+    rng = np.random.default_rng(1)
+    d = Dataset(
+        q=rng.uniform(-1, 1, (4, 6)), tracker_p_smr=rng.normal(size=(4, 3)),
+        temp_c=rng.normal(20, 1, 4), sigma_mm=np.full(4, 0.012),
+        pressure_hpa=np.array([1013.25, 1013.0, 1012.5, 1012.0]),
+        humidity_pct=np.array([45.0, 45.5, 46.0, 46.5]),
+        reflector=["RRR 1.5in", "RRR 1.5in", "CatsEye 3in, glass", "RRR 1.5in"],
+        face=[1, 2, 1, 2],
+    )
+    p = tmp_path / "rt.csv"
+    d.to_csv(p)
+    header = [ln for ln in p.read_text().splitlines() if not ln.startswith("#")][0].split(",")
+    assert header[-5:] == ["sigma_mm", "pressure_hpa", "humidity_pct", "reflector", "face"]
+    e = load_csv(p, UR)
+    np.testing.assert_array_equal(e.pressure_hpa, d.pressure_hpa)
+    np.testing.assert_array_equal(e.humidity_pct, d.humidity_pct)
+    assert e.reflector.tolist() == d.reflector.tolist()  # a comma in a name is quoted
+    assert e.face.tolist() == [1, 2, 1, 2] and e.face.dtype.kind == "i"
+    s = e.subset(np.array([False, True, True, False]))
+    assert s.reflector.tolist() == ["RRR 1.5in", "CatsEye 3in, glass"]
+    assert s.face.tolist() == [2, 1]
+    both = s.concat(e)
+    assert both.n == 6 and both.face.tolist() == [2, 1, 1, 2, 1, 2]
+    assert both.reflector[0] == "RRR 1.5in" and both.humidity_pct[-1] == 46.5

@@ -42,10 +42,11 @@ def base_only_truth(seed: int, hidden=None) -> ModelTruth:
 
 
 @contextlib.contextmanager
-def served_cell(truth_factory, *, faults=None, seed=0):
-    """A SimStack on free loopback ports (no pty): yields the stack."""
+def served_cell(truth_factory, *, faults=None, seed=0, **cell_kw):
+    """A SimStack on free loopback ports (no pty): yields the stack. ``cell_kw``: extra
+    :class:`~sim_drivers.cell.SimCell` arguments (weather station, collimation...)."""
     cfg = ServeConfig(seed=seed, faults=faults, ports=dict(FREE_PORTS), pty=False)
-    with SimStack(cfg, truth_factory=truth_factory) as stack:
+    with SimStack(cfg, truth_factory=truth_factory, **cell_kw) as stack:
         yield stack
 
 

@@ -1,9 +1,11 @@
 """A run store written at schema 2 (by commit 5ca46ae: ``data/schema_v2``, built by
 ``data/make_schema_v2_store.py``) is upgraded in place: its loose options become typed run
-contexts, it exports as that version exported, and its paused run resumes."""
+contexts, it exports as that version exported, and its paused run resumes. A schema-3
+store (the same file taken to 3 by hand) gains the per-sample tracker columns of 4."""
 
 from __future__ import annotations
 
+import csv
 import json
 import shutil
 import sqlite3
@@ -15,8 +17,8 @@ from daq.cli import main
 from daq.plans import Plan
 from daq.routines.zero20 import ZeroLoopOptions
 from daq.run_context import CONTEXT_VERSION, ExecutorOptions
-from daq.store import RunStore
-from daq.store_schema import SCHEMA_VERSION
+from daq.store import RunStore, Sample
+from daq.store_schema import SCHEMA_VERSION, UPGRADES
 from sim_drivers.model_truth import model_truth_factory
 
 from .capture_helpers import DATA, served_cell
@@ -75,11 +77,24 @@ def test_upgrade_turns_the_options_into_typed_contexts(v2_db):
         assert st.run(3).context == zero.context
 
 
+def _columns(text: str) -> tuple[list[str], dict[str, list[str]]]:
+    """A CSV's metadata lines and its columns by name (as text)."""
+    meta = [ln for ln in text.splitlines() if ln.startswith("#")]
+    rows = list(csv.reader(ln for ln in text.splitlines() if not ln.startswith("#")))
+    return meta, {h: [r[k] for r in rows[1:]] for k, h in enumerate(rows[0])}
+
+
 def test_upgraded_store_exports_as_schema_2_did(v2_db, tmp_path, capsys):
     for run in (1, 2, 3, 4):
         out = tmp_path / f"run{run}.csv"
         assert main(["export", str(run), "--db", str(v2_db), "--out", str(out)]) == 0
-        assert out.read_text() == (V2 / f"run{run}.csv").read_text(), run
+        meta, cols = _columns(out.read_text())
+        meta2, cols2 = _columns((V2 / f"run{run}.csv").read_text())
+        # every column as schema 2 exported it, plus the air schema 2 stored but did not
+        # export (FORMATS.md §1 optional columns); no reflector or face: not recorded then
+        assert meta == meta2 and {k: cols[k] for k in cols2} == cols2, run
+        assert set(cols) - set(cols2) == {"pressure_hpa", "humidity_pct"}
+        assert set(cols["pressure_hpa"]) == {"1013.25"}
     out = tmp_path / "postures3.csv"  # tips in the base frame: the context's tracker_T_base
     assert main(["export", "3", "--postures", "--db", str(v2_db), "--out", str(out)]) == 0
     assert out.read_text() == (V2 / "postures3.csv").read_text()
@@ -104,3 +119,46 @@ def test_paused_schema_2_run_resumes_with_its_context(v2_db, capsys):
     assert r.tracker_url == tracker
     assert r.context.executor.measure_s == 0.05
     assert kinds[-1] == "resume" and "protective_stop" in kinds
+
+
+@pytest.fixture
+def v3_db(v2_db):
+    """The schema-2 fixture taken to schema 3 by its own upgrade (what schema 3 wrote)."""
+    con = sqlite3.connect(v2_db, isolation_level=None)
+    try:
+        con.execute("BEGIN")
+        UPGRADES[1](con)
+        con.execute("PRAGMA user_version=3")
+        con.execute("COMMIT")
+    finally:
+        con.close()
+    return v2_db
+
+
+def test_schema_3_gains_reflector_face_and_covariance(v3_db, tmp_path):
+    con = sqlite3.connect(v3_db)
+    before = con.execute("SELECT * FROM samples ORDER BY id").fetchall()
+    n_cols = len(before[0])
+    con.close()
+    with RunStore(v3_db) as st:
+        assert st.version == SCHEMA_VERSION == 4
+        s = st.samples(2)
+        assert s.reflector == [None] * len(s) and np.all(s.face == 0)
+        assert np.all(np.isnan(s.cov_mm2))
+        cov = np.array([[4e-4, 1e-5, -2e-5], [1e-5, 3e-4, 0.0], [-2e-5, 0.0, 5e-4]])
+        new = Sample(point_index=99, joints_rad=np.zeros(6), tracker_p_smr=np.ones(3),
+                     std_mm=np.sqrt(np.diag(cov)), n=1, t=1.0, reflector="RRR 1.5in",
+                     face=2, cov_mm2=cov)
+        assert st.add_sample(2, new)
+        s = st.samples(2)
+    assert s.reflector[-1] == "RRR 1.5in" and s.face[-1] == 2
+    np.testing.assert_array_equal(s.cov_mm2[-1], cov)
+    con = sqlite3.connect(v3_db)
+    cols = [c[1] for c in con.execute("PRAGMA table_info(samples)")]
+    after = con.execute("SELECT * FROM samples ORDER BY id").fetchall()
+    con.close()
+    assert cols[n_cols:] == ["reflector", "face", "cov_xx", "cov_xy", "cov_xz", "cov_yy",
+                             "cov_yz", "cov_zz"]
+    # the old rows are untouched, their new columns NULL
+    assert [r[:n_cols] for r in after[:len(before)]] == before
+    assert all(v is None for r in after[:len(before)] for v in r[n_cols:])
