@@ -14,31 +14,67 @@ typed inputs; it returns a typed :class:`RunOutcome` and never prints.
 Wiring
     :func:`plan_run` loads the model (with the controller's tool), resolves parameters
     that refer to earlier runs, makes the routine's plan and dry-runs it.
-    :func:`start_run` finds the measurement frame (the given frame run, else the latest
-    completed one), builds the run's :class:`~daq.run_context.RunContext`, connects the
-    devices (unless handed connected ones), stores the run and executes it.
-    :func:`execute` runs a stored run with its routine's ``finalize`` and adaptive
-    ``acquisition`` (:mod:`daq.routines`).
+    :func:`start_run` takes the robot's lease, connects the devices (unless handed
+    connected ones), asks who they are and checks the robot against the model (joint
+    count; a simulator's robot model), lets the caller confirm the motion, finds the
+    measurement frame (the given frame run, else the latest completed one of this
+    cell), stores the run with the devices' identities, takes the run's lease and
+    executes it. :func:`execute` runs a stored run with its routine's ``finalize`` and
+    adaptive ``acquisition`` (:mod:`daq.routines`) and the run's motion guard
+    (:mod:`daq.motion_guard`).
 
-Errors: :class:`~daq.errors.RequestError` (and :class:`~daq.errors.PlanRefused`) for
-input it refuses, :class:`~daq.errors.ConnectFailed` when the devices cannot be reached.
+One owner per run and per robot
+    Leases (:mod:`daq.leases`) on the run and on the robot (its URL and, once known, its
+    serial number) are held while a run may move the robot; a second capture or resume
+    on a live run or a busy robot is refused at once (:class:`~daq.leases.LeaseBusy`), a
+    stale lease (dead owner) is taken over.
+
+Same cell on resume
+    :func:`resume_run` compares the devices reached with the identities stored with the
+    run (:func:`daq.devices.same_cell`); another cell is refused
+    (:class:`OtherCell`) unless ``other_cell``, which starts a NEW run of the same plan
+    there (all points; ``source_run`` names the old one) rather than mixing two cells.
+
+Errors: :class:`~daq.errors.RequestError` (and :class:`~daq.errors.PlanRefused`,
+:class:`~daq.leases.LeaseBusy`, :class:`OtherCell`) for input it refuses,
+:class:`~daq.errors.ConnectFailed` when the devices cannot be reached.
 """
 
 from __future__ import annotations
 
 import contextlib
+import math
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .check import CheckResult, check_plan
-from .errors import ConnectFailed, PlanRefused, RequestError
+from .devices import (
+    CellIdentity,
+    check_robot,
+    describe,
+    identify,
+    same_cell,
+    stored_identity,
+)
+from .devices import devices as reach_devices
+from .errors import ConnectFailed, PlanRefused, RequestError, one_line
 from .executor import Executor
+from .leases import Leases, robot_identity_key, robot_key, run_key
+from .motion_guard import MotionGuard, MotionLimits
 from .plans import Plan
 from .routines import get as get_routine
 from .run_context import ExecutorOptions, RunContext
+from .stop_signals import signal_name
 from .store import Run, RunStore, StoreError
+
+#: called with the devices' identities before anything moves; raises to refuse
+ConfirmFn = Callable[[CellIdentity, str, str], None]
+
+
+class OtherCell(RequestError):
+    """The devices reached are not the run's cell (resume without ``other_cell``)."""
 
 #: progress callback of the executor: (points done, points in all, last error)
 ProgressFn = Callable[[int, int, "str | None"], None]
@@ -51,7 +87,10 @@ class CaptureRequest:
     ``model`` is a built-in name or a YAML path (recorded with the run); ``params`` are
     the routine's ``make_plan`` keyword arguments; ``frame_run`` None takes the latest
     completed frame run in the store, if any; ``acquire`` are the routine's acquisition
-    options (zero20: :class:`~daq.routines.zero20.ZeroLoopOptions` fields).
+    options (zero20: :class:`~daq.routines.zero20.ZeroLoopOptions` fields); ``motion``
+    the run's motion limits (default: ``floor_z_mm`` and ``max_reach_mm`` with the other
+    limits' defaults). Checked when made: :class:`RequestError` for a tool or floor that
+    is not finite, motion limits that are not valid.
     """
 
     routine: str
@@ -64,6 +103,18 @@ class CaptureRequest:
     frame_run: int | None = None
     executor: ExecutorOptions = field(default_factory=ExecutorOptions)
     acquire: dict = field(default_factory=dict)
+    motion: MotionLimits | None = None
+
+    def __post_init__(self) -> None:
+        if self.tool_mm is not None and (len(self.tool_mm) != 3 or not all(
+                math.isfinite(float(v)) for v in self.tool_mm)):
+            raise RequestError(f"the tool must be 3 finite numbers (mm), got {self.tool_mm}")
+        if self.motion is None:
+            try:
+                limits = MotionLimits(floor_z_mm=self.floor_z_mm, max_reach_mm=self.max_reach_mm)
+            except ValueError as e:
+                raise RequestError(f"floor/reach: {one_line(e)}") from None
+            object.__setattr__(self, "motion", limits)
 
 
 @dataclass(frozen=True)
@@ -100,9 +151,11 @@ class RunOutcome:
     """How a (resumed) run ended.
 
     ``status``: ``completed``, ``paused`` (protective stop, rejected command, retries
-    exhausted), ``stopped`` (Ctrl-C) or ``failed`` (finalize failed); ``reason`` why it
-    did not complete; ``points`` in the plan, ``samples`` stored, ``faults`` met in this
-    session, ``elapsed_s`` of execution; ``frame`` and ``summary`` as stored.
+    exhausted, a move refused or not done, stopped at once by a signal), ``stopped``
+    (Ctrl-C) or ``failed`` (finalize failed); ``reason`` why it did not complete;
+    ``points`` in the plan, ``samples`` stored, ``faults`` met in this session,
+    ``elapsed_s`` of execution; ``frame`` and ``summary`` as stored; ``signal`` the
+    signal that stopped it at once (a second Ctrl-C, SIGTERM, SIGHUP), else None.
     """
 
     run_id: int
@@ -117,6 +170,7 @@ class RunOutcome:
     db: str
     frame: dict | None = None
     summary: dict | None = None
+    signal: int | None = None
 
     def to_json(self) -> dict:
         """The ``--json`` document of ``cellcal capture`` / ``resume``."""
@@ -128,66 +182,28 @@ class RunOutcome:
             out["frame"] = self.frame
         if self.summary:
             out["summary"] = self.summary
+        if self.signal is not None:
+            out["signal"] = signal_name(self.signal)
         return out
 
 
-# ------------------------------------------------------------------ devices
-def describe(driver) -> str:
-    """A one-line description of a driver (class, model, serial, firmware when known)."""
-    parts = [type(driver).__name__]
-    for k in ("model", "serial", "firmware"):
-        v = getattr(driver, k, "")
-        if isinstance(v, str) and v:
-            parts.append(f"{k}={v}")
-    n = getattr(driver, "n_joints", 0)
-    if isinstance(n, int) and n:
-        parts.append(f"joints={n}")
-    return " ".join(parts)
-
-
-def open_drivers(robot_url: str, tracker_url: str, timeout: float = 5.0):
-    """Connected (robot, tracker); closes what was opened when the other fails.
-
-    :class:`RequestError` for a URL no driver knows, :class:`ConnectFailed` when a
-    device cannot be reached.
-    """
-    import sim_drivers.inprocess  # noqa: F401  (registers sim://)
-    from drivers.errors import DriverError
-    from drivers.urls import open_robot, open_tracker
-
-    try:
-        robot = open_robot(robot_url)
-        tracker = open_tracker(tracker_url)
-    except ValueError as e:
-        raise RequestError(str(e)) from None
-    try:
-        robot.connect(timeout=timeout)
-        tracker.connect(timeout=timeout)
-    except DriverError as e:
-        robot.close()
-        tracker.close()
-        raise ConnectFailed(str(e)) from e
-    return robot, tracker
-
-
+# ------------------------------------------------------------------- leases
 @contextlib.contextmanager
-def _devices(robot_url, tracker_url, devices, timeout, on_fail=None) -> Iterator[tuple]:
-    """The given connected devices (left open), else the URLs' (closed at the end);
-    ``on_fail(error)`` is called before a :class:`ConnectFailed` propagates."""
-    if devices is not None:
-        yield devices
+def _leases(store: RunStore, given: Leases | None) -> Iterator[Leases]:
+    """The caller's leases (kept), else this call's own (released at the end)."""
+    if given is not None:
+        yield given
         return
-    try:
-        robot, tracker = open_drivers(robot_url, tracker_url, timeout)
-    except ConnectFailed as e:
-        if on_fail is not None:
-            on_fail(e)
-        raise
-    try:
-        yield robot, tracker
-    finally:
-        robot.close()
-        tracker.close()
+    with Leases(store.path) as own:
+        yield own
+
+
+def _take_robot(leases: Leases, url: str, identity=None) -> None:
+    leases.acquire(robot_key(url), f"robot {url}")
+    if identity is not None:
+        key = robot_identity_key(identity.model, identity.serial)
+        if key is not None:
+            leases.acquire(key, f"robot {identity}")
 
 
 # -------------------------------------------------------------------- start
@@ -235,9 +251,8 @@ def plan_run(request: CaptureRequest, *, model=None, db: str | Path | None = Non
         plan = mod.make_plan(model, **params)
         acquire = _acquire_options(mod, request.acquire)
     except ValueError as e:  # ModelError, pydantic's ValidationError, RequestError too
-        raise RequestError(str(e)) from None
-    res = check_plan(plan, model, floor_z_mm=request.floor_z_mm,
-                     max_reach_mm=request.max_reach_mm)
+        raise RequestError(one_line(e)) from None
+    res = check_plan(plan, model, limits=request.motion)
     if not res.ok:
         raise PlanRefused(res)
     return PlannedRun(request, model, plan, res, acquire)
@@ -255,9 +270,11 @@ def _acquire_options(mod, given: dict) -> dict:
     return options(**given).model_dump()
 
 
-def frame_run(store: RunStore, run_id: int | None) -> Run | None:
+def frame_run(store: RunStore, run_id: int | None, cell: CellIdentity | None = None
+              ) -> Run | None:
     """The frame run ``run_id`` (it must have a frame), else the latest completed frame
-    run of the store, else None."""
+    run of the store measured in ``cell`` (a run without stored identities counts as
+    any cell's), else None."""
     if run_id is not None:
         try:
             r = store.run(run_id)
@@ -268,14 +285,24 @@ def frame_run(store: RunStore, run_id: int | None) -> Run | None:
                                "frame run)")
         return r
     for r in reversed(store.runs()):
-        if r.routine == "frame" and r.status == "completed" and r.frame is not None:
+        if (r.routine == "frame" and r.status == "completed" and r.frame is not None
+                and (cell is None or _measured_in(r, cell))):
             return r
     return None
 
 
+def _measured_in(run: Run, cell: CellIdentity) -> bool:
+    for stored, now in ((run.robot_identity, cell.robot), (run.tracker_identity, cell.tracker)):
+        old = stored_identity(stored)
+        if old is not None and not old.same_device(now):
+            return False
+    return True
+
+
 def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_url: str,
               devices: tuple | None = None, progress: ProgressFn | None = None,
-              on_started: Callable[[int, int], None] | None = None) -> RunOutcome:
+              on_started: Callable[[int, int], None] | None = None,
+              confirm: ConfirmFn | None = None, leases: Leases | None = None) -> RunOutcome:
     """Store a new run of ``planned`` and execute it.
 
     Parameters
@@ -289,34 +316,61 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
     progress : callable(done, total, last_error), optional
     on_started : callable(run_id, points_stored), optional
         Called once the run is stored, before the first move.
+    confirm : callable(cell identity, robot_url, tracker_url), optional
+        Called once the devices said who they are, before the run is stored; raises to
+        refuse (nothing is stored, nothing moved).
+    leases : Leases, optional
+        Where the run's and the robot's leases are held (default: this call's own).
+
+    Raises
+    ------
+    LeaseBusy
+        The robot is in use by another live process.
+    RequestError
+        The robot does not fit the model (joint count, a simulator of another model).
     """
     req = planned.request
-    frame = frame_run(store, req.frame_run)
-    context = RunContext(
-        routine=planned.plan.routine, model=req.model,
-        tool_mm=tuple(float(v) for v in planned.model.tool_mm()), robot_url=robot_url,
-        tracker_url=tracker_url, seed=req.seed,
-        frame_run=None if frame is None else frame.id,
-        tracker_T_base=None if frame is None else frame.frame["tracker_T_base"],
-        executor=req.executor, acquire=planned.acquire)
-    with _devices(robot_url, tracker_url, devices, req.executor.connect_timeout_s) as (
-            robot, tracker):
-        run_id = store.create_run(planned.plan, context, robot_desc=describe(robot),
-                                  tracker_desc=describe(tracker))
-        if on_started is not None:
-            on_started(run_id, 0)
-        return execute(store, run_id, planned.plan, robot, tracker, model=planned.model,
-                       context=context, progress=progress)
+    with _leases(store, leases) as held:
+        _take_robot(held, robot_url)
+        with reach_devices(robot_url, tracker_url, devices,
+                           req.executor.connect_timeout_s) as (robot, tracker):
+            cell = identify(robot, tracker, req.executor.io_timeout_s + 1.0)
+            check_robot(planned.model, robot, cell.robot)
+            _take_robot(held, robot_url, cell.robot)
+            if confirm is not None:
+                confirm(cell, robot_url, tracker_url)
+            frame = frame_run(store, req.frame_run, cell)
+            context = RunContext(
+                routine=planned.plan.routine, model=req.model,
+                tool_mm=tuple(float(v) for v in planned.model.tool_mm()), robot_url=robot_url,
+                tracker_url=tracker_url, seed=req.seed,
+                frame_run=None if frame is None else frame.id,
+                tracker_T_base=None if frame is None else frame.frame["tracker_T_base"],
+                executor=req.executor, acquire=planned.acquire, motion=req.motion)
+            run_id = store.create_run(planned.plan, context, robot_desc=describe(robot),
+                                      tracker_desc=describe(tracker),
+                                      robot_identity=cell.robot.to_dict(),
+                                      tracker_identity=cell.tracker.to_dict())
+            held.acquire(run_key(run_id), f"run {run_id}")
+            if on_started is not None:
+                on_started(run_id, 0)
+            return execute(store, run_id, planned.plan, robot, tracker, model=planned.model,
+                           context=context, progress=progress)
 
 
 # ------------------------------------------------------------------- resume
 def prepare_resume(store: RunStore, run_id: int | None = None, *,
-                   robot_url: str | None = None, tracker_url: str | None = None) -> Resumable:
+                   robot_url: str | None = None, tracker_url: str | None = None,
+                   leases: Leases | None = None) -> Resumable:
     """Find run ``run_id`` (default: the latest) and what resuming it needs.
 
-    A run found still ``running`` (its process was killed) gets a ``killed``
-    interruption. ``robot_url``/``tracker_url`` replace the stored ones. A completed run
-    comes back as it is (:attr:`Resumable.completed`).
+    Unless it is completed, the run's lease is taken first (in ``leases``, kept; else
+    for this call only): a run a live process still executes is refused at once
+    (:class:`~daq.leases.LeaseBusy`, naming the owner). A run found ``running`` without
+    a live owner (its process was killed) then gets a ``killed`` interruption.
+    ``robot_url``/``tracker_url`` replace the stored ones for this resume (stored only
+    once the devices prove to be the run's cell). A completed run comes back as it is
+    (:attr:`Resumable.completed`).
     """
     from calibration import ModelError, load_model
 
@@ -330,10 +384,15 @@ def prepare_resume(store: RunStore, run_id: int | None = None, *,
     done = store.n_samples(r.id)
     if r.status == "completed":
         return Resumable(r, plan, done)
+    with _leases(store, leases) as held:
+        taken = held.acquire(run_key(r.id), f"run {r.id}")
+    r = store.run(r.id)  # as it is now that no one else runs it
+    done = store.n_samples(r.id)
     if r.status == "running":
+        owner = "" if taken is None else f" (its owner, {taken.describe()}, is gone)"
         store.add_interruption(r.id, None, "killed",
                                "found still running on resume: the process was killed or "
-                               "crashed")
+                               f"crashed{owner}")
     try:
         model = load_model(r.model or plan.model)
         if r.context.tool_mm is not None:
@@ -350,12 +409,20 @@ def prepare_resume(store: RunStore, run_id: int | None = None, *,
 def resume_run(store: RunStore, resumable: Resumable, *, executor: dict | None = None,
                acquire: dict | None = None, devices: tuple | None = None,
                progress: ProgressFn | None = None,
-               on_started: Callable[[int, int], None] | None = None) -> RunOutcome:
+               on_started: Callable[[int, int], None] | None = None,
+               confirm: ConfirmFn | None = None, leases: Leases | None = None,
+               other_cell: bool = False) -> RunOutcome:
     """Continue a run from :func:`prepare_resume`: the points not yet stored.
 
     ``executor`` and ``acquire`` override the stored executor and acquisition options
-    for this session (the stored context keeps its own). New URLs are stored with the run. A failed
-    connection is recorded as an interruption, then :class:`ConnectFailed`.
+    for this session (the stored context keeps its own). The run's and the robot's
+    leases are taken (:class:`~daq.leases.LeaseBusy` when another process holds them).
+    The devices must be the run's cell (:func:`daq.devices.same_cell`), else
+    :class:`OtherCell` — or, with ``other_cell``, a NEW run of the same plan (every
+    point; its ``source_run`` is this one; the measurement frame of a frame run of that
+    cell, if any) is created and executed instead, and this run is left as it is. New
+    URLs of the same cell are stored with the run. ``confirm`` as :func:`start_run`. A
+    failed connection is recorded as an interruption, then :class:`ConnectFailed`.
     """
     r = resumable.run
     stored = r.context
@@ -363,26 +430,71 @@ def resume_run(store: RunStore, resumable: Resumable, *, executor: dict | None =
         options = ExecutorOptions(**{**stored.executor.model_dump(), **(executor or {})})
         acq = _acquire_options(get_routine(r.routine), {**stored.acquire, **(acquire or {})})
     except ValueError as e:
-        raise RequestError(str(e)) from None
-    context = stored.model_copy(update={"executor": options, "acquire": acq,
-                                        "robot_url": resumable.robot_url,
-                                        "tracker_url": resumable.tracker_url})
+        raise RequestError(one_line(e)) from None
+    robot_url, tracker_url = resumable.robot_url, resumable.tracker_url
 
     def record(e: ConnectFailed) -> None:
         store.add_interruption(r.id, None, "connection", f"resume: cannot connect: {e}")
 
-    with _devices(resumable.robot_url, resumable.tracker_url, devices,
-                  options.connect_timeout_s, on_fail=record) as (robot, tracker):
-        if resumable.robot_url != r.robot_url or resumable.tracker_url != r.tracker_url:
-            store.update_run(r.id, robot_url=resumable.robot_url,
-                             tracker_url=resumable.tracker_url)
-        done = store.n_samples(r.id)
-        if on_started is not None:
-            on_started(r.id, done)
-        store.add_interruption(r.id, None, "resume", f"resumed with {done}/{r.n_points} "
-                               "points stored")
-        return execute(store, r.id, resumable.plan, robot, tracker, model=resumable.model,
-                       context=context, progress=progress)
+    with _leases(store, leases) as held:
+        held.acquire(run_key(r.id), f"run {r.id}")
+        _take_robot(held, robot_url)
+        with reach_devices(robot_url, tracker_url, devices, options.connect_timeout_s,
+                           on_fail=record) as (robot, tracker):
+            cell = identify(robot, tracker, options.io_timeout_s + 1.0)
+            check_robot(resumable.model, robot, cell.robot)
+            _take_robot(held, robot_url, cell.robot)
+            same, why = same_cell(r, cell, robot_url, tracker_url)
+            if not same and not other_cell:
+                raise OtherCell(f"run {r.id} was measured in another cell: {why}. Resume it "
+                                "with its own robot and tracker, or pass --other-cell to start "
+                                "a new run of the same plan with these (the two cells' "
+                                "samples are never mixed)")
+            if confirm is not None:
+                confirm(cell, robot_url, tracker_url)
+            if not same:
+                return _repeat_elsewhere(store, resumable, cell, options, acq, robot, tracker,
+                                         held, progress, on_started, why)
+            context = stored.model_copy(update={"executor": options, "acquire": acq,
+                                                "robot_url": robot_url,
+                                                "tracker_url": tracker_url})
+            if robot_url != r.robot_url or tracker_url != r.tracker_url:
+                store.update_run(r.id, robot_url=robot_url, tracker_url=tracker_url)
+            if r.robot_identity is None:  # a run stored before identities were
+                store.update_run(r.id, robot_identity=cell.robot.to_dict(),
+                                 tracker_identity=cell.tracker.to_dict())
+            done = store.n_samples(r.id)
+            if on_started is not None:
+                on_started(r.id, done)
+            store.add_interruption(r.id, None, "resume", f"resumed with {done}/{r.n_points} "
+                                   "points stored")
+            return execute(store, r.id, resumable.plan, robot, tracker,
+                           model=resumable.model, context=context, progress=progress)
+
+
+def _repeat_elsewhere(store, resumable: Resumable, cell: CellIdentity, options, acq, robot,
+                      tracker, held: Leases, progress, on_started, why: str) -> RunOutcome:
+    """``resume --other-cell``: a new run of the resumed run's plan in this cell."""
+    r = resumable.run
+    frame = frame_run(store, None, cell)
+    context = r.context.model_copy(update={
+        "executor": options, "acquire": acq, "robot_url": resumable.robot_url,
+        "tracker_url": resumable.tracker_url,
+        "frame_run": None if frame is None else frame.id,
+        "tracker_T_base": None if frame is None else frame.frame["tracker_T_base"]})
+    run_id = store.create_run(resumable.plan, context, robot_desc=describe(robot),
+                              tracker_desc=describe(tracker),
+                              robot_identity=cell.robot.to_dict(),
+                              tracker_identity=cell.tracker.to_dict(), source_run=r.id)
+    held.acquire(run_key(run_id), f"run {run_id}")
+    store.add_interruption(r.id, None, "other_cell",
+                           f"not resumed here: {why}; its plan runs again as run {run_id}")
+    store.add_interruption(run_id, None, "other_cell",
+                           f"the plan of run {r.id} again, in another cell ({why})")
+    if on_started is not None:
+        on_started(run_id, 0)
+    return execute(store, run_id, resumable.plan, robot, tracker, model=resumable.model,
+                   context=context, progress=progress)
 
 
 # ------------------------------------------------------------------ execute
@@ -395,11 +507,12 @@ def execute(store: RunStore, run_id: int, plan: Plan, robot, tracker, *, model,
     ex = Executor(store, run_id, plan, robot, tracker, context.executor,
                   acquisition=None if make_acquisition is None
                   else make_acquisition(model, context),
-                  progress=progress, finalize=getattr(mod, "finalize", None))
+                  progress=progress, finalize=getattr(mod, "finalize", None),
+                  guard=MotionGuard(model, context.motion))
     t0 = time.monotonic()
     status = ex.run()
     elapsed = time.monotonic() - t0
     run = store.run(run_id)
     return RunOutcome(run_id, plan.routine, status, run.reason, len(plan),
                       store.n_samples(run_id), ex.n_faults, elapsed, plan.hash,
-                      str(store.path), run.frame, run.summary)
+                      str(store.path), run.frame, run.summary, ex.stop_signal)

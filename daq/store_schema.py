@@ -14,6 +14,10 @@ Versions
        joints' time; the interruptions table.
     3. ``options_json`` becomes ``context_json``: a versioned run context
        (:class:`daq.run_context.RunContext`, version 1).
+    4. one owner per run and per robot, and who the devices were: the ``leases`` table
+       (:mod:`daq.leases`); per run the robot's and the tracker's identity (JSON of
+       :class:`drivers.protocols.DeviceIdentity`) and ``source_run`` (the run whose plan a
+       run repeats on another cell). Additive: new table, new nullable columns.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ import sqlite3
 from collections.abc import Callable
 
 #: current schema version (PRAGMA user_version)
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 
 SCHEMA_V1 = """
 CREATE TABLE runs (
@@ -121,5 +125,24 @@ def _upgrade_2_to_3(con: sqlite3.Connection) -> None:
     con.execute("ALTER TABLE runs DROP COLUMN options_json")
 
 
+def _upgrade_3_to_4(con: sqlite3.Connection) -> None:
+    """v4 (additive): the ``leases`` table; per run ``robot_identity``,
+    ``tracker_identity`` (JSON) and ``source_run``."""
+    for col in ("robot_identity TEXT", "tracker_identity TEXT", "source_run INTEGER"):
+        con.execute(f"ALTER TABLE runs ADD COLUMN {col}")
+    con.execute(
+        """CREATE TABLE leases (
+            key TEXT PRIMARY KEY,
+            owner_pid INTEGER NOT NULL,
+            owner_host TEXT NOT NULL,
+            owner_token TEXT NOT NULL,
+            acquired REAL NOT NULL,
+            heartbeat REAL NOT NULL,
+            what TEXT
+        )"""
+    )
+
+
 #: UPGRADES[k] takes a database from version k+1 to k+2
-UPGRADES: list[Callable[[sqlite3.Connection], None]] = [_upgrade_1_to_2, _upgrade_2_to_3]
+UPGRADES: list[Callable[[sqlite3.Connection], None]] = [_upgrade_1_to_2, _upgrade_2_to_3,
+                                                        _upgrade_3_to_4]

@@ -24,6 +24,15 @@ ROOT = Path(__file__).resolve().parents[2]
 FREE_PORTS = {"modbus": 0, "line_robot": 0, "tracker": 0, "emscon": 0}
 
 
+def toy_sim(kind: str, seed: int, name: str = "default", **extra) -> str:
+    """An in-process ``sim://`` URL of the toy arm (tests/daq/data/toyarm.yaml; the SMR at
+    the wrist: no tool) for cell ``name``."""
+    from urllib.parse import urlencode
+
+    query = {"model": TOY, "tool": "0,0,0", "seed": seed, "name": name, **extra}
+    return f"sim://{kind}?{urlencode(query)}"
+
+
 def ur10e_controller_model():
     """The nominal UR10e as the simulated controller knows it (SMR on a 60 mm holder)."""
     return load_model("ur10e").with_changes(tool=(0.0, 0.0, 60.0))
