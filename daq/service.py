@@ -340,6 +340,11 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
             if confirm is not None:
                 confirm(cell, robot_url, tracker_url)
             frame = frame_run(store, req.frame_run, cell)
+            if frame is not None and not _measured_in(frame, cell):
+                raise RequestError(f"frame run {frame.id} was measured in another cell (robot "
+                                   f"{stored_identity(frame.robot_identity)}, tracker "
+                                   f"{stored_identity(frame.tracker_identity)}): its frame "
+                                   "does not hold here")
             context = RunContext(
                 routine=planned.plan.routine, model=req.model,
                 tool_mm=tuple(float(v) for v in planned.model.tool_mm()), robot_url=robot_url,

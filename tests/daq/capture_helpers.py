@@ -51,9 +51,11 @@ def base_only_truth(seed: int, hidden=None) -> ModelTruth:
 
 
 @contextlib.contextmanager
-def served_cell(truth_factory, *, faults=None, seed=0):
-    """A SimStack on free loopback ports (no pty): yields the stack."""
-    cfg = ServeConfig(seed=seed, faults=faults, ports=dict(FREE_PORTS), pty=False)
+def served_cell(truth_factory, *, faults=None, seed=0, time_scale=0.0):
+    """A SimStack on free loopback ports (no pty): yields the stack (what ``cellcal sim
+    serve`` runs, in this process so a test can read the simulator's truth)."""
+    cfg = ServeConfig(seed=seed, faults=faults, ports=dict(FREE_PORTS), pty=False,
+                      time_scale=time_scale)
     with SimStack(cfg, truth_factory=truth_factory) as stack:
         yield stack
 
