@@ -16,7 +16,6 @@ from daq.check import PlanRefused, check_plan, require_ok
 from daq.cli import main
 from daq.commands.capture import confirm_motion
 from daq.devices import CellIdentity
-from drivers.protocols import DeviceIdentity
 from daq.plans import Plan, Target
 from daq.progress import Progress
 from daq.routines import make_plan
@@ -25,6 +24,7 @@ from daq.run_context import ExecutorOptions, RunContext
 from daq.run_data import dataset_from_run
 from daq.store import RunStore, Sample, StoreError
 from daq.store_schema import SCHEMA_V1, SCHEMA_VERSION
+from drivers.protocols import DeviceIdentity
 from drivers.urls import open_robot, open_tracker
 
 from .capture_helpers import TOY, run_plan, toy_sim

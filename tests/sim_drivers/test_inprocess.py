@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
-
-from pathlib import Path
 
 from drivers.errors import BeamBroken, LimitError, ProtectiveStop
 from drivers.protocols import CommandedPosition, Identified, RobotDriver, TrackerDriver
