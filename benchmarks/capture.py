@@ -4,8 +4,9 @@ Two set-ups, each a ``poses`` plan on the toy arm with time_scale 0 (moves and
 measurements take no wall time): the in-process ``sim://`` drivers (the toy arm's
 calibration-backed truth; executor + SQLite only) and the real drivers over loopback
 sockets to ``SimStack`` (ToyArm truth; line robot + TCP tracker). Every point includes
-the executor's read-back of the joints after the move and after the measurement. Prints points, total seconds, ms per point and the SQLite commit's share
-(WAL, synchronous=FULL).
+the executor's read-back of the joints after the move and after the measurement.
+Prints points, total seconds, ms per point and the SQLite commit's share (WAL,
+synchronous=FULL).
 
     .venv/bin/python benchmarks/capture.py [--points 1000]
 """

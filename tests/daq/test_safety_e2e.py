@@ -17,7 +17,6 @@ import json
 import os
 import re
 import signal
-import sqlite3
 import subprocess
 import sys
 import time
@@ -32,7 +31,7 @@ from daq.routines import make_plan
 from daq.store import RunStore
 from sim_drivers.model_truth import model_truth_factory
 
-from .capture_helpers import ROOT, served_cell, ur10e_controller_model
+from .capture_helpers import ROOT, count_samples, served_cell, ur10e_controller_model
 from .line_proxy import LineProxy
 from .test_zero_e2e import TARGET, zero_truth
 
@@ -40,15 +39,6 @@ CLI = [sys.executable, "-m", "daq"]
 UR = ["--model", "ur10e", "--tool-mm", "0,0,60"]
 
 
-def _count(db) -> int:
-    try:
-        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5)
-        try:
-            return int(con.execute("SELECT count(*) FROM samples").fetchone()[0])
-        finally:
-            con.close()
-    except sqlite3.OperationalError:
-        return 0
 
 
 def _host_port(url: str) -> tuple[str, int]:
@@ -80,7 +70,7 @@ def test_a_live_run_and_a_busy_robot_have_one_owner(tmp_path):
         first = subprocess.Popen(capture, cwd=ROOT, stdout=subprocess.PIPE,
                                  stderr=subprocess.PIPE)
         deadline = time.monotonic() + 60
-        while _count(db) < 3:
+        while count_samples(db) < 3:
             assert first.poll() is None and time.monotonic() < deadline
             time.sleep(0.01)
         resume = subprocess.run([*CLI, "resume", "--db", str(db), "--json"], cwd=ROOT,
@@ -146,7 +136,7 @@ def _jump_proxy(stack, db, dz_mm: float):
         if not line.startswith("OK MEAS"):
             return [line]
         if state["moves"] is None:
-            if _count(db) >= 2:  # the first measurement at the third posture
+            if count_samples(db) >= 2:  # the first measurement at the third posture
                 state["moves"] = stack.cell.n_moves
             return [line]
         if stack.cell.n_moves > state["moves"]:  # a correction has moved the robot
@@ -208,7 +198,7 @@ def test_a_tracker_repeating_its_reply_is_not_stored_twice(tmp_path, capsys):
     def transform(line: str) -> list[str]:
         if not line.startswith("OK MEAS"):
             return [line]
-        if not state["done"] and state["last"] is not None and _count(db) >= 3:
+        if not state["done"] and state["last"] is not None and count_samples(db) >= 3:
             state["done"] = True
             return [state["last"]]  # the previous point's reply, word for word
         state["last"] = line
