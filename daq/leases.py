@@ -24,6 +24,7 @@ import socket
 import sqlite3
 import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import parse_qsl, urlencode, urlsplit
@@ -225,3 +226,25 @@ class Leases:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+@contextlib.contextmanager
+def held_leases(path: str | Path, given: Leases | None) -> Iterator[Leases]:
+    """The caller's ``given`` leases (kept when the block ends), else new ones for the
+    store ``path`` (released when it ends)."""
+    if given is not None:
+        yield given
+        return
+    with Leases(path) as own:
+        yield own
+
+
+def take_robot(leases: Leases, url: str, identity=None) -> None:
+    """Hold the robot at ``url``, and by its serial number once ``identity`` (a
+    :class:`drivers.protocols.DeviceIdentity`) gives one: the same robot reached by
+    another URL is the same robot."""
+    leases.acquire(robot_key(url), f"robot {url}")
+    if identity is not None:
+        key = robot_identity_key(identity.model, identity.serial)
+        if key is not None:
+            leases.acquire(key, f"robot {identity}")

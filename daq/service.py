@@ -42,10 +42,9 @@ Errors: :class:`~daq.errors.RequestError` (and :class:`~daq.errors.PlanRefused`,
 
 from __future__ import annotations
 
-import contextlib
 import math
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -61,7 +60,7 @@ from .devices import (
 from .devices import devices as reach_devices
 from .errors import ConnectFailed, PlanRefused, RequestError, one_line
 from .executor import Executor
-from .leases import Leases, robot_identity_key, robot_key, run_key
+from .leases import Leases, held_leases, run_key, take_robot
 from .motion_guard import MotionGuard, MotionLimits
 from .plans import Plan
 from .routines import get as get_routine
@@ -185,25 +184,6 @@ class RunOutcome:
         if self.signal is not None:
             out["signal"] = signal_name(self.signal)
         return out
-
-
-# ------------------------------------------------------------------- leases
-@contextlib.contextmanager
-def _leases(store: RunStore, given: Leases | None) -> Iterator[Leases]:
-    """The caller's leases (kept), else this call's own (released at the end)."""
-    if given is not None:
-        yield given
-        return
-    with Leases(store.path) as own:
-        yield own
-
-
-def _take_robot(leases: Leases, url: str, identity=None) -> None:
-    leases.acquire(robot_key(url), f"robot {url}")
-    if identity is not None:
-        key = robot_identity_key(identity.model, identity.serial)
-        if key is not None:
-            leases.acquire(key, f"robot {identity}")
 
 
 # -------------------------------------------------------------------- start
@@ -330,13 +310,13 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
         The robot does not fit the model (joint count, a simulator of another model).
     """
     req = planned.request
-    with _leases(store, leases) as held:
-        _take_robot(held, robot_url)
+    with held_leases(store.path, leases) as held:
+        take_robot(held, robot_url)
         with reach_devices(robot_url, tracker_url, devices,
                            req.executor.connect_timeout_s) as (robot, tracker):
             cell = identify(robot, tracker, req.executor.io_timeout_s + 1.0)
             check_robot(planned.model, robot, cell.robot)
-            _take_robot(held, robot_url, cell.robot)
+            take_robot(held, robot_url, cell.robot)
             if confirm is not None:
                 confirm(cell, robot_url, tracker_url)
             frame = frame_run(store, req.frame_run, cell)
@@ -389,7 +369,7 @@ def prepare_resume(store: RunStore, run_id: int | None = None, *,
     done = store.n_samples(r.id)
     if r.status == "completed":
         return Resumable(r, plan, done)
-    with _leases(store, leases) as held:
+    with held_leases(store.path, leases) as held:
         taken = held.acquire(run_key(r.id), f"run {r.id}")
     r = store.run(r.id)  # as it is now that no one else runs it
     done = store.n_samples(r.id)
@@ -441,14 +421,14 @@ def resume_run(store: RunStore, resumable: Resumable, *, executor: dict | None =
     def record(e: ConnectFailed) -> None:
         store.add_interruption(r.id, None, "connection", f"resume: cannot connect: {e}")
 
-    with _leases(store, leases) as held:
+    with held_leases(store.path, leases) as held:
         held.acquire(run_key(r.id), f"run {r.id}")
-        _take_robot(held, robot_url)
+        take_robot(held, robot_url)
         with reach_devices(robot_url, tracker_url, devices, options.connect_timeout_s,
                            on_fail=record) as (robot, tracker):
             cell = identify(robot, tracker, options.io_timeout_s + 1.0)
             check_robot(resumable.model, robot, cell.robot)
-            _take_robot(held, robot_url, cell.robot)
+            take_robot(held, robot_url, cell.robot)
             same, why = same_cell(r, cell, robot_url, tracker_url)
             if not same and not other_cell:
                 raise OtherCell(f"run {r.id} was measured in another cell: {why}. Resume it "
