@@ -19,6 +19,7 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -62,24 +63,38 @@ def _off_plan(store: RunStore, run_id: int) -> float:
 @pytest.mark.slow
 def test_a_live_run_and_a_busy_robot_have_one_owner(tmp_path):
     db = tmp_path / "live.db"
-    with served_cell(model_truth_factory, seed=5, time_scale=0.05) as stack:
-        robot, tracker = stack.urls[1], stack.urls[2]
-        capture = [*CLI, "capture", "poses", "--count", "25", "--seed", "2", *UR, "--no-floor",
-                   "--robot", robot, "--tracker", tracker, "--db", str(db), "--json",
-                   "--measure-s", "0.1"]
+    hold = threading.Event()
+
+    def held(line: str) -> list[str]:  # the tracker answers once the test lets it
+        if line.startswith("OK MEAS") and count_samples(db) >= 3:
+            hold.wait(120)
+        return [line]
+
+    with served_cell(model_truth_factory, seed=5) as stack, \
+            LineProxy(_host_port(stack.urls[2]), held) as proxy:
+        robot = stack.urls[1]
+        capture = [*CLI, "capture", "poses", "--count", "12", "--seed", "2", *UR, "--no-floor",
+                   "--robot", robot, "--tracker", proxy.url("tracker+tcp"), "--db", str(db),
+                   "--json", "--measure-s", "0.05"]
         first = subprocess.Popen(capture, cwd=ROOT, stdout=subprocess.PIPE,
                                  stderr=subprocess.PIPE)
         deadline = time.monotonic() + 60
         while count_samples(db) < 3:
             assert first.poll() is None and time.monotonic() < deadline
             time.sleep(0.01)
-        resume = subprocess.run([*CLI, "resume", "--db", str(db), "--json"], cwd=ROOT,
-                                capture_output=True, timeout=60)
-        again = subprocess.run(capture, cwd=ROOT, capture_output=True, timeout=60)
+        try:
+            resume = subprocess.run([*CLI, "resume", "--db", str(db), "--json"], cwd=ROOT,
+                                    capture_output=True, timeout=60)
+            again = subprocess.run(capture, cwd=ROOT, capture_output=True, timeout=60)
+            still_running = first.poll() is None
+        finally:
+            hold.set()
         out, err = first.communicate(timeout=120)
+    assert still_running
     assert resume.returncode == 2, resume.stderr.decode()
     assert f"run 1 is in use by pid {first.pid}" in resume.stderr.decode()
-    assert again.returncode == 2 and f"in use by pid {first.pid}" in again.stderr.decode()
+    assert again.returncode == 2, again.stderr.decode()
+    assert f"robot {robot} is in use by pid {first.pid}" in again.stderr.decode()
     assert first.returncode == 0, err.decode()
     assert json.loads(out)["status"] == "completed"
     with RunStore(db) as st:
