@@ -301,7 +301,8 @@ class MotionGuard:
             miss = float(np.linalg.norm(self.tool_points(q_read[None])[0] - np.asarray(xyz)))
             if miss > L.tcp_tol_mm:
                 out.append(f"the nominal tool point is {miss:.2f} mm from the linear move's "
-                           f"target (tolerance {L.tcp_tol_mm:g} mm)")
+                           f"target (tolerance {L.tcp_tol_mm:g} mm; is the model's tool, "
+                           "--tool-mm, the controller's TCP?)")
         if planned is not None:
             d = np.abs(q_read - np.asarray(planned, float))
             j = int(np.argmax(d))

@@ -88,8 +88,8 @@ class RunContext(BaseModel):
         routines without adaptive acquisition.
     motion : MotionLimits
         What every move of the run must respect (floor, reach, keep-out boxes, read-back
-        tolerances, deviation of adaptive moves): :mod:`daq.motion_guard`. A context
-        stored before it existed reads the defaults (floor at z = 0).
+        tolerances, deviation of adaptive moves): :mod:`daq.motion_guard`. The store's
+        upgrade to schema 4 gives the runs made before it no floor (none was recorded).
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")

@@ -17,7 +17,8 @@ Versions
     4. one owner per run and per robot, and who the devices were: the ``leases`` table
        (:mod:`daq.leases`); per run the robot's and the tracker's identity (JSON of
        :class:`drivers.protocols.DeviceIdentity`) and ``source_run`` (the run whose plan a
-       run repeats on another cell). Additive: new table, new nullable columns.
+       run repeats on another cell); run contexts gain ``motion`` (no floor for the runs
+       made before: none was recorded). Additive: new table, new nullable columns.
 """
 
 from __future__ import annotations
@@ -127,9 +128,16 @@ def _upgrade_2_to_3(con: sqlite3.Connection) -> None:
 
 def _upgrade_3_to_4(con: sqlite3.Connection) -> None:
     """v4 (additive): the ``leases`` table; per run ``robot_identity``,
-    ``tracker_identity`` (JSON) and ``source_run``."""
+    ``tracker_identity`` (JSON) and ``source_run``; each run context gets the motion
+    limits its moves were made under before v4: no floor (the executor checked none,
+    and the dry run's floor was not recorded), the other limits' defaults."""
     for col in ("robot_identity TEXT", "tracker_identity TEXT", "source_run INTEGER"):
         con.execute(f"ALTER TABLE runs ADD COLUMN {col}")
+    for rid, text in con.execute("SELECT id, context_json FROM runs").fetchall():
+        ctx = json.loads(text) if text else None
+        if isinstance(ctx, dict) and "motion" not in ctx:
+            ctx["motion"] = {"floor_z_mm": None}
+            con.execute("UPDATE runs SET context_json=? WHERE id=?", (json.dumps(ctx), rid))
     con.execute(
         """CREATE TABLE leases (
             key TEXT PRIMARY KEY,

@@ -174,7 +174,8 @@ def test_upgrade_from_a_schema_3_store(tmp_path):
         assert st.version == 4
         r = st.run(1)
         assert r.robot_identity is None and r.tracker_identity is None and r.source_run is None
-        assert r.context.motion == MotionLimits()  # the defaults: floor at z = 0
+        # the limits it ran under: no floor (none was recorded), the rest the defaults
+        assert r.context.motion == MotionLimits(floor_z_mm=None)
         st.update_run(1, robot_identity={"kind": "robot", "serial": "S"})
         assert st.run(1).robot_identity["serial"] == "S"
     with Leases(path) as ls:
