@@ -27,7 +27,8 @@ def _run_dict(store, r) -> dict:
             "robot": r.robot_url, "tracker": r.tracker_url, "robot_desc": r.robot_desc,
             "tracker_desc": r.tracker_desc, "software": r.software, "seed": r.seed,
             "started": r.started, "stopped": r.stopped, "plan_hash": r.plan_hash,
-            "frame": r.frame, "summary": r.summary}
+            "robot_identity": r.robot_identity, "tracker_identity": r.tracker_identity,
+            "source_run": r.source_run, "frame": r.frame, "summary": r.summary}
 
 
 def run(args) -> int:
