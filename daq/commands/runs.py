@@ -27,8 +27,7 @@ def _run_dict(store, r) -> dict:
             "robot": r.robot_url, "tracker": r.tracker_url, "robot_desc": r.robot_desc,
             "tracker_desc": r.tracker_desc, "software": r.software, "seed": r.seed,
             "started": r.started, "stopped": r.stopped, "plan_hash": r.plan_hash,
-            "robot_identity": r.robot_identity, "tracker_identity": r.tracker_identity,
-            "source_run": r.source_run, "frame": r.frame, "summary": r.summary}
+            "frame": r.frame, "summary": r.summary}
 
 
 def run(args) -> int:
@@ -43,6 +42,8 @@ def run(args) -> int:
             except StoreError as e:
                 raise UsageError(str(e)) from None
             d = _run_dict(store, r)
+            d.update(robot_identity=r.robot_identity, tracker_identity=r.tracker_identity,
+                     source_run=r.source_run)
             d["context"] = r.context.model_dump(mode="json")
             d["interruptions"] = [
                 {"point": p, "t": t, "kind": k, "message": m}
