@@ -1,10 +1,12 @@
 """Software overhead of the capture executor per point, against the simulator at zero motion time.
 
-Two set-ups, each a ``poses`` plan on the ToyArm truth with time_scale 0 (moves and
-measurements take no wall time): the in-process ``sim://`` drivers (executor + SQLite
-only) and the real drivers over loopback sockets to ``SimStack`` (line robot + TCP
-tracker). Prints points, total seconds, ms per point and the SQLite commit's share
-(WAL, synchronous=FULL).
+Two set-ups, each a ``poses`` plan on the toy arm with time_scale 0 (moves and
+measurements take no wall time): the in-process ``sim://`` drivers (the toy arm's
+calibration-backed truth; executor + SQLite only) and the real drivers over loopback
+sockets to ``SimStack`` (ToyArm truth; line robot + TCP tracker). Every point includes
+the executor's read-back of the joints after the move and after the measurement.
+Prints points, total seconds, ms per point and the SQLite commit's share (WAL,
+synchronous=FULL).
 
     .venv/bin/python benchmarks/capture.py [--points 1000]
 """
@@ -57,7 +59,8 @@ def main() -> None:
     rows = []
     for sync in ("FULL", "NORMAL"):
         inproc.reset_cells()
-        rows.append(bench("in-process sim://", plan, "sim://robot?name=bench",
+        rows.append(bench("in-process sim://", plan,
+                          f"sim://robot?model={TOY}&tool=0,0,0&name=bench",
                           "sim://tracker?name=bench", sync))
     cfg = ServeConfig(ports={"modbus": 0, "line_robot": 0, "tracker": 0}, pty=False)
     with SimStack(cfg) as stack:

@@ -8,10 +8,15 @@
   within ``reach_tol_mm`` of it), and every tool point must lie within
   ``max_reach_mm`` of the base origin when that is given;
 * a floor plane: the origin of every link frame and the tool point must be at
-  ``z >= floor_z_mm`` (robot base frame).
+  ``z >= floor_z_mm`` (robot base frame);
+* keep-out boxes (link origins and tool point outside them);
+* the moves between consecutive postures: no linear move that would have to turn a
+  joint by more than half a turn; with ``limits.check_paths`` also the floor, keep-out
+  boxes and reach along each joint move.
 
-A plan that fails is refused with the offending targets named: index, label,
-which joint and limit, or which point lies below the floor.
+The checks are the executor's own (:class:`daq.motion_guard.MotionGuard`), which repeats
+them before every move it sends. A plan that fails is refused with the offending targets
+named: index, label, which joint and limit, or which point lies below the floor.
 """
 
 from __future__ import annotations
@@ -20,9 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calibration.kinematics import run_chain
-
 from .errors import PlanRefused
+from .motion_guard import MotionGuard, MotionLimits
 from .plans import Plan
 
 
@@ -65,9 +69,6 @@ class CheckResult:
         return "\n".join(lines)
 
 
-_LIMIT_TOL = 1e-9
-
-
 def check_plan(
     plan: Plan,
     model,
@@ -75,6 +76,7 @@ def check_plan(
     floor_z_mm: float | None = 0.0,
     max_reach_mm: float | None = None,
     reach_tol_mm: float = 0.5,
+    limits: MotionLimits | None = None,
 ) -> CheckResult:
     """Dry-run ``plan`` against ``model`` (a :class:`calibration.RobotModel`).
 
@@ -89,17 +91,22 @@ def check_plan(
         Largest allowed distance (mm) of the tool point from the base origin.
     reach_tol_mm : float
         A linear target whose expected joints miss it by more than this is unreachable.
+    limits : MotionLimits, optional
+        The run's motion limits (floor, reach, keep-out boxes); when given, ``floor_z_mm``
+        and ``max_reach_mm`` are taken from it.
 
     Returns
     -------
     CheckResult
     """
+    if limits is None:
+        limits = MotionLimits(floor_z_mm=floor_z_mm, max_reach_mm=max_reach_mm)
+    guard = MotionGuard(model, limits)
     res = CheckResult(len(plan))
     N = model.n_joints
-    lim = model.limits_rad()
     rows, qs, what = [], [], []
     for t in plan.targets:
-        for name, q in (("target", t.q), ("via", t.via if t.move != "linear" else None)):
+        for name, q in (("via", t.via if t.move != "linear" else None), ("target", t.q)):
             if q is None:
                 continue
             if len(q) != N:
@@ -115,40 +122,50 @@ def check_plan(
     if not qs:
         return res
     Q = np.asarray(qs, float)
-    lo = (Q - lim[:, 0]) < -_LIMIT_TOL
-    hi = (Q - lim[:, 1]) > _LIMIT_TOL
-    for r, j in zip(*np.nonzero(lo | hi), strict=True):
-        t, side = rows[r], "min" if lo[r, j] else "max"
-        bound = np.degrees(lim[j, 0 if side == "min" else 1])
-        res.problems.append(Problem(
-            t.index, t.label, f"{what[r]} joint {j + 1} = {np.degrees(Q[r, j]):.3f} deg beyond "
-            f"its {side} limit {bound:g} deg"))
-    chain = run_chain(model.convention, model.dh_table(), Q, model.tool_mm(), jacobian=False,
-                      prismatic=model.prismatic_mask())
-    tip = chain.base_p_tcp
+    for r, msg in guard.pose_problems(Q):
+        res.problems.append(Problem(rows[r].index, rows[r].label, f"{what[r]} {msg}"))
+    tip = guard.tool_points(Q)
     for r, t in enumerate(rows):
         if what[r] == "target" and t.move == "linear":
             miss = float(np.linalg.norm(tip[r] - np.asarray(t.base_p_tcp)))
             if miss > reach_tol_mm:
                 res.problems.append(Problem(t.index, t.label, f"unreachable: the expected joints "
                                             f"miss the target by {miss:.2f} mm"))
-    if max_reach_mm is not None:
-        dist = np.linalg.norm(tip, axis=1)
-        for r in np.flatnonzero(dist > max_reach_mm):
-            t = rows[r]
-            res.problems.append(Problem(t.index, t.label, f"{what[r]} tool point "
-                                        f"{dist[r]:.1f} mm from the base, beyond the reach "
-                                        f"limit {max_reach_mm:g} mm"))
-    if floor_z_mm is not None:
-        # link origins after each joint (index 1..N) and the tool point
-        z = np.concatenate([chain.frames_p[:, 1:, 2], tip[:, 2:3]], axis=1)
-        for r, k in zip(*np.nonzero(z < floor_z_mm), strict=True):
-            t = rows[r]
-            name = "tool point" if k == N else f"origin of link {k + 1}"
-            res.problems.append(Problem(t.index, t.label, f"{what[r]} {name} at z = "
-                                        f"{z[r, k]:.1f} mm, below the floor {floor_z_mm:g} mm"))
+    _check_moves(res, guard, rows, Q, what)
     res.problems.sort(key=lambda p: p.index)
     return res
+
+
+def _check_moves(res: CheckResult, guard: MotionGuard, rows, Q: np.ndarray, what) -> None:
+    """The moves between consecutive postures: linear moves that would have to turn a
+    joint more than half a turn (the controller moves the short way), and with
+    ``check_paths`` the floor, keep-out and reach along each joint move (one vectorised
+    pass over every sampled posture)."""
+    paths, owner = [], []
+    for r in range(1, len(rows)):
+        t = rows[r]
+        if t.move == "linear" and what[r] == "target":
+            turn = np.abs(Q[r] - Q[r - 1])
+            for j in np.flatnonzero(turn > np.pi):
+                res.problems.append(Problem(t.index, t.label, (
+                    f"a linear move from {what[r - 1]} of point {rows[r - 1].index} would turn "
+                    f"joint {j + 1} by {np.degrees(turn[j]):.1f} deg: the controller moves "
+                    "the short way and would not land on the planned posture")))
+            continue
+        if not guard.limits.check_paths:
+            continue
+        P = guard.path(Q[r - 1], Q[r])[1:-1]  # the ends are checked as postures
+        paths.append(P)
+        owner += [r] * len(P)
+    if not paths:
+        return
+    seen = set()
+    for k, msg in guard.space_problems(np.vstack(paths)):
+        r = owner[k]
+        if r not in seen:  # the first posture on the way that breaks it
+            seen.add(r)
+            t = rows[r]
+            res.problems.append(Problem(t.index, t.label, f"on the way to the {what[r]}: {msg}"))
 
 
 def require_ok(plan: Plan, model, **kw) -> CheckResult:

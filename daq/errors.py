@@ -48,6 +48,14 @@ class ZeroNotReached(CaptureError):
     kind = "zero_not_reached"
 
 
+class ZeroDiverged(CaptureError):
+    """The zero-point closed loop stopped: the measured tip does not behave as its
+    corrections predict (a tracker reading that jumped, a frame of another cell), or it
+    starts too far from the target to be corrected safely."""
+
+    kind = "zero_diverged"
+
+
 class RequestError(ValueError):
     """The service refuses its input (model, parameters, plan, run): exit code 2 at the CLI."""
 
@@ -67,3 +75,18 @@ class TrackerRefused(RequestError):
 
 class ConnectFailed(ConnectionError):
     """The robot or the tracker could not be reached."""
+
+
+def one_line(e: Exception) -> str:
+    """An error's message on one line: a pydantic ValidationError as ``field: reason; ...``
+    (its own text spans lines and links to the docs), anything else as it is."""
+    errors = getattr(e, "errors", None)
+    if callable(errors):
+        try:
+            items = errors()
+        except Exception:  # noqa: BLE001 - not a ValidationError after all
+            items = None
+        if items:
+            return "; ".join(f"{'.'.join(str(p) for p in it.get('loc', ())) or 'value'}: "
+                             f"{it.get('msg', '')}" for it in items)
+    return " ".join(str(e).split())

@@ -3,9 +3,30 @@
 For each target not yet in the store: move (via the pre-position if any) →
 wait until settled (+ an optional dwell) → read the joints (and the
 controller's nominal TCP when the robot offers :class:`CommandedPosition`) →
-measure (averaged; a per-axis std above ``max_std_mm`` is remeasured) → write
-one sample in one SQLite transaction, with what the tracker says of its measurement
-(std, covariance, air, reflector, face). That commit is the checkpoint.
+measure (averaged; a per-axis std above ``max_std_mm`` is remeasured) → read the
+joints again → write one sample in one SQLite transaction, with what the tracker says
+of its measurement (std, covariance, air, reflector, face). That commit is the
+checkpoint.
+
+Safe motion
+    Every move — planned, via, or adaptive — is checked by the run's
+    :class:`~daq.motion_guard.MotionGuard` before it is sent (joint limits, floor,
+    keep-out, reach, multi-turn linear moves, and for adaptive moves the deviation from
+    the point's planned posture); a refused move pauses the run
+    (:class:`~daq.motion_guard.MotionRefused`). After every move the joints read back
+    must match the command before the tracker is asked, and they must not have changed
+    during the measurement (someone else moving the robot); otherwise
+    :class:`~daq.motion_guard.MotionMismatch` pauses the run — never a stored sample. A
+    measurement that is not newer than the previous one (a tracker repeating its reply:
+    same time, or the very same numbers) is refused (:class:`StaleMeasurement`,
+    transient: measured again).
+
+Entry move
+    A plan's linear targets carry the joints the controller reaches moving from the
+    previous target (a linear move keeps the flange orientation it starts with). Where
+    the robot comes from is unknown at the first point of a session (a start, a resume,
+    a reconnected robot), so when that point is a linear one the executor first makes a
+    checked joint move to its planned posture, then the linear move(s).
 
 Adaptive acquisition
     A routine may hand the executor an :class:`Acquisition` strategy: after the move
@@ -26,7 +47,9 @@ Faults
       and printed); an operator clears it, then ``cellcal resume``;
     * any other driver or capture error (command rejected, limit, a closed loop that
       did not converge) pauses the run too;
-    * Ctrl-C (SIGINT) stops after the current point (status ``stopped``).
+    * Ctrl-C (SIGINT) stops after the current point (status ``stopped``); a second
+      Ctrl-C, SIGTERM or SIGHUP stops at once: the controller's stop is sent and the
+      run is ``paused`` with the reason (:mod:`daq.stop_signals`; :attr:`Executor.stop_signal`).
 
 Every interruption goes to the store's ``interruptions`` table. A point whose
 sample was not committed is simply done again on resume; the store's
@@ -58,9 +81,18 @@ from drivers.errors import (
 from drivers.protocols import CommandedPosition, JointReading, Measurement
 
 from .errors import CaptureError, QualityError
+from .motion_guard import MotionGuard, MotionMismatch, MotionRefused
 from .plans import Plan, Target
 from .run_context import ExecutorOptions
+from .stop_signals import StopNow, signal_name, stop_handlers
 from .store import RunStore, Sample
+
+
+class StaleMeasurement(CaptureError):
+    """The tracker's reply is not newer than the previous one (repeated or older)."""
+
+    transient = True
+    kind = "stale_measurement"
 
 
 class _Pause(Exception):  # noqa: N818 - control flow
@@ -98,16 +130,23 @@ class PointContext:
     state with the run (it survives a resume).
     """
 
-    def __init__(self, executor: Executor, phase: list[str]) -> None:
-        self._ex, self._phase = executor, phase
+    def __init__(self, executor: Executor, phase: list[str], target: Target) -> None:
+        self._ex, self._phase, self.target = executor, phase, target
 
     @property
     def robot_url(self) -> str:
         return getattr(self._ex.robot, "url", "")
 
-    def move_joints(self, q) -> None:
-        """Joint move to ``q`` (rad), then wait until settled."""
-        self._ex._move_joints(q, self._phase)
+    @property
+    def guard(self) -> MotionGuard:
+        """The run's motion guard (its limits bound an acquisition's own moves)."""
+        return self._ex.guard
+
+    def move_joints(self, q) -> JointReading:
+        """Adaptive joint move to ``q`` (rad): checked by the motion guard (limits,
+        floor, reach, deviation from the point's planned posture) before it is sent,
+        then settled and read back; returns the joints read."""
+        return self._ex._move_joints(q, self._phase, adaptive=True)
 
     def read_joints(self) -> JointReading:
         return self._ex._read_q(self._phase)
@@ -143,6 +182,8 @@ class Executor:
     finalize : callable(plan, samples, run) -> dict, optional
         Called once every point is stored; may return ``frame`` and/or ``summary``
         dicts for the run.
+    guard : MotionGuard, optional
+        Checks every move (default: read-back only, no model).
     """
 
     def __init__(
@@ -157,6 +198,7 @@ class Executor:
         acquisition: Acquisition | None = None,
         progress: Callable[[int, int, str | None], None] | None = None,
         finalize: Callable | None = None,
+        guard: MotionGuard | None = None,
     ) -> None:
         run = store.run(run_id)
         if run.plan_hash != plan.hash:
@@ -168,8 +210,16 @@ class Executor:
         self.acquisition = acquisition
         self.progress = progress
         self.finalize = finalize
+        self.guard = guard or MotionGuard()
         self._stop = threading.Event()
+        self._halting = False
         self._last_cmd_q: np.ndarray | None = None
+        self._q_now: np.ndarray | None = None  # the joints last read (None: unknown)
+        self._entry = True  # no planned move done yet this session (see "Entry move")
+        self._last_meas: Measurement | None = None
+        self._target: Target | None = None
+        #: the signal that stopped the run at once (SIGINT twice, SIGTERM, SIGHUP), or None
+        self.stop_signal: int | None = None
         self.last_error: str | None = None
         self.n_faults = 0
         self.commit_s = 0.0
@@ -180,24 +230,23 @@ class Executor:
         """Stop after the current point (what Ctrl-C does)."""
         self._stop.set()
 
-    @contextlib.contextmanager
-    def _sigint(self):
-        if threading.current_thread() is not threading.main_thread():
-            yield
-            return
-        previous = signal.getsignal(signal.SIGINT)
-
-        def handler(signum, frame):
-            if self._stop.is_set():  # second Ctrl-C: stop now
-                signal.signal(signal.SIGINT, previous)
-                raise KeyboardInterrupt
-            self._stop.set()
-
-        signal.signal(signal.SIGINT, handler)
+    def _halt_robot(self) -> str:
+        """Send the controller's stop (reconnecting once if the link is in a bad state);
+        what happened, in words. Signals are ignored from now on (the run is ending)."""
+        self._halting = True
         try:
-            yield
-        finally:
-            signal.signal(signal.SIGINT, previous)
+            self.robot.stop(timeout=self.o.io_timeout_s + 1.0)
+            return "the controller's stop was sent"
+        except Exception as first:  # noqa: BLE001 - whatever failed, try once more
+            with contextlib.suppress(Exception):
+                self.robot.close()
+            try:
+                self.robot.connect(timeout=self.o.connect_timeout_s)
+                self.robot.stop(timeout=self.o.io_timeout_s + 1.0)
+                return "the controller's stop was sent (after reconnecting)"
+            except Exception as e:  # noqa: BLE001
+                return (f"the controller's stop could NOT be sent ({first}; {e}): check the "
+                        "robot at once")
 
     def _report(self, done: int) -> None:
         if self.progress is not None:
@@ -218,7 +267,7 @@ class Executor:
         n_done = len(done)
         t = None
         self._report(n_done)
-        with self._sigint():
+        with stop_handlers(self._stop.set, self._stop.is_set, lambda: self._halting):
             try:
                 for t in pending:
                     if self._stop.is_set():
@@ -233,11 +282,19 @@ class Executor:
                 self.last_error = p.reason
                 self._report(n_done)
                 return p.status
-            except KeyboardInterrupt:
-                store.add_interruption(rid, getattr(t, "index", None), "sigint",
-                                       "interrupted (second Ctrl-C)")
-                store.set_status(rid, "stopped", "interrupted (second Ctrl-C)")
-                raise
+            except StopNow as e:
+                self.stop_signal = e.signum
+                what = self._halt_robot()
+                name = ("a second Ctrl-C" if e.signum == signal.SIGINT
+                        else signal_name(e.signum))
+                where = f"at point {t.index}" if t is not None else "before the first point"
+                reason = (f"stopped at once by {name} {where}: {what}; resume with "
+                          "`cellcal resume`")
+                store.add_interruption(rid, getattr(t, "index", None), "stop_now", reason)
+                store.set_status(rid, "paused", reason)
+                self.last_error = reason
+                self._report(n_done)
+                return "paused"
             except BaseException as e:
                 store.add_interruption(rid, getattr(t, "index", None), "error",
                                        f"{type(e).__name__}: {e}")
@@ -297,66 +354,115 @@ class Executor:
             self.last_error = f"reconnect {which}: {e}"
         if which == "robot":
             self._last_cmd_q = None  # the controller may have moved on: read again
+            self._q_now = None
+            self._entry = True
 
     # -------------------------------------------------------------- actions
-    def _move_joints(self, q, phase) -> None:
-        o = self.o
-        phase[0] = "robot"
-        self.robot.move_joints(np.asarray(q, float), speed=o.speed_rad_s,
-                               timeout=o.move_timeout_s)
-        self.robot.wait_settled(timeout=o.move_timeout_s)
+    def _where(self) -> str:
+        t = self._target
+        return "" if t is None else f"point {t.index} ({t.label})"
 
-    def _move_linear(self, xyz, phase) -> None:
-        o = self.o
-        phase[0] = "robot"
-        self.robot.move_linear(np.asarray(xyz, float), speed=o.speed_mm_s,
-                               timeout=o.move_timeout_s)
-        self.robot.wait_settled(timeout=o.move_timeout_s)
+    def _refuse(self, problems: list[str], move: str) -> None:
+        if problems:
+            raise MotionRefused(f"robot {getattr(self.robot, 'url', '')}", self._where(),
+                                f"{move} refused: " + "; ".join(problems))
 
-    def _read_q(self, phase):
+    def _mismatch(self, problems: list[str], after: str) -> None:
+        if problems:
+            raise MotionMismatch(f"robot {getattr(self.robot, 'url', '')}", self._where(),
+                                 f"{after}: " + "; ".join(problems))
+
+    def _move_joints(self, q, phase, *, adaptive: bool = False) -> JointReading:
+        """Checked joint move to ``q``, settled and read back (the reading)."""
+        o, t = self.o, self._target
+        q = np.asarray(q, float)
+        planned = None if t is None or t.q is None else np.asarray(t.q, float)
+        self._refuse(self.guard.check_joint_move(self._q_now, q, planned=planned,
+                                                 adaptive=adaptive), "joint move")
         phase[0] = "robot"
-        return self.robot.read_joints(timeout=self.o.io_timeout_s)
+        self._q_now = None  # moving: unknown until read back
+        self.robot.move_joints(q, speed=o.speed_rad_s, timeout=o.move_timeout_s)
+        self.robot.wait_settled(timeout=o.move_timeout_s)
+        jr = self._read_q(phase)
+        self._mismatch(self.guard.check_arrival(jr.q, q_cmd=q), "after the joint move")
+        return jr
+
+    def _move_linear(self, xyz, phase, planned=None) -> JointReading:
+        """Checked linear move to ``xyz``, settled and read back (the reading)."""
+        o = self.o
+        xyz = np.asarray(xyz, float)
+        self._refuse(self.guard.check_linear_move(self._q_now, xyz, planned=planned),
+                     "linear move")
+        phase[0] = "robot"
+        self._q_now = None
+        self.robot.move_linear(xyz, speed=o.speed_mm_s, timeout=o.move_timeout_s)
+        self.robot.wait_settled(timeout=o.move_timeout_s)
+        jr = self._read_q(phase)
+        self._mismatch(self.guard.check_arrival(jr.q, xyz=xyz, planned=planned),
+                       "after the linear move")
+        return jr
+
+    def _read_q(self, phase) -> JointReading:
+        phase[0] = "robot"
+        jr = self.robot.read_joints(timeout=self.o.io_timeout_s)
+        self._q_now = np.asarray(jr.q, float)
+        return jr
 
     def _measure(self, phase):
-        """An averaged measurement whose per-axis std is within the threshold."""
+        """An averaged measurement whose per-axis std is within the threshold, newer than
+        the previous one."""
         o = self.o
         phase[0] = "tracker"
         worst = None
+        dev = f"tracker {getattr(self.tracker, 'url', '')}"
         for _ in range(max(1, o.max_remeasure)):
             m = self.tracker.measure(duration_s=o.measure_s, timeout=o.measure_timeout_s)
+            last, self._last_meas = self._last_meas, m
+            if last is not None and (m.timestamp <= last.timestamp or (
+                    np.array_equal(m.xyz, last.xyz) and np.array_equal(m.std, last.std))):
+                raise StaleMeasurement(dev, "measure", (
+                    f"the reply is not newer than the previous one (t {m.timestamp:.6f} after "
+                    f"{last.timestamp:.6f}, xyz {np.round(m.xyz, 5).tolist()}): a repeated "
+                    "reply?"))
             worst = float(np.max(m.std))
             if worst <= o.max_std_mm:
                 return m
-        raise QualityError(f"tracker {getattr(self.tracker, 'url', '')}", "measure",
-                           f"std {worst:.4f} mm above {o.max_std_mm} mm after "
+        raise QualityError(dev, "measure", f"std {worst:.4f} mm above {o.max_std_mm} mm after "
                            f"{o.max_remeasure} measurements")
 
     def _acquire(self, t: Target, attempt: int, phase) -> Sample:
         o = self.o
+        self._target = t
+        if self._q_now is None:
+            self._read_q(phase)
+        if self._entry and t.move == "linear" and t.q is not None:
+            self._move_joints(t.q, phase)  # where the plan's linear chain starts from
         if self._last_cmd_q is None:
-            self._last_cmd_q = self._read_q(phase).q
+            self._last_cmd_q = self._q_now
+        self._entry = False
         if t.via is not None:
             if t.move == "linear":
                 self._move_linear(t.via, phase)
-                self._last_cmd_q = self._read_q(phase).q
+                self._last_cmd_q = self._q_now
             else:
                 self._move_joints(t.via, phase)
                 self._last_cmd_q = np.asarray(t.via, float)
         prev = self._last_cmd_q
         if t.move == "linear":
-            self._move_linear(t.base_p_tcp, phase)
+            jr = self._move_linear(t.base_p_tcp, phase, planned=t.q)
         else:
-            self._move_joints(t.q, phase)
+            jr = self._move_joints(t.q, phase)
         if o.dwell_s > 0:
             time.sleep(o.dwell_s)
+            moved = jr
+            jr = self._read_q(phase)
+            self._mismatch(self.guard.check_arrival(jr.q, q_cmd=moved.q), "during the dwell")
+        m = None
         if self.acquisition is not None:
-            jr, m = self.acquisition.acquire(t, PointContext(self, phase))
+            jr, m = self.acquisition.acquire(t, PointContext(self, phase, t))
         elif t.move == "zero":
             raise ValueError(f"point {t.index}: a zero target needs its routine's acquisition "
                              "(zero20's closed loop)")
-        else:
-            jr = self._read_q(phase)
-            m = None
         cmd_q = np.asarray(t.q, float) if t.move == "joints" else jr.q
         step = cmd_q - prev
         dirs = np.where(np.abs(step) > o.dir_deadband_rad, np.sign(step), 0).astype(int)
@@ -365,6 +471,9 @@ class Executor:
             cmd = np.asarray(self.robot.read_tcp(timeout=o.io_timeout_s), float)
         if m is None:
             m = self._measure(phase)
+        after = self._read_q(phase)
+        self._mismatch(self.guard.check_arrival(after.q, q_cmd=jr.q),
+                       "the robot moved during the measurement")
         self._last_cmd_q = cmd_q
         env = m.env or {}
         return Sample(

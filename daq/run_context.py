@@ -23,6 +23,13 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from .motion_guard import MotionLimits
+
+#: the fastest joint speed a run may ask for (rad/s): 180 deg/s, a UR's fastest joint
+MAX_JOINT_SPEED_RAD_S = float(np.pi)
+#: the fastest linear TCP speed a run may ask for (mm/s)
+MAX_LINEAR_SPEED_MM_S = 1000.0
+
 #: version of the run-context JSON (``RunContext.version``)
 CONTEXT_VERSION = 1
 
@@ -31,25 +38,30 @@ Matrix4 = tuple[tuple[float, float, float, float], tuple[float, float, float, fl
 
 
 class ExecutorOptions(BaseModel):
-    """Motion, measurement and retry settings of the executor (rad/s, mm/s, s, mm)."""
+    """Motion, measurement and retry settings of the executor (rad/s, mm/s, s, mm).
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    Checked when made (before a run exists): finite; speeds above 0 and at most
+    :data:`MAX_JOINT_SPEED_RAD_S` / :data:`MAX_LINEAR_SPEED_MM_S`; timeouts and the
+    measuring time above 0; counts, waits and thresholds not negative.
+    """
 
-    speed_rad_s: float = 0.5
-    speed_mm_s: float = 100.0
-    move_timeout_s: float = 120.0
-    io_timeout_s: float = 1.0
-    connect_timeout_s: float = 5.0
-    dwell_s: float = 0.0
-    measure_s: float = 0.5
-    measure_timeout_s: float = 10.0
-    max_std_mm: float = 0.05
-    max_remeasure: int = 3
-    max_retries: int = 8
-    backoff_s: float = 0.02
-    backoff_max_s: float = 1.0
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+    speed_rad_s: float = Field(0.5, gt=0, le=MAX_JOINT_SPEED_RAD_S)
+    speed_mm_s: float = Field(100.0, gt=0, le=MAX_LINEAR_SPEED_MM_S)
+    move_timeout_s: float = Field(120.0, gt=0)
+    io_timeout_s: float = Field(1.0, gt=0)
+    connect_timeout_s: float = Field(5.0, gt=0)
+    dwell_s: float = Field(0.0, ge=0)
+    measure_s: float = Field(0.5, gt=0)
+    measure_timeout_s: float = Field(10.0, gt=0)
+    max_std_mm: float = Field(0.05, gt=0)
+    max_remeasure: int = Field(3, ge=1)
+    max_retries: int = Field(8, ge=0)
+    backoff_s: float = Field(0.02, ge=0)
+    backoff_max_s: float = Field(1.0, ge=0)
     #: a joint moved by less than this (rad) approached with direction 0
-    dir_deadband_rad: float = 1e-6
+    dir_deadband_rad: float = Field(1e-6, ge=0)
 
 
 #: plausible air for ``--meteo``: (°C, hPa, %RH) ranges
@@ -162,6 +174,10 @@ class RunContext(BaseModel):
         The tracker's setup asked for (runs stored before it: the defaults).
     tracker_check : TrackerCheck or None
         What the tracker's checks found before the run was stored.
+    motion : MotionLimits
+        What every move of the run must respect (floor, reach, keep-out boxes, read-back
+        tolerances, deviation of adaptive moves): :mod:`daq.motion_guard`. The store's
+        upgrade to schema 5 gives the runs made before it no floor (none was recorded).
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -179,6 +195,7 @@ class RunContext(BaseModel):
     acquire: dict[str, Any] = Field(default_factory=dict)
     tracker: TrackerSetup = Field(default_factory=TrackerSetup)
     tracker_check: TrackerCheck | None = None
+    motion: MotionLimits = Field(default_factory=MotionLimits)
 
     @field_validator("tracker_T_base")
     @classmethod

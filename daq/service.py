@@ -14,35 +14,70 @@ typed inputs; it returns a typed :class:`RunOutcome` and never prints.
 Wiring
     :func:`plan_run` loads the model (with the controller's tool), resolves parameters
     that refer to earlier runs, makes the routine's plan and dry-runs it.
-    :func:`start_run` finds the measurement frame (the given frame run, else the latest
-    completed one), builds the run's :class:`~daq.run_context.RunContext`, connects the
-    devices (unless handed connected ones), sets up and checks the tracker
-    (:mod:`daq.tracker_checks`: reflector, air, ready gate, two faces), stores the run
-    and executes it. :func:`resume_run` checks the tracker again (not its two faces).
-    :func:`execute` runs a stored run with its routine's ``finalize`` and adaptive
-    ``acquisition`` (:mod:`daq.routines`).
+    :func:`start_run` takes the robot's lease, connects the devices (unless handed
+    connected ones), asks who they are and checks the robot against the model (joint
+    count; a simulator's robot model), sets up and checks the tracker
+    (:mod:`daq.tracker_checks`: reflector, air, ready gate, two faces), lets the caller
+    confirm the motion, finds the
+    measurement frame (the given frame run, else the latest completed one of this
+    cell), stores the run with the devices' identities, takes the run's lease and
+    executes it. :func:`execute` runs a stored run with its routine's ``finalize`` and
+    adaptive ``acquisition`` (:mod:`daq.routines`) and the run's motion guard
+    (:mod:`daq.motion_guard`).
+
+One owner per run and per robot
+    Leases (:mod:`daq.leases`) on the run and on the robot (its URL and, once known, its
+    serial number) are held while a run may move the robot; a second capture or resume
+    on a live run or a busy robot is refused at once (:class:`~daq.leases.LeaseBusy`), a
+    stale lease (dead owner) is taken over.
+
+Same cell on resume
+    :func:`resume_run` compares the devices reached with the identities stored with the
+    run (:func:`daq.devices.same_cell`); another cell is refused
+    (:class:`OtherCell`) unless ``other_cell``, which starts a NEW run of the same plan
+    there (all points; ``source_run`` names the old one) rather than mixing two cells.
 
 Errors: :class:`~daq.errors.RequestError` (and :class:`~daq.errors.PlanRefused`,
-:class:`~daq.errors.TrackerRefused`) for input it refuses or a tracker that fails its
-checks, :class:`~daq.errors.ConnectFailed` when the devices cannot be reached.
+:class:`~daq.errors.TrackerRefused`, :class:`~daq.leases.LeaseBusy`, :class:`OtherCell`)
+for input it refuses or a tracker that fails its checks,
+:class:`~daq.errors.ConnectFailed` when the devices cannot be reached.
 """
 
 from __future__ import annotations
 
-import contextlib
+import math
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .check import CheckResult, check_plan
-from .errors import ConnectFailed, PlanRefused, RequestError, TrackerRefused
+from .devices import (
+    CellIdentity,
+    check_robot,
+    describe,
+    identify,
+    same_cell,
+    stored_identity,
+)
+from .devices import devices as reach_devices
+from .errors import ConnectFailed, PlanRefused, RequestError, TrackerRefused, one_line
 from .executor import Executor
+from .leases import Leases, held_leases, run_key, take_robot
+from .motion_guard import MotionGuard, MotionLimits
 from .plans import Plan
 from .routines import get as get_routine
 from .run_context import ExecutorOptions, RunContext, TrackerSetup
+from .stop_signals import signal_name
 from .store import Run, RunStore, StoreError
 from .tracker_checks import check_tracker
+
+#: called with the devices' identities before anything moves; raises to refuse
+ConfirmFn = Callable[[CellIdentity, str, str], None]
+
+
+class OtherCell(RequestError):
+    """The devices reached are not the run's cell (resume without ``other_cell``)."""
 
 #: progress callback of the executor: (points done, points in all, last error)
 ProgressFn = Callable[[int, int, "str | None"], None]
@@ -55,8 +90,11 @@ class CaptureRequest:
     ``model`` is a built-in name or a YAML path (recorded with the run); ``params`` are
     the routine's ``make_plan`` keyword arguments; ``frame_run`` None takes the latest
     completed frame run in the store, if any; ``acquire`` are the routine's acquisition
-    options (zero20: :class:`~daq.routines.zero20.ZeroLoopOptions` fields); ``tracker``
-    the tracker's setup and checks (:class:`~daq.run_context.TrackerSetup`).
+    options (zero20: :class:`~daq.routines.zero20.ZeroLoopOptions` fields); ``motion``
+    the run's motion limits (default: ``floor_z_mm`` and ``max_reach_mm`` with the other
+    limits' defaults); ``tracker`` the tracker's setup and checks
+    (:class:`~daq.run_context.TrackerSetup`). Checked when made: :class:`RequestError`
+    for a tool or floor that is not finite, motion limits that are not valid.
     """
 
     routine: str
@@ -70,6 +108,18 @@ class CaptureRequest:
     executor: ExecutorOptions = field(default_factory=ExecutorOptions)
     acquire: dict = field(default_factory=dict)
     tracker: TrackerSetup = field(default_factory=TrackerSetup)
+    motion: MotionLimits | None = None
+
+    def __post_init__(self) -> None:
+        if self.tool_mm is not None and (len(self.tool_mm) != 3 or not all(
+                math.isfinite(float(v)) for v in self.tool_mm)):
+            raise RequestError(f"the tool must be 3 finite numbers (mm), got {self.tool_mm}")
+        if self.motion is None:
+            try:
+                limits = MotionLimits(floor_z_mm=self.floor_z_mm, max_reach_mm=self.max_reach_mm)
+            except ValueError as e:
+                raise RequestError(f"floor/reach: {one_line(e)}") from None
+            object.__setattr__(self, "motion", limits)
 
 
 @dataclass(frozen=True)
@@ -106,9 +156,11 @@ class RunOutcome:
     """How a (resumed) run ended.
 
     ``status``: ``completed``, ``paused`` (protective stop, rejected command, retries
-    exhausted), ``stopped`` (Ctrl-C) or ``failed`` (finalize failed); ``reason`` why it
-    did not complete; ``points`` in the plan, ``samples`` stored, ``faults`` met in this
-    session, ``elapsed_s`` of execution; ``frame`` and ``summary`` as stored;
+    exhausted, a move refused or not done, stopped at once by a signal), ``stopped``
+    (Ctrl-C) or ``failed`` (finalize failed); ``reason`` why it did not complete;
+    ``points`` in the plan, ``samples`` stored, ``faults`` met in this session,
+    ``elapsed_s`` of execution; ``frame`` and ``summary`` as stored; ``signal`` the
+    signal that stopped it at once (a second Ctrl-C, SIGTERM, SIGHUP), else None;
     ``tracker_check`` what the tracker's checks found before the run (JSON-ready).
     """
 
@@ -124,6 +176,7 @@ class RunOutcome:
     db: str
     frame: dict | None = None
     summary: dict | None = None
+    signal: int | None = None
     tracker_check: dict | None = None
 
     def to_json(self) -> dict:
@@ -136,68 +189,11 @@ class RunOutcome:
             out["frame"] = self.frame
         if self.summary:
             out["summary"] = self.summary
+        if self.signal is not None:
+            out["signal"] = signal_name(self.signal)
         if self.tracker_check is not None:
             out["tracker_check"] = self.tracker_check
         return out
-
-
-# ------------------------------------------------------------------ devices
-def describe(driver) -> str:
-    """A one-line description of a driver (class, model, serial, firmware when known)."""
-    parts = [type(driver).__name__]
-    for k in ("model", "serial", "firmware"):
-        v = getattr(driver, k, "")
-        if isinstance(v, str) and v:
-            parts.append(f"{k}={v}")
-    n = getattr(driver, "n_joints", 0)
-    if isinstance(n, int) and n:
-        parts.append(f"joints={n}")
-    return " ".join(parts)
-
-
-def open_drivers(robot_url: str, tracker_url: str, timeout: float = 5.0):
-    """Connected (robot, tracker); closes what was opened when the other fails.
-
-    :class:`RequestError` for a URL no driver knows, :class:`ConnectFailed` when a
-    device cannot be reached.
-    """
-    import sim_drivers.inprocess  # noqa: F401  (registers sim://)
-    from drivers.errors import DriverError
-    from drivers.urls import open_robot, open_tracker
-
-    try:
-        robot = open_robot(robot_url)
-        tracker = open_tracker(tracker_url)
-    except ValueError as e:
-        raise RequestError(str(e)) from None
-    try:
-        robot.connect(timeout=timeout)
-        tracker.connect(timeout=timeout)
-    except DriverError as e:
-        robot.close()
-        tracker.close()
-        raise ConnectFailed(str(e)) from e
-    return robot, tracker
-
-
-@contextlib.contextmanager
-def _devices(robot_url, tracker_url, devices, timeout, on_fail=None) -> Iterator[tuple]:
-    """The given connected devices (left open), else the URLs' (closed at the end);
-    ``on_fail(error)`` is called before a :class:`ConnectFailed` propagates."""
-    if devices is not None:
-        yield devices
-        return
-    try:
-        robot, tracker = open_drivers(robot_url, tracker_url, timeout)
-    except ConnectFailed as e:
-        if on_fail is not None:
-            on_fail(e)
-        raise
-    try:
-        yield robot, tracker
-    finally:
-        robot.close()
-        tracker.close()
 
 
 # -------------------------------------------------------------------- start
@@ -245,9 +241,8 @@ def plan_run(request: CaptureRequest, *, model=None, db: str | Path | None = Non
         plan = mod.make_plan(model, **params)
         acquire = _acquire_options(mod, request.acquire)
     except ValueError as e:  # ModelError, pydantic's ValidationError, RequestError too
-        raise RequestError(str(e)) from None
-    res = check_plan(plan, model, floor_z_mm=request.floor_z_mm,
-                     max_reach_mm=request.max_reach_mm)
+        raise RequestError(one_line(e)) from None
+    res = check_plan(plan, model, limits=request.motion)
     if not res.ok:
         raise PlanRefused(res)
     return PlannedRun(request, model, plan, res, acquire)
@@ -265,9 +260,11 @@ def _acquire_options(mod, given: dict) -> dict:
     return options(**given).model_dump()
 
 
-def frame_run(store: RunStore, run_id: int | None) -> Run | None:
+def frame_run(store: RunStore, run_id: int | None, cell: CellIdentity | None = None
+              ) -> Run | None:
     """The frame run ``run_id`` (it must have a frame), else the latest completed frame
-    run of the store, else None."""
+    run of the store measured in ``cell`` (a run without stored identities counts as
+    any cell's), else None."""
     if run_id is not None:
         try:
             r = store.run(run_id)
@@ -278,14 +275,24 @@ def frame_run(store: RunStore, run_id: int | None) -> Run | None:
                                "frame run)")
         return r
     for r in reversed(store.runs()):
-        if r.routine == "frame" and r.status == "completed" and r.frame is not None:
+        if (r.routine == "frame" and r.status == "completed" and r.frame is not None
+                and (cell is None or _measured_in(r, cell))):
             return r
     return None
 
 
+def _measured_in(run: Run, cell: CellIdentity) -> bool:
+    for stored, now in ((run.robot_identity, cell.robot), (run.tracker_identity, cell.tracker)):
+        old = stored_identity(stored)
+        if old is not None and not old.same_device(now):
+            return False
+    return True
+
+
 def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_url: str,
               devices: tuple | None = None, progress: ProgressFn | None = None,
-              on_started: Callable[[int, int], None] | None = None) -> RunOutcome:
+              on_started: Callable[[int, int], None] | None = None,
+              confirm: ConfirmFn | None = None, leases: Leases | None = None) -> RunOutcome:
     """Store a new run of ``planned`` and execute it.
 
     Parameters
@@ -299,36 +306,68 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
     progress : callable(done, total, last_error), optional
     on_started : callable(run_id, points_stored), optional
         Called once the run is stored, before the first move.
+    confirm : callable(cell identity, robot_url, tracker_url), optional
+        Called once the devices said who they are, before the run is stored; raises to
+        refuse (nothing is stored, nothing moved).
+    leases : Leases, optional
+        Where the run's and the robot's leases are held (default: this call's own).
+
+    Raises
+    ------
+    LeaseBusy
+        The robot is in use by another live process.
+    RequestError
+        The robot does not fit the model (joint count, a simulator of another model).
     """
     req = planned.request
-    frame = frame_run(store, req.frame_run)
-    context = RunContext(
-        routine=planned.plan.routine, model=req.model,
-        tool_mm=tuple(float(v) for v in planned.model.tool_mm()), robot_url=robot_url,
-        tracker_url=tracker_url, seed=req.seed,
-        frame_run=None if frame is None else frame.id,
-        tracker_T_base=None if frame is None else frame.frame["tracker_T_base"],
-        executor=req.executor, acquire=planned.acquire, tracker=req.tracker)
-    with _devices(robot_url, tracker_url, devices, req.executor.connect_timeout_s) as (
-            robot, tracker):
-        found = check_tracker(tracker, req.tracker, req.executor)  # before anything is stored
-        context = context.model_copy(update={"tracker_check": found})
-        run_id = store.create_run(planned.plan, context, robot_desc=describe(robot),
-                                  tracker_desc=describe(tracker))
-        if on_started is not None:
-            on_started(run_id, 0)
-        return execute(store, run_id, planned.plan, robot, tracker, model=planned.model,
-                       context=context, progress=progress)
+    with held_leases(store.path, leases) as held:
+        take_robot(held, robot_url)
+        with reach_devices(robot_url, tracker_url, devices,
+                           req.executor.connect_timeout_s) as (robot, tracker):
+            cell = identify(robot, tracker, req.executor.io_timeout_s + 1.0)
+            check_robot(planned.model, robot, cell.robot)
+            take_robot(held, robot_url, cell.robot)
+            found = check_tracker(tracker, req.tracker, req.executor)  # nothing stored yet
+            if confirm is not None:
+                confirm(cell, robot_url, tracker_url)
+            frame = frame_run(store, req.frame_run, cell)
+            if frame is not None and not _measured_in(frame, cell):
+                raise RequestError(f"frame run {frame.id} was measured in another cell (robot "
+                                   f"{stored_identity(frame.robot_identity)}, tracker "
+                                   f"{stored_identity(frame.tracker_identity)}): its frame "
+                                   "does not hold here")
+            context = RunContext(
+                routine=planned.plan.routine, model=req.model,
+                tool_mm=tuple(float(v) for v in planned.model.tool_mm()), robot_url=robot_url,
+                tracker_url=tracker_url, seed=req.seed,
+                frame_run=None if frame is None else frame.id,
+                tracker_T_base=None if frame is None else frame.frame["tracker_T_base"],
+                executor=req.executor, acquire=planned.acquire, motion=req.motion,
+                tracker=req.tracker, tracker_check=found)
+            run_id = store.create_run(planned.plan, context, robot_desc=describe(robot),
+                                      tracker_desc=describe(tracker),
+                                      robot_identity=cell.robot.to_dict(),
+                                      tracker_identity=cell.tracker.to_dict())
+            held.acquire(run_key(run_id), f"run {run_id}")
+            if on_started is not None:
+                on_started(run_id, 0)
+            return execute(store, run_id, planned.plan, robot, tracker, model=planned.model,
+                           context=context, progress=progress)
 
 
 # ------------------------------------------------------------------- resume
 def prepare_resume(store: RunStore, run_id: int | None = None, *,
-                   robot_url: str | None = None, tracker_url: str | None = None) -> Resumable:
+                   robot_url: str | None = None, tracker_url: str | None = None,
+                   leases: Leases | None = None) -> Resumable:
     """Find run ``run_id`` (default: the latest) and what resuming it needs.
 
-    A run found still ``running`` (its process was killed) gets a ``killed``
-    interruption. ``robot_url``/``tracker_url`` replace the stored ones. A completed run
-    comes back as it is (:attr:`Resumable.completed`).
+    Unless it is completed, the run's lease is taken first (in ``leases``, kept; else
+    for this call only): a run a live process still executes is refused at once
+    (:class:`~daq.leases.LeaseBusy`, naming the owner). A run found ``running`` without
+    a live owner (its process was killed) then gets a ``killed`` interruption.
+    ``robot_url``/``tracker_url`` replace the stored ones for this resume (stored only
+    once the devices prove to be the run's cell). A completed run comes back as it is
+    (:attr:`Resumable.completed`).
     """
     from calibration import ModelError, load_model
 
@@ -342,10 +381,15 @@ def prepare_resume(store: RunStore, run_id: int | None = None, *,
     done = store.n_samples(r.id)
     if r.status == "completed":
         return Resumable(r, plan, done)
+    with held_leases(store.path, leases) as held:
+        taken = held.acquire(run_key(r.id), f"run {r.id}")
+    r = store.run(r.id)  # as it is now that no one else runs it
+    done = store.n_samples(r.id)
     if r.status == "running":
+        owner = "" if taken is None else f" (its owner, {taken.describe()}, is gone)"
         store.add_interruption(r.id, None, "killed",
                                "found still running on resume: the process was killed or "
-                               "crashed")
+                               f"crashed{owner}")
     try:
         model = load_model(r.model or plan.model)
         if r.context.tool_mm is not None:
@@ -363,14 +407,23 @@ def resume_run(store: RunStore, resumable: Resumable, *, executor: dict | None =
                acquire: dict | None = None, tracker_setup: dict | None = None,
                devices: tuple | None = None,
                progress: ProgressFn | None = None,
-               on_started: Callable[[int, int], None] | None = None) -> RunOutcome:
+               on_started: Callable[[int, int], None] | None = None,
+               confirm: ConfirmFn | None = None, leases: Leases | None = None,
+               other_cell: bool = False) -> RunOutcome:
     """Continue a run from :func:`prepare_resume`: the points not yet stored.
 
     ``executor``, ``acquire`` and ``tracker_setup`` override the stored executor and
-    acquisition options and tracker setup (e.g. new ``meteo``) for this session (the stored
-    context keeps its own). New URLs are stored with the run. A failed connection is
-    recorded as an interruption, then :class:`ConnectFailed`; a tracker that fails its
-    checks (the two faces are not checked again) likewise, then :class:`TrackerRefused`.
+    acquisition options and tracker setup (e.g. new ``meteo``) for this session (the
+    stored context keeps its own). The run's and the robot's
+    leases are taken (:class:`~daq.leases.LeaseBusy` when another process holds them).
+    The devices must be the run's cell (:func:`daq.devices.same_cell`), else
+    :class:`OtherCell` — or, with ``other_cell``, a NEW run of the same plan (every
+    point; its ``source_run`` is this one; the measurement frame of a frame run of that
+    cell, if any) is created and executed instead, and this run is left as it is. New
+    URLs of the same cell are stored with the run. ``confirm`` as :func:`start_run`. A
+    failed connection is recorded as an interruption, then :class:`ConnectFailed`; a
+    tracker that fails its checks (the two faces are not checked again) likewise, then
+    :class:`TrackerRefused`.
     """
     r = resumable.run
     stored = r.context
@@ -379,31 +432,76 @@ def resume_run(store: RunStore, resumable: Resumable, *, executor: dict | None =
         acq = _acquire_options(get_routine(r.routine), {**stored.acquire, **(acquire or {})})
         setup = TrackerSetup(**{**stored.tracker.model_dump(), **(tracker_setup or {})})
     except ValueError as e:
-        raise RequestError(str(e)) from None
-    context = stored.model_copy(update={"executor": options, "acquire": acq,
-                                        "robot_url": resumable.robot_url,
-                                        "tracker_url": resumable.tracker_url})
+        raise RequestError(one_line(e)) from None
+    robot_url, tracker_url = resumable.robot_url, resumable.tracker_url
 
     def record(e: ConnectFailed) -> None:
         store.add_interruption(r.id, None, "connection", f"resume: cannot connect: {e}")
 
-    with _devices(resumable.robot_url, resumable.tracker_url, devices,
-                  options.connect_timeout_s, on_fail=record) as (robot, tracker):
-        if resumable.robot_url != r.robot_url or resumable.tracker_url != r.tracker_url:
-            store.update_run(r.id, robot_url=resumable.robot_url,
-                             tracker_url=resumable.tracker_url)
-        try:
-            found = check_tracker(tracker, setup, options, two_face=False)
-        except TrackerRefused as e:
-            store.add_interruption(r.id, None, "not_ready", f"resume: {e}")
-            raise
-        done = store.n_samples(r.id)
-        if on_started is not None:
-            on_started(r.id, done)
-        store.add_interruption(r.id, None, "resume", f"resumed with {done}/{r.n_points} "
-                               f"points stored; tracker: {found.model_dump_json()}")
-        return execute(store, r.id, resumable.plan, robot, tracker, model=resumable.model,
-                       context=context, progress=progress)
+    with held_leases(store.path, leases) as held:
+        held.acquire(run_key(r.id), f"run {r.id}")
+        take_robot(held, robot_url)
+        with reach_devices(robot_url, tracker_url, devices, options.connect_timeout_s,
+                           on_fail=record) as (robot, tracker):
+            cell = identify(robot, tracker, options.io_timeout_s + 1.0)
+            check_robot(resumable.model, robot, cell.robot)
+            take_robot(held, robot_url, cell.robot)
+            same, why = same_cell(r, cell, robot_url, tracker_url)
+            if not same and not other_cell:
+                raise OtherCell(f"run {r.id} was measured in another cell: {why}. Resume it "
+                                "with its own robot and tracker, or pass --other-cell to start "
+                                "a new run of the same plan with these (the two cells' "
+                                "samples are never mixed)")
+            if confirm is not None:
+                confirm(cell, robot_url, tracker_url)
+            try:
+                found = check_tracker(tracker, setup, options, two_face=False)
+            except TrackerRefused as e:
+                store.add_interruption(r.id, None, "not_ready", f"resume: {e}")
+                raise
+            if not same:
+                return _repeat_elsewhere(store, resumable, cell, options, acq, robot, tracker,
+                                         held, progress, on_started, why)
+            context = stored.model_copy(update={"executor": options, "acquire": acq,
+                                                "tracker": setup, "robot_url": robot_url,
+                                                "tracker_url": tracker_url})
+            if robot_url != r.robot_url or tracker_url != r.tracker_url:
+                store.update_run(r.id, robot_url=robot_url, tracker_url=tracker_url)
+            if r.robot_identity is None:  # a run stored before identities were
+                store.update_run(r.id, robot_identity=cell.robot.to_dict(),
+                                 tracker_identity=cell.tracker.to_dict())
+            done = store.n_samples(r.id)
+            if on_started is not None:
+                on_started(r.id, done)
+            store.add_interruption(r.id, None, "resume", f"resumed with {done}/{r.n_points} "
+                                   f"points stored; tracker: {found.model_dump_json()}")
+            return execute(store, r.id, resumable.plan, robot, tracker,
+                           model=resumable.model, context=context, progress=progress)
+
+
+def _repeat_elsewhere(store, resumable: Resumable, cell: CellIdentity, options, acq, robot,
+                      tracker, held: Leases, progress, on_started, why: str) -> RunOutcome:
+    """``resume --other-cell``: a new run of the resumed run's plan in this cell."""
+    r = resumable.run
+    frame = frame_run(store, None, cell)
+    context = r.context.model_copy(update={
+        "executor": options, "acquire": acq, "robot_url": resumable.robot_url,
+        "tracker_url": resumable.tracker_url,
+        "frame_run": None if frame is None else frame.id,
+        "tracker_T_base": None if frame is None else frame.frame["tracker_T_base"]})
+    run_id = store.create_run(resumable.plan, context, robot_desc=describe(robot),
+                              tracker_desc=describe(tracker),
+                              robot_identity=cell.robot.to_dict(),
+                              tracker_identity=cell.tracker.to_dict(), source_run=r.id)
+    held.acquire(run_key(run_id), f"run {run_id}")
+    store.add_interruption(r.id, None, "other_cell",
+                           f"not resumed here: {why}; its plan runs again as run {run_id}")
+    store.add_interruption(run_id, None, "other_cell",
+                           f"the plan of run {r.id} again, in another cell ({why})")
+    if on_started is not None:
+        on_started(run_id, 0)
+    return execute(store, run_id, resumable.plan, robot, tracker, model=resumable.model,
+                   context=context, progress=progress)
 
 
 # ------------------------------------------------------------------ execute
@@ -416,7 +514,8 @@ def execute(store: RunStore, run_id: int, plan: Plan, robot, tracker, *, model,
     ex = Executor(store, run_id, plan, robot, tracker, context.executor,
                   acquisition=None if make_acquisition is None
                   else make_acquisition(model, context),
-                  progress=progress, finalize=getattr(mod, "finalize", None))
+                  progress=progress, finalize=getattr(mod, "finalize", None),
+                  guard=MotionGuard(model, context.motion))
     t0 = time.monotonic()
     status = ex.run()
     elapsed = time.monotonic() - t0
@@ -424,5 +523,5 @@ def execute(store: RunStore, run_id: int, plan: Plan, robot, tracker, *, model,
     check = run.context.tracker_check
     return RunOutcome(run_id, plan.routine, status, run.reason, len(plan),
                       store.n_samples(run_id), ex.n_faults, elapsed, plan.hash,
-                      str(store.path), run.frame, run.summary,
+                      str(store.path), run.frame, run.summary, ex.stop_signal,
                       None if check is None else check.model_dump(mode="json"))

@@ -74,6 +74,11 @@ class Run:
     frame: dict | None
     summary: dict | None
     context: RunContext
+    #: who the devices said they were (DeviceIdentity dicts), None when not recorded
+    robot_identity: dict | None = None
+    tracker_identity: dict | None = None
+    #: the run whose plan this run repeats on another cell (``resume --other-cell``)
+    source_run: int | None = None
 
     @property
     def robot_url(self) -> str | None:
@@ -194,6 +199,10 @@ def _cov_matrix(rows: list, k: int) -> np.ndarray:
     return out
 
 
+def _json(v) -> str | None:
+    return None if v is None else json.dumps(v)
+
+
 class RunStore:
     """The run store in one SQLite file.
 
@@ -276,12 +285,16 @@ class RunStore:
         robot_desc: str | None = None,
         tracker_desc: str | None = None,
         software: str | None = None,
+        robot_identity: dict | None = None,
+        tracker_identity: dict | None = None,
+        source_run: int | None = None,
     ) -> int:
         """Store a new run for ``plan`` (a :class:`daq.plans.Plan`); returns its id.
 
         ``context`` defaults to the plan's routine and model; its model defaults to the
         plan's. The context's URLs, seed and model also fill the run's columns (for
-        listing and queries).
+        listing and queries). ``robot_identity``/``tracker_identity`` are who the devices
+        said they were (:meth:`drivers.protocols.DeviceIdentity.to_dict`).
         """
         if software is None:
             software = _software_version()
@@ -297,16 +310,18 @@ class RunStore:
             cur = self.con.execute(
                 """INSERT INTO runs (routine, plan_json, plan_hash, n_points, robot_url,
                    tracker_url, robot_desc, tracker_desc, software, seed, model, started,
-                   status, context_json) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)""",
+                   status, context_json, robot_identity, tracker_identity, source_run)
+                   VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)""",
                 (plan.routine, plan.to_json(), plan.hash, len(plan), c.robot_url,
                  c.tracker_url, robot_desc, tracker_desc, software, c.seed, c.model,
-                 time.time(), "running", c.to_json()),
+                 time.time(), "running", c.to_json(), _json(robot_identity),
+                 _json(tracker_identity), source_run),
             )
         return int(cur.lastrowid)
 
     _RUN_COLS = ("id, routine, plan_json, plan_hash, n_points, robot_desc, tracker_desc, "
                  "software, started, stopped, status, reason, frame_json, summary_json, "
-                 "context_json")
+                 "context_json, robot_identity, tracker_identity, source_run")
 
     def _row_to_run(self, r) -> Run:
         return Run(
@@ -316,6 +331,9 @@ class RunStore:
             frame=json.loads(r[12]) if r[12] else None,
             summary=json.loads(r[13]) if r[13] else None,
             context=RunContext.from_json(r[14]),
+            robot_identity=json.loads(r[15]) if r[15] else None,
+            tracker_identity=json.loads(r[16]) if r[16] else None,
+            source_run=r[17],
         )
 
     def run(self, run_id: int | None = None) -> Run:
@@ -348,12 +366,16 @@ class RunStore:
                              (status, reason, stopped, run_id))
 
     def update_run(self, run_id: int, **fields) -> None:
-        """Set ``frame``, ``summary`` (dicts), ``robot_desc``/``tracker_desc``, or
-        ``robot_url``/``tracker_url`` (in the run's context and its columns)."""
+        """Set ``frame``, ``summary``, ``robot_identity``/``tracker_identity`` (dicts),
+        ``robot_desc``/``tracker_desc``, or ``robot_url``/``tracker_url`` (in the run's
+        context and its columns)."""
         cols, vals = [], []
         urls = {}
         for k, v in fields.items():
-            if k in ("frame", "summary"):
+            if k in ("robot_identity", "tracker_identity"):
+                cols.append(f"{k}=?")
+                vals.append(_json(v))
+            elif k in ("frame", "summary"):
                 cols.append(f"{k}_json=?")
                 vals.append(json.dumps(v) if v is not None else None)
             elif k in ("robot_desc", "tracker_desc"):

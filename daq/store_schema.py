@@ -16,6 +16,11 @@ Versions
        (:class:`daq.run_context.RunContext`, version 1).
     4. per sample: the reflector measured, the tracker face and the covariance of the
        measured point (``cov_xx`` … ``cov_zz``, mm²), NULL where the tracker did not say.
+    5. one owner per run and per robot, and who the devices were: the ``leases`` table
+       (:mod:`daq.leases`); per run the robot's and the tracker's identity (JSON of
+       :class:`drivers.protocols.DeviceIdentity`) and ``source_run`` (the run whose plan a
+       run repeats on another cell); run contexts gain ``motion`` (no floor for the runs
+       made before: none was recorded). Additive: new table, new nullable columns.
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ import sqlite3
 from collections.abc import Callable
 
 #: current schema version (PRAGMA user_version)
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 
 SCHEMA_V1 = """
 CREATE TABLE runs (
@@ -134,6 +139,31 @@ def _upgrade_3_to_4(con: sqlite3.Connection) -> None:
         con.execute(f"ALTER TABLE samples ADD COLUMN {col}")
 
 
+def _upgrade_4_to_5(con: sqlite3.Connection) -> None:
+    """v5 (additive): the ``leases`` table; per run ``robot_identity``,
+    ``tracker_identity`` (JSON) and ``source_run``; each run context gets the motion
+    limits its moves were made under before v5: no floor (the executor checked none,
+    and the dry run's floor was not recorded), the other limits' defaults."""
+    for col in ("robot_identity TEXT", "tracker_identity TEXT", "source_run INTEGER"):
+        con.execute(f"ALTER TABLE runs ADD COLUMN {col}")
+    for rid, text in con.execute("SELECT id, context_json FROM runs").fetchall():
+        ctx = json.loads(text) if text else None
+        if isinstance(ctx, dict) and "motion" not in ctx:
+            ctx["motion"] = {"floor_z_mm": None}
+            con.execute("UPDATE runs SET context_json=? WHERE id=?", (json.dumps(ctx), rid))
+    con.execute(
+        """CREATE TABLE leases (
+            key TEXT PRIMARY KEY,
+            owner_pid INTEGER NOT NULL,
+            owner_host TEXT NOT NULL,
+            owner_token TEXT NOT NULL,
+            acquired REAL NOT NULL,
+            heartbeat REAL NOT NULL,
+            what TEXT
+        )"""
+    )
+
+
 #: UPGRADES[k] takes a database from version k+1 to k+2
 UPGRADES: list[Callable[[sqlite3.Connection], None]] = [_upgrade_1_to_2, _upgrade_2_to_3,
-                                                        _upgrade_3_to_4]
+                                                        _upgrade_3_to_4, _upgrade_4_to_5]

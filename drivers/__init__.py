@@ -33,8 +33,10 @@ from drivers.errors import (
 )
 from drivers.protocols import (
     CommandedPosition,
+    DeviceIdentity,
     Environment,
     EnvironmentSensor,
+    Identified,
     JointReading,
     Measurement,
     Readiness,
@@ -64,9 +66,11 @@ __all__ = [
     "CommandTimeout",
     "CommandedPosition",
     "ConnectionLost",
+    "DeviceIdentity",
     "DriverError",
     "Environment",
     "EnvironmentSensor",
+    "Identified",
     "JointReading",
     "LimitError",
     "Measurement",

@@ -19,7 +19,7 @@ from drivers.errors import (
     ProtectiveStop,
     ProtocolError,
 )
-from drivers.protocols import JointReading, RobotStatus
+from drivers.protocols import DeviceIdentity, JointReading, RobotStatus
 from drivers.settle import poll_until_settled
 from drivers.transport import LineSession, LineTransport, parse_kv
 
@@ -58,6 +58,7 @@ class SerialRobot:
         self.poll_s = poll_s
         self.model = self.serial = self.firmware = ""
         self.n_joints = 0
+        self._hello_kv: dict[str, str] = {}
         self._transport = LineTransport(port_url, device=f"robot {url}", baudrate=baudrate)
         self._session = LineSession(self._transport, ROBOT_ERRORS, handshake=self._hello)
 
@@ -75,6 +76,15 @@ class SerialRobot:
             self.n_joints = int(kv["joints"])
         except (KeyError, ValueError) as e:
             raise ProtocolError(self._dev, "HELLO", f"no joints=N in {tok}") from e
+        self._hello_kv = kv
+
+    def identify(self, timeout: float = 2.0) -> DeviceIdentity:
+        """Who the controller said it is in ``HELLO`` (``sim=1 kinematics=NAME`` from a
+        simulator)."""
+        kv = self._hello_kv
+        return DeviceIdentity("robot", self.model, self.serial, self.firmware,
+                              simulator=kv.get("sim") == "1",
+                              kinematics=kv.get("kinematics", ""), n_joints=self.n_joints)
 
     # ----------------------------------------------------------- connection
     def connect(self, timeout: float = 5.0) -> None:

@@ -26,6 +26,7 @@ from drivers.errors import (
     ProtocolError,
 )
 from drivers.protocols import (
+    DeviceIdentity,
     Environment,
     Measurement,
     Readiness,
@@ -70,7 +71,11 @@ class LineTracker:
         self.url = url
         self.auto_init = auto_init
         self.model = self.serial = self.firmware = ""
+        self._hello_kv: dict[str, str] = {}
         self._mode_ms: int | None = None
+        #: the last measurement's time and sequence number: a reply not after them is stale
+        self._last_t: float | None = None
+        self._last_seq: int | None = None
         self._transport = LineTransport(port_url, device=f"tracker {url}", baudrate=baudrate)
         self._session = LineSession(self._transport, TRACKER_ERRORS, handshake=self._hello)
 
@@ -80,7 +85,13 @@ class LineTracker:
         if len(tok) < 3:
             raise ProtocolError(self._transport.device, "HELLO", f"short reply {tok}")
         self.model, self.serial, self.firmware = tok[:3]
+        self._hello_kv = dict(t.split("=", 1) for t in tok[3:] if "=" in t)
         self._mode_ms = None
+
+    def identify(self, timeout: float = 2.0) -> DeviceIdentity:
+        """Who the tracker said it is in ``HELLO`` (``sim=1`` from a simulator)."""
+        return DeviceIdentity("tracker", self.model, self.serial, self.firmware,
+                              simulator=self._hello_kv.get("sim") == "1")
 
     def connect(self, timeout: float = 5.0) -> None:
         """Open the link, greet the tracker and initialise it if needed (``auto_init``)."""
@@ -176,7 +187,29 @@ class LineTracker:
             raise ProtocolError(dev, "MEAS", f"bad measurement reply: {e}") from e
         if not (np.all(np.isfinite(xyz)) and np.all(np.isfinite(std))):
             raise ProtocolError(dev, "MEAS", "non-finite values")
+        self._check_fresh(kv, ts)
         return Measurement(xyz=xyz, std=std, n=n, timestamp=ts, env=env, face=face)
+
+    def _check_fresh(self, kv: dict[str, str], ts: float) -> None:
+        """A measurement must be newer than the last one: its ``t`` later and, when the
+        tracker numbers its replies (``seq=``), its number higher. A repeated or older
+        reply is a ProtocolError (transient: the point is measured again)."""
+        dev = self._transport.device
+        seq = None
+        if "seq" in kv:
+            try:
+                seq = int(kv["seq"])
+            except ValueError as e:
+                raise ProtocolError(dev, "MEAS", f"bad seq {kv['seq']!r}") from e
+        if self._last_t is not None and ts <= self._last_t:
+            raise ProtocolError(dev, "MEAS", f"stale measurement: t={ts:.3f} is not after the "
+                                f"previous reply's t={self._last_t:.3f} (a repeated reply?)")
+        if seq is not None and self._last_seq is not None and seq <= self._last_seq:
+            raise ProtocolError(dev, "MEAS", f"stale measurement: seq={seq} is not after the "
+                                f"previous reply's seq={self._last_seq} (a repeated reply?)")
+        self._last_t = ts
+        if seq is not None:
+            self._last_seq = seq
 
     # ------------------------------------------------------- capabilities
     def ready(self, timeout: float = 2.0) -> Readiness:

@@ -37,7 +37,7 @@ from drivers.errors import (
     ProtectiveStop,
     ProtocolError,
 )
-from drivers.protocols import JointReading, RobotStatus
+from drivers.protocols import DeviceIdentity, JointReading, RobotStatus
 from drivers.settle import poll_until_settled
 
 # pymodbus reports every failure through logging as well as by its return
@@ -51,6 +51,13 @@ CMD_NONE, CMD_MOVE_JOINTS, CMD_MOVE_LINEAR, CMD_STOP, CMD_CLEAR_FAULT = 0, 1, 2,
 #: error_code register values (same codes as the line protocol)
 ERR_NONE, ERR_BAD_ARGUMENT, ERR_LIMIT, ERR_UNREACHABLE = 0, 11, 20, 21
 ERR_PROTECTIVE_STOP, ERR_EMERGENCY_STOP, ERR_FAULT, ERR_BAD_COMMAND = 30, 31, 32, 10
+
+#: Read Device Identification (function 43/14) objects: the standard ones and the private
+#: objects a cellcal simulator adds (serial number, the robot model it moves)
+ID_VENDOR, ID_PRODUCT_CODE, ID_REVISION, ID_PRODUCT_NAME, ID_MODEL_NAME = 0, 1, 2, 4, 5
+ID_SERIAL, ID_KINEMATICS = 0x80, 0x81
+#: the product name with which a simulated controller declares itself
+SIMULATOR_PRODUCT_NAME = "cellcal simulated controller"
 
 #: Modbus exception code → (error class, name)
 MODBUS_EXCEPTIONS: dict[int, tuple[type[DriverError], str]] = {
@@ -257,6 +264,26 @@ class ModbusRobot:
             )
         self.n_joints = n
         self._seq = blk["command_ack"]
+
+    def identify(self, timeout: float = 2.0) -> DeviceIdentity:
+        """Who the controller is, from Read Device Identification (function 43/14,
+        extended objects): model (ModelName, else ProductCode), firmware
+        (MajorMinorRevision), serial (private object 0x80). A simulator names itself by
+        its ProductName and gives the robot model it moves (0x81). A controller that does
+        not answer function 43 is an unknown real device."""
+        deadline = time.monotonic() + timeout
+        try:
+            rr = self._call("identify", deadline,
+                            self._client_method("read_device_information"), read_code=3)
+            info = {int(k): (v.decode("utf-8", "replace") if isinstance(v, bytes) else str(v))
+                    for k, v in dict(getattr(rr, "information", {}) or {}).items()}
+        except DriverError:
+            info = {}
+        sim = info.get(ID_PRODUCT_NAME, "") == SIMULATOR_PRODUCT_NAME
+        return DeviceIdentity(
+            "robot", info.get(ID_MODEL_NAME) or info.get(ID_PRODUCT_CODE, ""),
+            info.get(ID_SERIAL, ""), info.get(ID_REVISION, ""), simulator=sim,
+            kinematics=info.get(ID_KINEMATICS, "") if sim else "", n_joints=self.n_joints)
 
     def close(self) -> None:
         """Close the connection (idempotent)."""

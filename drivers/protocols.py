@@ -35,6 +35,60 @@ class RobotStatus:
 
 
 @dataclass(frozen=True)
+class DeviceIdentity:
+    """Who a device says it is, as learnt when connecting.
+
+    ``model``, ``serial``, ``firmware``: the device's own words ("" when its protocol
+    does not say). ``simulator``: the device declared itself a simulator (the line
+    protocols' ``HELLO ... sim=1``, the Modbus device identification, the emScon
+    software version, the UR dashboard's PolyScope version); a device that does not
+    say so is real hardware. ``kinematics``: the robot model a simulator moves (a
+    built-in model name or YAML path), "" for real controllers. ``n_joints``: 0 for
+    trackers and when unknown.
+    """
+
+    kind: str
+    model: str = ""
+    serial: str = ""
+    firmware: str = ""
+    simulator: bool = False
+    kinematics: str = ""
+    n_joints: int = 0
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict (stored with a run)."""
+        return {"kind": self.kind, "model": self.model, "serial": self.serial,
+                "firmware": self.firmware, "simulator": self.simulator,
+                "kinematics": self.kinematics, "n_joints": self.n_joints}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> DeviceIdentity:
+        return cls(**{k: d[k] for k in cls.__dataclass_fields__ if k in d})
+
+    def same_device(self, other: DeviceIdentity) -> bool:
+        """Whether both name the same device: kind, model and serial agree (a serial
+        unknown on both sides compares the models only)."""
+        return (self.kind == other.kind and self.model == other.model
+                and self.serial == other.serial and self.simulator == other.simulator)
+
+    def __str__(self) -> str:
+        words = [self.model or "unknown model"]
+        if self.serial:
+            words.append(f"serial {self.serial}")
+        if self.simulator:
+            words.append(f"simulator of {self.kinematics}" if self.kinematics else "simulator")
+        return " ".join(words)
+
+
+@runtime_checkable
+class Identified(Protocol):
+    """Optional capability: say who the device is (:class:`DeviceIdentity`); call after
+    ``connect``."""
+
+    def identify(self, timeout: float = 2.0) -> DeviceIdentity: ...
+
+
+@dataclass(frozen=True)
 class JointReading:
     """Joint positions read from the controller (rad) and when they were read."""
 

@@ -50,7 +50,7 @@ from drivers.errors import (
     ProtectiveStop,
     ProtocolError,
 )
-from drivers.protocols import JointReading, RobotStatus
+from drivers.protocols import DeviceIdentity, JointReading, RobotStatus
 
 RTDE_PORT = 30004
 
@@ -82,6 +82,12 @@ def _default_control(host: str):
     import rtde_control
 
     return rtde_control.RTDEControlInterface(host)
+
+
+def _default_dashboard(host: str):
+    import dashboard_client
+
+    return dashboard_client.DashboardClient(host)
 
 
 class _State:
@@ -143,6 +149,10 @@ class UrRtdeRobot:
     receive_factory : callable, optional
         ``receive_factory(host, frequency, variables)`` -> an
         ``RTDEReceiveInterface``-like object (default ``rtde_receive.RTDEReceiveInterface``).
+    dashboard_factory : callable, optional
+        ``dashboard_factory(host)`` -> a ``DashboardClient``-like object, asked for the
+        robot's model, serial number and PolyScope version by :meth:`identify` (default
+        ur-rtde's ``dashboard_client.DashboardClient``, port 29999).
     frequency : float
         Receive streaming frequency, Hz; -1 lets ur-rtde choose (125 CB3, 500 e-Series).
     n_joints : int
@@ -176,6 +186,7 @@ class UrRtdeRobot:
         *,
         control_factory: Callable | None = None,
         receive_factory: Callable | None = None,
+        dashboard_factory: Callable | None = None,
         frequency: float = -1.0,
         n_joints: int = 6,
         read_only: bool = False,
@@ -194,6 +205,7 @@ class UrRtdeRobot:
         self.host = host
         self.control_factory = control_factory or _default_control
         self.receive_factory = receive_factory or _default_receive
+        self.dashboard_factory = dashboard_factory or _default_dashboard
         self.frequency = float(frequency)
         self.n_joints = int(n_joints)
         self.read_only = bool(read_only)
@@ -271,6 +283,27 @@ class UrRtdeRobot:
         except DriverError:
             self.close()
             raise
+
+    def identify(self, timeout: float = 2.0) -> DeviceIdentity:
+        """Model, serial number and PolyScope version from the dashboard server (RTDE
+        itself does not say); unknown ("") when it cannot be reached. A PolyScope version
+        naming ``cellcal sim`` declares a simulator."""
+        model = serial = version = ""
+        dash = None
+        try:
+            dash = self.dashboard_factory(self.host)
+            dash.connect(int(max(timeout, 0.01) * 1000))
+            model = str(dash.getRobotModel()).strip()
+            serial = str(dash.getSerialNumber()).strip()
+            version = str(dash.polyscopeVersion()).strip()
+        except (ImportError, RuntimeError, OSError, TypeError):
+            pass
+        finally:
+            if dash is not None:
+                with contextlib.suppress(RuntimeError, OSError, AttributeError):
+                    dash.disconnect()
+        return DeviceIdentity("robot", model, serial, version,
+                              simulator="cellcal sim" in version, n_joints=self.n_joints)
 
     def _probe(self, timeout: float) -> None:
         try:

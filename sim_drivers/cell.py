@@ -101,6 +101,7 @@ class TrackerReading:
     timestamp: float
     face: int = 1
     reflector: str = ""
+    seq: int = 0
 
 
 @dataclass(frozen=True)
@@ -240,12 +241,25 @@ class SimCell:
         #: every blunder returned so far (fault ``blunder``), in measurement order
         self.blunder_log: list[SimBlunder] = []
         self._blunder_rng = np.random.default_rng([seed, 0xB1])
+        self._last_meas_t = 0.0
 
     # ------------------------------------------------------------------ clock
     @property
     def n_joints(self) -> int:
         """Number of joints of the simulated robot."""
         return int(self.truth.n_joints)
+
+    @property
+    def kinematics(self) -> str:
+        """The robot model the simulated robot is built on (its truth's ``name``), or ""."""
+        return str(getattr(self.truth, "name", ""))
+
+    def serial(self, kind: str) -> str:
+        """The serial number the simulated ``kind`` ("robot" or "tracker") reports: one per
+        simulated cell (the robot model and the seed make its hidden truth)."""
+        if kind == "robot":
+            return f"SIM-{self.kinematics or 'robot'}-{self.seed}"
+        return f"SIMTRK-{self.seed}"
 
     def now(self) -> float:
         """Simulated time (s)."""
@@ -524,6 +538,10 @@ class SimCell:
             temp = env_t + temp_noise if source == "station" else env_t
             face, reflector = self.tracker_face, self.tracker_reflector.name
             self.n_measurements += 1
+            seq = self.n_measurements
+            # the tracker's clock: later than any earlier measurement (µs steps)
+            stamp = max(time.time(), self._last_meas_t + 1e-6)
+            self._last_meas_t = stamp
             if self.faults is not None and self.faults.fires("blunder"):
                 offset, along = blunder_offsets(p, self._blunder_rng)
                 xyz = xyz + offset[0]
@@ -537,7 +555,8 @@ class SimCell:
             temp_c=temp,
             pressure_hpa=env_p,
             humidity_pct=env_h,
-            timestamp=time.time(),
+            timestamp=stamp,
             face=face,
             reflector=reflector,
+            seq=seq,
         )

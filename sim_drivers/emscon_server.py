@@ -180,7 +180,7 @@ class EmsconSession:
             trackerProcessorStatus=tps, laserStatus=laser, admStatus=ES_ADMStatus.ES_AS_ADMReady,
             iMajorVersionNumber=VERSION[0], iMinorVersionNumber=VERSION[1],
             iBuildNumber=VERSION[2], weatherMonitorStatus=wms, lFlagsValue=0,
-            lTrackerSerialNumber=SERIAL)], []
+            lTrackerSerialNumber=SERIAL + int(c.seed))], []
 
     def _GetTrackerStatus(self, p):  # noqa: N802
         c = self.cell

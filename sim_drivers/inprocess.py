@@ -1,4 +1,5 @@
-"""In-process simulated drivers reachable by URL: ``sim://robot?seed=1``, ``sim://tracker?seed=1``.
+"""In-process simulated drivers reachable by URL: ``sim://robot?model=ur10e&seed=1``,
+``sim://tracker?seed=1``.
 
 Importing this module registers the ``sim`` scheme with :mod:`drivers.urls`
 (:func:`register` does it again, e.g. after a test unregistered it). Robot and
@@ -7,9 +8,16 @@ tracker URLs with the same ``seed`` and ``name`` share one
 parameters used when the cell is first created: ``time_scale`` (default 0)
 and ``faults`` (only ``beam``, ``pstop`` and ``blunder`` apply in process).
 
-The truth is built by :data:`truth_factory` ``(seed, hidden) -> TrueRobot``
-(``ToyArm`` until the calibration-backed true robot replaces it);
-``hidden`` comes from the URL's ``hidden=`` parameter.
+The simulated robot is the calibration-backed true robot of a model
+(:class:`~sim_drivers.model_truth.ModelTruth`: the nominal model with realistic hidden
+errors, ``hidden=`` effects): ``model=NAME|PATH`` is required where the cell is created
+(a URL without it is refused: there is no default robot to mistake for the one meant);
+a tracker URL may leave it out once its robot's cell exists. Other query parameters used
+when the cell is first created: ``tool=X,Y,Z`` (the controller's TCP, mm, default the SMR
+on a 60 mm holder), ``time_scale`` (default 0) and ``faults`` (only ``beam`` and
+``pstop`` apply in process).
+
+The drivers identify themselves as simulators (:meth:`SimRobot.identify`).
 """
 
 from __future__ import annotations
@@ -26,6 +34,7 @@ from drivers.errors import CommandRejected, CommandTimeout, ProtectiveStop
 from drivers.line_robot import ROBOT_ERRORS
 from drivers.line_tracker import TRACKER_ERRORS
 from drivers.protocols import (
+    DeviceIdentity,
     Environment,
     JointReading,
     Measurement,
@@ -52,20 +61,39 @@ _cells: dict[tuple[str, int], SimCell] = {}
 _lock = threading.Lock()
 
 
-def get_cell(name: str = "default", seed: int = 0, **kw) -> SimCell:
-    """The shared cell for ``(name, seed)``, created with ``kw`` on first use."""
+def get_cell(name: str = "default", seed: int = 0, model: str | None = None,
+             tool_mm=None, **kw) -> SimCell:
+    """The shared cell for ``(name, seed)``, created with ``kw`` on first use.
+
+    ``model`` (a model name or YAML path) makes its truth a
+    :class:`~sim_drivers.model_truth.ModelTruth` of that model (``tool_mm`` the
+    controller's TCP); without it :data:`truth_factory` builds it. An existing cell of
+    another model is a ValueError.
+    """
     with _lock:
         key = (name, seed)
         if key not in _cells:
             hidden = kw.pop("hidden", None)
             spec = kw.pop("faults", None)
-            _cells[key] = SimCell(
-                truth_factory(seed, hidden),
-                seed=seed,
-                faults=FaultInjector(spec, seed=seed),
-                **kw,
-            )
-        return _cells[key]
+            if model is not None:
+                from sim_drivers.model_truth import DEFAULT_TOOL_MM, ModelTruth
+
+                truth = ModelTruth.from_spec(model, hidden, seed,
+                                             DEFAULT_TOOL_MM if tool_mm is None else tool_mm)
+            else:
+                truth = truth_factory(seed, hidden)
+            _cells[key] = SimCell(truth, seed=seed, faults=FaultInjector(spec, seed=seed), **kw)
+        cell = _cells[key]
+    if model is not None and cell.kinematics != _model_name(model):
+        raise ValueError(f"simulated cell {name!r} (seed {seed}) moves a {cell.kinematics}, "
+                         f"not a {model}")
+    return cell
+
+
+def _model_name(model: str) -> str:
+    from calibration import load_model
+
+    return load_model(model).name
 
 
 def reset_cells() -> None:
@@ -160,6 +188,12 @@ class SimRobot:
     def stop(self, timeout: float = 2.0) -> None:
         self.cell.command_stop()
 
+    def identify(self, timeout: float = 2.0) -> DeviceIdentity:
+        """A simulator of the cell's robot model."""
+        c = self.cell
+        return DeviceIdentity("robot", "SIMBOT-inprocess", c.serial("robot"), "1.0.0",
+                              simulator=True, kinematics=c.kinematics, n_joints=c.n_joints)
+
     def clear_protective_stop(self, timeout: float = 2.0) -> None:
         self.cell.clear_protective_stop()
 
@@ -180,6 +214,11 @@ class SimTracker:
 
     def close(self) -> None:
         self.connected = False
+
+    def identify(self, timeout: float = 2.0) -> DeviceIdentity:
+        """A simulated tracker."""
+        return DeviceIdentity("tracker", "SIMTRACK-inprocess", self.cell.serial("tracker"),
+                              "1.0.0", simulator=True)
 
     def __enter__(self) -> SimTracker:
         return self
@@ -276,21 +315,28 @@ def open_sim(url: str, kind: str, **kw):
     if what != kind:
         raise ValueError(f"bad URL {url!r}: a {what} URL where a {kind} is wanted")
     q = {k: v[-1] for k, v in parse_qs(parts.query, keep_blank_values=True).items()}
-    unknown = set(q) - {"seed", "name", "time_scale", "faults", "hidden"}
+    unknown = set(q) - {"seed", "name", "time_scale", "faults", "hidden", "model", "tool"}
     if unknown:
         raise ValueError(f"bad URL {url!r}: unknown parameter(s) {sorted(unknown)}")
     try:
         seed = int(q.get("seed", "0"))
         time_scale = float(q.get("time_scale", "0"))
+        tool = None if "tool" not in q else [float(v) for v in q["tool"].split(",")]
     except ValueError as e:
         raise ValueError(f"bad URL {url!r}: {e}") from None
-    cell = get_cell(
-        q.get("name", "default"),
-        seed,
-        time_scale=time_scale,
-        faults=q.get("faults"),
-        hidden=q.get("hidden"),
-    )
+    if tool is not None and (len(tool) != 3 or not np.all(np.isfinite(tool))):
+        raise ValueError(f"bad URL {url!r}: tool=X,Y,Z takes 3 finite numbers (mm)")
+    name, model = q.get("name", "default"), q.get("model") or None
+    with _lock:
+        exists = (name, seed) in _cells
+    if model is None and not exists:
+        raise ValueError(f"bad URL {url!r}: a simulated cell needs model=NAME|PATH (the robot "
+                         f"model it moves), e.g. sim://robot?model=ur10e&seed={seed}")
+    try:
+        cell = get_cell(name, seed, model, tool, time_scale=time_scale, faults=q.get("faults"),
+                        hidden=q.get("hidden"))
+    except (ValueError, OSError) as e:  # unknown model, bad hidden effects, another model
+        raise ValueError(f"bad URL {url!r}: {e}") from None
     return SimRobot(url, cell, **kw) if kind == "robot" else SimTracker(url, cell, **kw)
 
 

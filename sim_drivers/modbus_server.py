@@ -16,9 +16,13 @@ from __future__ import annotations
 
 import asyncio
 import threading
+from types import SimpleNamespace
 
 import numpy as np
+from pymodbus import ModbusDeviceIdentification
 from pymodbus.constants import ExcCodes
+from pymodbus.pdu.device import DeviceInformationFactory
+from pymodbus.pdu.mei_message import ReadDeviceInformationRequest, ReadDeviceInformationResponse
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
@@ -30,11 +34,42 @@ from drivers.modbus_robot import (
     CMD_STOP,
     ERR_BAD_ARGUMENT,
     ERR_BAD_COMMAND,
+    ID_KINEMATICS,
+    ID_SERIAL,
+    SIMULATOR_PRODUCT_NAME,
     RegisterMap,
 )
 from sim_drivers.cell import CellRefused, SimCell
 from sim_drivers.faults import FaultInjector
 from sim_drivers.robot_server import ROBOT_ERROR_CODES
+
+
+def _identity_request(identity: ModbusDeviceIdentification) -> type:
+    """A Read Device Identification request class answering with this server's own
+    ``identity`` (pymodbus keeps one identity per process; each simulated controller
+    needs its own)."""
+
+    class SimIdentityRequest(ReadDeviceInformationRequest):
+        async def datastore_update(self, context, device_id):
+            if not (0 <= self.read_code <= 4 and 0 <= self.object_id <= 0xFF):
+                return await super().datastore_update(context, device_id)
+            info = DeviceInformationFactory.get(SimpleNamespace(Identity=identity),
+                                                self.read_code, self.object_id)
+            return ReadDeviceInformationResponse(read_code=self.read_code, information=info,
+                                                 dev_id=device_id,
+                                                 transaction_id=self.transaction_id)
+
+    return SimIdentityRequest
+
+
+def sim_identity(cell: SimCell) -> ModbusDeviceIdentification:
+    """What the simulated controller answers to Read Device Identification: it names
+    itself a simulator (ProductName), its serial (0x80) and the robot model it moves
+    (0x81)."""
+    return ModbusDeviceIdentification(info={
+        0x00: "cellcal", 0x01: "SIMPLC-1", 0x02: "1.0", 0x04: SIMULATOR_PRODUCT_NAME,
+        0x05: "SIMPLC-1", ID_SERIAL: cell.serial("robot"),
+        ID_KINEMATICS: cell.kinematics or "unknown"})
 
 
 class ModbusRobotServer:
@@ -130,6 +165,12 @@ class ModbusRobotServer:
             action=self._action,
         )
         server = ModbusTcpServer(device, address=(self.host, self.port))
+        # this server's own device identification (function 43/14)
+        request = _identity_request(sim_identity(self.cell))
+        sub = {k: dict(v) for k, v in server.decoder.pdu_sub_table.items()}
+        sub.setdefault(request.function_code, {})[request.sub_function_code] = (
+            request, ReadDeviceInformationResponse)
+        server.decoder.pdu_sub_table = sub
         await server.serve_forever(background=True)
         if server.transport is None:
             raise OSError("could not listen")

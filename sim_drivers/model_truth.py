@@ -39,6 +39,8 @@ class ModelTruth:
         self.x_true = np.asarray(x_true, float)
         self.n_joints = model.n_joints
         self.limits = model.limits_rad()
+        #: the robot model the simulated controller reports it moves
+        self.name = model.name
         self._fk = ChainFK(model.convention, model.dh_table(), model.tool_mm())
 
     @classmethod
@@ -76,8 +78,12 @@ class ModelTruth:
         return tool_points(self.model, np.asarray(q, float).reshape(1, -1))[0]
 
     def nominal_ik(self, xyz: np.ndarray, q_seed: np.ndarray) -> np.ndarray:
-        res = solve_ik(self._fk, np.asarray(q_seed, float), np.asarray(xyz, float),
-                       limits=self.limits)
+        """Joints putting the nominal TCP at ``xyz`` from ``q_seed``; an arm of 6 joints or
+        more keeps the flange orientation it has at ``q_seed``, as a controller's linear
+        move does (docs/line-robot-protocol.md: "orientation kept")."""
+        q_seed = np.asarray(q_seed, float)
+        R = self._fk(q_seed[None])[1][0] if self.n_joints >= 6 else None
+        res = solve_ik(self._fk, q_seed, np.asarray(xyz, float), R, limits=self.limits)
         if not res.success[0]:
             raise ValueError(f"point {np.round(xyz, 3).tolist()} mm is out of reach "
                              f"({res.reason})")

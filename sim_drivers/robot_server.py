@@ -24,7 +24,9 @@ ROBOT_ERROR_CODES = {
     "BUSY": 40,
 }
 
-MODEL, SERIAL, FIRMWARE = "SIMBOT-1", "SN0042", "1.0.0"
+#: what the simulated controller says in HELLO (its serial number is the cell's,
+#: :meth:`SimCell.serial`; ``sim=1`` declares it a simulator)
+MODEL, FIRMWARE = "SIMBOT-1", "1.0.0"
 
 
 def err(name: str, detail: str = "") -> str:
@@ -55,7 +57,8 @@ class RobotSession:
         n = c.n_joints
         try:
             if cmd == "HELLO" and not args:
-                return [f"OK HELLO {MODEL} {SERIAL} {FIRMWARE} joints={n}"]
+                return [f"OK HELLO {MODEL} {c.serial('robot')} {FIRMWARE} joints={n} sim=1 "
+                        f"kinematics={c.kinematics or 'unknown'}"]
             if cmd == "POS?" and not args:
                 q = np.rad2deg(c.robot_state().q)
                 return ["OK POS " + " ".join(f"{v:.6f}" for v in q)]

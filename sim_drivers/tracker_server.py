@@ -27,7 +27,9 @@ TRACKER_ERROR_CODES = {
     "OUT_OF_RANGE": 19,
 }
 
-MODEL, SERIAL, FIRMWARE = "SIMTRACK-1", "SN0001", "1.0.0"
+#: what the simulated tracker says in HELLO (its serial number is the cell's,
+#: :meth:`SimCell.serial`; ``sim=1`` declares it a simulator)
+MODEL, FIRMWARE = "SIMTRACK-1", "1.0.0"
 
 
 def err(name: str, detail: str = "") -> str:
@@ -57,7 +59,7 @@ class TrackerSession:
         words = line.split()
         cmd = words[0].upper()
         if cmd == "HELLO" and len(words) == 1:
-            return [f"OK HELLO {MODEL} {SERIAL} {FIRMWARE}"]
+            return [f"OK HELLO {MODEL} {self.cell.serial('tracker')} {FIRMWARE} sim=1"]
         if cmd == "STATUS?" and len(words) == 1:
             c = self.cell
             return [
@@ -137,7 +139,7 @@ class TrackerSession:
         return [
             f"OK MEAS x={x:.5f} y={y:.5f} z={z:.5f} sx={sx:.5f} sy={sy:.5f} sz={sz:.5f} "
             f"n={r.n} T={r.temp_c:.2f} P={r.pressure_hpa:.2f} H={r.humidity_pct:.1f} "
-            f"face={r.face} t={r.timestamp:.3f}"
+            f"face={r.face} t={r.timestamp:.6f} seq={r.seq}"
         ]
 
 

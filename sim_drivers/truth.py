@@ -61,6 +61,8 @@ class ToyArm:
     """
 
     n_joints = 3
+    #: the model this arm is (tests/daq/data/toyarm.yaml)
+    name = "toyarm"
 
     def __init__(self, error=(0.0, 0.0, 0.0), tracker_offset=(2000.0, 0.0, 0.0)):
         self.limits = np.array([[-np.pi, np.pi]] * 3)

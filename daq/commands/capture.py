@@ -3,18 +3,24 @@
 Before the run is stored the tracker is set up and checked (:mod:`daq.tracker_checks`):
 ``--reflector``, ``--meteo``, the ready gate and the two-face check.
 
+Before anything moves: the options are checked (exit 2), the plan is dry-run, the robot's
+lease is taken (another live process using the robot: exit 2, naming it), the devices
+are connected and say who they are, the robot's joint count (and a simulator's robot
+model) must be the model's (exit 2), and unless both devices declared themselves
+simulators the motion must be confirmed (``--yes``, or typing ``yes`` at a terminal).
+
 Exit codes: 0 the run completed; 1 it paused (protective stop, rejected
-command, retries exhausted) or failed; 2 bad input, a plan refused by the
-dry run (the offending points are named) or a tracker that fails its checks
-(the check and what to do are named; nothing is stored); 130 stopped with
-Ctrl-C (the run is resumable with ``cellcal resume``).
+command, retries exhausted, a move refused or not done) or failed; 2 bad input, a
+plan refused by the dry run (the offending points are named), a busy robot or run,
+the wrong robot, a tracker that fails its checks (the check and what to do are
+named; nothing is stored); 130 stopped with Ctrl-C (the run is resumable with ``cellcal
+resume``); 128 + N stopped at once by signal N (a second Ctrl-C 130, SIGTERM 143,
+SIGHUP 129: the controller's stop was sent and the run is ``paused``).
 """
 
 from __future__ import annotations
 
-import ipaddress
 import sys
-from urllib.parse import urlsplit
 
 from ..cli import UsageError
 from .routine_args import ROUTINE_ARGS, floats
@@ -37,7 +43,8 @@ def add_common(p, *, resume: bool = False) -> None:
     p.add_argument("--robot", required=not resume, metavar="URL", help="robot driver URL")
     p.add_argument("--tracker", required=not resume, metavar="URL", help="tracker driver URL")
     p.add_argument("--yes", action="store_true",
-                   help="do not ask before moving a robot that is not a simulator")
+                   help="do not ask before moving devices that did not identify themselves "
+                   "as simulators (any real controller, whatever its address)")
     p.add_argument("--json", action="store_true", help="print one JSON object, no progress")
     p.add_argument("--synchronous", choices=("FULL", "NORMAL"), default="FULL",
                    help=argparse_hidden())
@@ -117,6 +124,13 @@ def register(sub) -> None:
         r.add_argument("--floor-z-mm", type=float, default=0.0,
                        help="dry run: lowest z of link origins and tool, mm (default 0)")
         r.add_argument("--no-floor", action="store_true", help="dry run: no floor check")
+        r.add_argument("--keepout-mm", action="append", default=[],
+                       metavar="X0,Y0,Z0,X1,Y1,Z1",
+                       help="a box (base frame, mm) no link origin or tool point may enter, "
+                       "checked by the dry run and before every move (repeatable)")
+        r.add_argument("--check-paths", action="store_true",
+                       help="also check the floor, keep-out boxes and reach along every joint "
+                       "move, not only where it ends")
         r.add_argument("--frame-run", type=int, default=None, metavar="RUN",
                        help="measurement frame from this frame run (default: the latest "
                        "completed one in the store, if any)")
@@ -130,28 +144,19 @@ def register(sub) -> None:
 
 
 # ------------------------------------------------------------------ safety
-def is_local(url: str) -> bool:
-    """True for simulator URLs: ``sim://``, loopback hosts, pseudo-terminals (/dev/pts/N)."""
-    parts = urlsplit(url)
-    scheme = parts.scheme.lower()
-    if scheme == "sim":
-        return True
-    if scheme in ("serial", "tracker+serial"):
-        return parts.path.startswith("/dev/pts/")
-    host = parts.hostname or ""
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
+def confirm_motion(cell, urls: list[str], yes: bool, stdin=None, stderr=None) -> None:
+    """Ask before moving devices that did not identify themselves as simulators.
 
-
-def confirm_motion(urls: list[str], yes: bool, stdin=None, stderr=None) -> None:
-    """Ask before moving anything that is not a simulator; UsageError when refused."""
-    remote = [u for u in urls if u and not is_local(u)]
-    if not remote or yes:
+    ``cell`` is what they said (:class:`daq.devices.CellIdentity`); only a robot and a
+    tracker that both declared themselves simulators go without asking. Any other
+    endpoint — a loopback address or a pty included (an SSH tunnel or a serial bridge
+    may lead to a real controller) — needs ``yes`` or a ``yes`` typed at a terminal;
+    UsageError when refused (nothing moved).
+    """
+    if cell.simulated or yes:
         return
+    what = ", ".join(f"{u} ({d})" for u, d in zip(urls, (cell.robot, cell.tracker),
+                                                     strict=True) if not d.simulator)
     stdin = stdin or sys.stdin
     stderr = stderr or sys.stderr
     try:
@@ -159,9 +164,9 @@ def confirm_motion(urls: list[str], yes: bool, stdin=None, stderr=None) -> None:
     except (AttributeError, ValueError):
         tty = False
     if not tty:
-        raise UsageError(f"{', '.join(remote)} is not a simulator: refusing to move without "
+        raise UsageError(f"{what} did not identify as a simulator: refusing to move without "
                          "confirmation (no terminal); pass --yes to confirm")
-    stderr.write(f"About to move real hardware: {', '.join(remote)}.\n"
+    stderr.write(f"About to move real hardware: {what}.\n"
                  "Is the cell clear and the robot's speed limited? Type 'yes' to start: ")
     stderr.flush()
     if stdin.readline().strip().lower() not in ("y", "yes"):
@@ -202,6 +207,11 @@ def report(out: dict, as_json: bool) -> int:
             print(f"  tracker: {check_line(out['tracker_check'])}")
         if out["status"] in ("paused", "stopped"):
             print(f"  resume with: cellcal resume {out['run']} --db {out['db']}")
+    signum = out.get("signal")
+    if signum:
+        import signal
+
+        return 128 + int(getattr(signal, signum, 0) or 1)
     return {"completed": 0, "stopped": 130}.get(out["status"], 1)
 
 
@@ -241,20 +251,56 @@ def run_and_report(command: str, as_json: bool, go) -> int:
     return report(outcome.to_json(), as_json)
 
 
+def executor_options(values: dict, base=None):
+    """ExecutorOptions from flag values (over ``base``'s); UsageError naming the flag."""
+    from pydantic import ValidationError
+
+    from ..run_context import ExecutorOptions
+
+    try:
+        return ExecutorOptions(**{**(base.model_dump() if base is not None else {}), **values})
+    except ValidationError as e:
+        flag_of = {attr: flag for flag, attr, _, _ in EXEC_FLAGS}
+        raise UsageError("; ".join(
+            f"{flag_of.get(str(err['loc'][0]), err['loc'][0])}: {err['msg']}"
+            for err in e.errors())) from None
+
+
+def motion_limits(args):
+    """The run's motion limits from the arguments; UsageError for bad values."""
+    from ..errors import one_line
+    from ..motion_guard import MotionLimits
+
+    try:
+        boxes = tuple(tuple(floats(b, 6, "--keepout-mm")) for b in args.keepout_mm)
+        return MotionLimits(floor_z_mm=None if args.no_floor else args.floor_z_mm,
+                            max_reach_mm=getattr(args, "max_reach_mm", None),
+                            keepout_mm=boxes, check_paths=args.check_paths)
+    except ValueError as e:
+        msg = one_line(e).replace("floor_z_mm", "--floor-z-mm").replace(
+            "max_reach_mm", "--max-reach-mm").replace("keepout_mm", "--keepout-mm")
+        raise UsageError(msg) from None
+
+
 def request_from_args(args):
-    """The typed capture request of the parsed arguments (ValueError for bad values)."""
-    from ..run_context import ExecutorOptions, TrackerSetup
+    """The typed capture request of the parsed arguments (UsageError/ValueError for bad
+    values: every option is checked here, before a store or a run exists)."""
+    import math
+
+    from ..run_context import TrackerSetup
     from ..service import CaptureRequest
 
     spec = ROUTINE_ARGS[args.routine]
     tool = floats(args.tool_mm, 3, "--tool-mm")
+    if tool is not None and not all(math.isfinite(v) for v in tool):
+        raise UsageError(f"--tool-mm: expected 3 finite numbers, got {args.tool_mm!r}")
+    limits = motion_limits(args)
     return CaptureRequest(
         routine=args.routine, model=args.model, params=spec.params(args),
         tool_mm=None if tool is None else tuple(tool), seed=args.seed,
-        floor_z_mm=None if args.no_floor else args.floor_z_mm,
-        max_reach_mm=getattr(args, "max_reach_mm", None), frame_run=args.frame_run,
-        executor=ExecutorOptions(**flag_values(args, EXEC_FLAGS)),
-        acquire=flag_values(args, spec.acquire_flags),
+        floor_z_mm=limits.floor_z_mm, max_reach_mm=limits.max_reach_mm,
+        frame_run=args.frame_run, executor=executor_options(flag_values(args, EXEC_FLAGS)),
+        acquire=flag_values(args, spec.acquire_flags), motion=limits,
         tracker=TrackerSetup(**tracker_setup(args)))
 
 
@@ -278,7 +324,6 @@ def run(args) -> int:
             print(f"{plan.routine}: {len(plan)} points, plan {plan.hash[:16]}")
             print(planned.check.report())
         return 0
-    confirm_motion([args.robot, args.tracker], args.yes)
     try:
         store = RunStore(args.db, synchronous=args.synchronous)
     except (StoreError, OSError) as e:
@@ -292,6 +337,7 @@ def run(args) -> int:
     try:
         return run_and_report("capture", args.json, lambda progress: start_run(
             store, planned, robot_url=args.robot, tracker_url=args.tracker, progress=progress,
-            on_started=started))
+            on_started=started, confirm=lambda cell, robot, tracker: confirm_motion(
+                cell, [robot, tracker], args.yes)))
     finally:
         store.close()

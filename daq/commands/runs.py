@@ -42,6 +42,8 @@ def run(args) -> int:
             except StoreError as e:
                 raise UsageError(str(e)) from None
             d = _run_dict(store, r)
+            d.update(robot_identity=r.robot_identity, tracker_identity=r.tracker_identity,
+                     source_run=r.source_run)
             d["context"] = r.context.model_dump(mode="json")
             d["interruptions"] = [
                 {"point": p, "t": t, "kind": k, "message": m}

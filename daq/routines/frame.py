@@ -3,7 +3,12 @@
 Joint 1 alone turns through ``circle_span_deg`` in ``circle_points`` steps
 (the target traces a circle about the base Z axis), then the TCP moves along
 the base x axis alone, ``line_points`` points over ``line_length_mm`` centred
-on the start (linear moves). :func:`finalize` fits the circle and the line
+on the start. The line's first point is a joint move (through a pre-position one
+line step before it, so it is approached along +x like the others): it brings joint 1
+back from the circle's end to the start's configuration, whatever the circle's span (a
+linear move from there would turn joint 1 the short way, and a multi-turn circle would
+leave it a full turn away from the posture the plan expects). The other line points
+are linear moves. :func:`finalize` fits the circle and the line
 (:mod:`calibration.frame_fit`) and stores the base frame in the tracker frame
 (``tracker_T_base``) and the fit quality with the run.
 """
@@ -49,10 +54,14 @@ def make_plan(model, *, start_deg=None, circle_span_deg: float = 90.0, circle_po
     p0 = nominal_point(model, q0)
     xs = p0[0] + np.linspace(-line_length_mm / 2, line_length_mm / 2, line_points)
     xyz = np.column_stack([xs, np.full(line_points, p0[1]), np.full(line_points, p0[2])])
-    # approach the line's first point along +x, like the rest of the line
-    qs, _ = expected_joints(model, xyz, q0)
-    for k in range(line_points):
-        targets.append(Target(len(targets), "linear", q=qs[k], base_p_tcp=xyz[k],
+    # approach the line's first point along +x, like the rest of the line: a joint move
+    # from a pre-position one step before it (back from the circle's end), then linear
+    step = np.array([line_length_mm / max(line_points - 1, 1), 0.0, 0.0])
+    qs, _ = expected_joints(model, np.vstack([xyz[0] - step, xyz]), q0)
+    targets.append(Target(len(targets), "joints", q=qs[1], base_p_tcp=xyz[0], via=qs[0],
+                          label="line1", info={"part": "line"}))
+    for k in range(1, line_points):
+        targets.append(Target(len(targets), "linear", q=qs[k + 1], base_p_tcp=xyz[k],
                               label=f"line{k + 1}", info={"part": "line"}))
     params = {"start_deg": np.degrees(q0).tolist(), "circle_span_deg": circle_span_deg,
               "circle_points": circle_points, "line_length_mm": line_length_mm,

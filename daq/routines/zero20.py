@@ -11,6 +11,15 @@ is fixed by the first posture) — and the executor records the joints. The loop
 settings are :class:`ZeroLoopOptions` (on the command line ``--zero-tol-mm``,
 ``--zero-average``), stored in the run context's ``acquire`` options.
 
+The loop is bounded: each correction moves the tip by at most ``max_step_mm``; every
+move it makes (corrections, probes) passes the executor's motion guard, which keeps it
+within the run's deviation limits of the planned posture, the joint limits and above
+the floor; a posture whose tip starts more than ``max_error_mm`` from the target is not
+corrected at all; and every measured tip displacement must agree with the one its
+correction predicts (``agree_rel`` of it, plus ``agree_abs_mm`` and the measurements'
+noise) — a jump of the tracker reading or a measurement frame of another cell stops the
+loop with :class:`~daq.errors.ZeroDiverged` naming the point (the run pauses).
+
 Needs an arm that can orient its tool (6 joints or more): a smaller arm reaches
 a point in too few postures.
 
@@ -23,11 +32,11 @@ moves to each recorded posture and closes the loop again from there.
 from __future__ import annotations
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
 from calibration.transforms import fit_rigid
 
-from ..errors import ZeroNotReached
+from ..errors import ZeroDiverged, ZeroNotReached
 from ..plans import Plan, Target
 
 
@@ -158,7 +167,7 @@ def finalize(plan: Plan, samples, run) -> dict:
 class ZeroLoopOptions(BaseModel):
     """Settings of the zero-point closed loop (mm, rad)."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     #: the tip is on the target within this, mm
     tol_mm: float = 0.01
@@ -179,6 +188,15 @@ class ZeroLoopOptions(BaseModel):
     #: large correction leaves a residual along its own direction (model Jacobian, tracker
     #: rotation: ~1 %) that is systematic, not noise, and would bias the offsets
     confirm_step_mm: float = 0.5
+    #: the largest tip motion of one correction, mm (a larger one is scaled down)
+    max_step_mm: float = Field(5.0, gt=0)
+    #: a tip measured further than this from the target at the planned posture is not
+    #: corrected (mm): the robot's own errors are smaller; a moved tracker is not
+    max_error_mm: float = Field(25.0, gt=0)
+    #: a measured tip displacement may differ from the predicted one by this fraction of
+    #: it, plus ``agree_abs_mm`` and 4 times the two measurements' combined 3-D std
+    agree_rel: float = Field(0.3, gt=0)
+    agree_abs_mm: float = Field(0.05, ge=0)
 
 
 #: the routine's acquisition options (stored in the run context's ``acquire``)
@@ -260,6 +278,16 @@ class ZeroLoop:
             ctx.save_summary(summary)
         return np.asarray(summary["zero_target_tracker_mm"], float)
 
+    def _allowed(self, predicted: np.ndarray, m0, m1) -> float:
+        """How far a measured displacement may be from the predicted one (mm)."""
+        o = self.o
+        noise = float(np.sqrt(np.sum(np.asarray(m0.std) ** 2) + np.sum(np.asarray(m1.std) ** 2)))
+        return o.agree_rel * float(np.linalg.norm(predicted)) + o.agree_abs_mm + 4.0 * noise
+
+    def _where(self, ctx) -> str:
+        t = getattr(ctx, "target", None)
+        return "zero" if t is None else f"zero point {t.index} ({t.label})"
+
     def rotation(self, ctx, jr, m):
         """Rotation tracker <- base (3x3) for the loop, and the current state.
 
@@ -286,41 +314,75 @@ class ZeroLoop:
         q0 = np.asarray(jr.q, float)
         p0 = fk.point(q0[None])[0]
         m0 = np.asarray(m.xyz, float)
-        A, B = [], []
+        A, B, ms = [], [], []
         for k in range(3):
             dp = np.zeros(3)
             dp[k] = self.o.probe_mm
             dq = np.linalg.lstsq(tool_jacobian(self.model, q0), dp, rcond=None)[0]
-            ctx.move_joints(q0 + dq)
-            jr = ctx.read_joints()
+            jr = ctx.move_joints(q0 + dq)
             m = self.measure(ctx)
             A.append(fk.point(np.asarray(jr.q, float)[None])[0] - p0)
             B.append(np.asarray(m.xyz, float) - m0)
+            ms.append(m)
         R = rotation_between(np.array(A), np.array(B))
+        for a, b, mk in zip(A, B, ms, strict=True):
+            miss = float(np.linalg.norm(R @ a - b))
+            if miss > self._allowed(R @ a, m, mk):
+                raise ZeroDiverged(f"robot {ctx.robot_url}", self._where(ctx), (
+                    f"the probe moves disagree ({miss:.3f} mm from one rotation): the tracker "
+                    "reading jumped while probing; nothing was stored"))
         summary["zero_tracker_R_base"] = R.tolist()
         ctx.save_summary(summary)
         return R, jr, m
 
     def acquire(self, t: Target, ctx):
-        """Close the loop at the posture the robot stands in; (joints read, measurement)."""
+        """Close the loop at the posture the robot stands in; (joints read, measurement).
+
+        :class:`~daq.errors.ZeroDiverged` when the tip starts beyond ``max_error_mm`` or a
+        measured displacement disagrees with its correction's prediction;
+        :class:`~daq.errors.ZeroNotReached` after ``max_iter`` corrections.
+        """
+        from calibration.inverse import ChainFK
+
         o = self.o
+        dev = f"robot {ctx.robot_url}"
         jr = ctx.read_joints()
         m = self.measure(ctx)
         target = self.target(ctx, m.xyz)
+        e0 = float(np.linalg.norm(target - m.xyz))
+        if e0 > o.max_error_mm:
+            raise ZeroDiverged(dev, self._where(ctx), (
+                f"the tip measures {e0:.1f} mm from the zero-point target at the planned "
+                f"posture (at most {o.max_error_mm:g} mm): has the tracker, its SMR nest or "
+                "the measurement frame moved? Nothing was corrected"))
         R, jr, m = self.rotation(ctx, jr, m)
+        fk = ChainFK.from_model(self.model)
         lam2 = o.damping_mm**2
         last_step = 0.0  # the tip motion of the last correction, mm
-        for _ in range(o.max_iter):
+        for k in range(o.max_iter):
             e = target - m.xyz
             tol = max(o.tol_mm, o.noise_k * float(np.linalg.norm(m.std)))
             if float(np.linalg.norm(e)) <= tol and last_step <= o.confirm_step_mm:
                 return jr, m
             J = R @ tool_jacobian(self.model, jr.q)
             dq = J.T @ np.linalg.solve(J @ J.T + lam2 * np.eye(3), e)
-            last_step = float(np.linalg.norm(J @ dq))
-            ctx.move_joints(jr.q + dq)
-            jr = ctx.read_joints()
+            step = float(np.linalg.norm(J @ dq))
+            if step > o.max_step_mm:  # a bounded correction
+                dq *= o.max_step_mm / step
+            p_before, m_before = fk.point(np.asarray(jr.q, float)[None])[0], m
+            jr = ctx.move_joints(jr.q + dq)
             m = self.measure(ctx)
-        raise ZeroNotReached(f"robot {ctx.robot_url}", "zero",
+            predicted = R @ (fk.point(np.asarray(jr.q, float)[None])[0] - p_before)
+            measured = np.asarray(m.xyz, float) - np.asarray(m_before.xyz, float)
+            last_step = float(np.linalg.norm(predicted))
+            miss = float(np.linalg.norm(measured - predicted))
+            allowed = self._allowed(predicted, m_before, m)
+            if miss > allowed:
+                raise ZeroDiverged(dev, self._where(ctx), (
+                    f"correction {k + 1}: the tip moved {np.round(measured, 3).tolist()} mm "
+                    f"where the correction predicts {np.round(predicted, 3).tolist()} mm "
+                    f"({miss:.3f} mm apart, at most {allowed:.3f}): the tracker reading jumped, "
+                    "or the measurement frame is not this cell's; the loop stopped"))
+        raise ZeroNotReached(dev, self._where(ctx),
                              f"tip {np.linalg.norm(target - m.xyz):.4f} mm from the target "
                              f"after {o.max_iter} corrections")

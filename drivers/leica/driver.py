@@ -53,6 +53,7 @@ from drivers.leica.link import PacketLink
 from drivers.leica.metrology import EmsconCapabilities
 from drivers.leica.units import DRIVER_UNITS
 from drivers.protocols import (
+    DeviceIdentity,
     Measurement,
     Reflector,
     TrackerStatus,
@@ -338,6 +339,18 @@ class EmsconTracker(EmsconCapabilities):
                      f"serial {st.lTrackerSerialNumber}"),
             timestamp=time.time(),
         )
+
+    def identify(self, timeout: float = 2.0) -> DeviceIdentity:
+        """GetSystemSoftwareVersion + GetSystemStatus: the emScon server's software version
+        (firmware) and the tracker's serial number. A cellcal simulator's version names it
+        (``cellcal sim ...``)."""
+        deadline = time.monotonic() + timeout
+        self._resync(deadline)
+        version = codec.wstring(self._call(codec.GetSystemSoftwareVersionCT(), deadline)[0]
+                                .cSoftwareVersion)
+        st = self._call(codec.GetSystemStatusCT(), deadline)[0]
+        return DeviceIdentity("tracker", "emScon tracker", str(st.lTrackerSerialNumber),
+                              version, simulator=version.startswith("cellcal sim"))
 
     def initialise(self, timeout: float = 30.0) -> None:
         """``Initialize``: home the tracker (needed once per power-up)."""

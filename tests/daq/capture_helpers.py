@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sqlite3
 import subprocess
 import sys
 from pathlib import Path
@@ -24,6 +25,15 @@ ROOT = Path(__file__).resolve().parents[2]
 FREE_PORTS = {"modbus": 0, "line_robot": 0, "tracker": 0, "emscon": 0}
 
 
+def toy_sim(kind: str, seed: int, name: str = "default", **extra) -> str:
+    """An in-process ``sim://`` URL of the toy arm (tests/daq/data/toyarm.yaml; the SMR at
+    the wrist: no tool) for cell ``name``."""
+    from urllib.parse import urlencode
+
+    query = {"model": TOY, "tool": "0,0,0", "seed": seed, "name": name, **extra}
+    return f"sim://{kind}?{urlencode(query)}"
+
+
 def ur10e_controller_model():
     """The nominal UR10e as the simulated controller knows it (SMR on a 60 mm holder)."""
     return load_model("ur10e").with_changes(tool=(0.0, 0.0, 60.0))
@@ -42,10 +52,12 @@ def base_only_truth(seed: int, hidden=None) -> ModelTruth:
 
 
 @contextlib.contextmanager
-def served_cell(truth_factory, *, faults=None, seed=0, **cell_kw):
-    """A SimStack on free loopback ports (no pty): yields the stack. ``cell_kw``: extra
-    :class:`~sim_drivers.cell.SimCell` arguments (weather station, collimation...)."""
-    cfg = ServeConfig(seed=seed, faults=faults, ports=dict(FREE_PORTS), pty=False)
+def served_cell(truth_factory, *, faults=None, seed=0, time_scale=0.0, **cell_kw):
+    """A SimStack on free loopback ports (no pty): yields the stack (what ``cellcal sim
+    serve`` runs, in this process so a test can read the simulator's truth). ``cell_kw``:
+    extra :class:`~sim_drivers.cell.SimCell` arguments (weather station, collimation...)."""
+    cfg = ServeConfig(seed=seed, faults=faults, ports=dict(FREE_PORTS), pty=False,
+                      time_scale=time_scale)
     with SimStack(cfg, truth_factory=truth_factory, **cell_kw) as stack:
         yield stack
 
@@ -90,3 +102,15 @@ def sim_serve(*args: str):
             serve.kill()
             serve.wait()
         serve.stdout.close()
+
+
+def count_samples(db) -> int:
+    """Samples stored in the run store ``db`` so far (read-only; 0 before it exists)."""
+    try:
+        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5)
+        try:
+            return int(con.execute("SELECT count(*) FROM samples").fetchone()[0])
+        finally:
+            con.close()
+    except sqlite3.OperationalError:
+        return 0

@@ -14,7 +14,8 @@ from calibration import ErrorModel, identify, load_csv, load_model
 from calibration.frame_fit import axis_angle_deg, fit_circle, fit_line, measurement_frame
 from daq.check import PlanRefused, check_plan, require_ok
 from daq.cli import main
-from daq.commands.capture import confirm_motion, is_local
+from daq.commands.capture import confirm_motion
+from daq.devices import CellIdentity
 from daq.plans import Plan, Target
 from daq.progress import Progress
 from daq.routines import make_plan
@@ -23,9 +24,10 @@ from daq.run_context import ExecutorOptions, RunContext
 from daq.run_data import dataset_from_run
 from daq.store import RunStore, Sample, StoreError
 from daq.store_schema import SCHEMA_V1, SCHEMA_VERSION
+from drivers.protocols import DeviceIdentity
 from drivers.urls import open_robot, open_tracker
 
-from .capture_helpers import TOY, run_plan
+from .capture_helpers import TOY, run_plan, toy_sim
 
 TOYM = load_model(TOY)
 
@@ -179,8 +181,8 @@ def test_export_loads_and_identifies(tmp_path):
     """In-process sim: a poses run exported to CSV is read by load_csv and identified."""
     inproc.reset_cells()
     plan = make_plan("poses", TOYM, count=40, seed=3, valid_fraction=0.25)
-    robot = open_robot("sim://robot?seed=11&name=export")
-    tracker = open_tracker("sim://tracker?seed=11&name=export")
+    robot = open_robot(toy_sim("robot", 11, "export"))
+    tracker = open_tracker(toy_sim("tracker", 11, "export"))
     robot.connect()
     tracker.connect()
     with RunStore(tmp_path / "c.db") as st:
@@ -201,8 +203,8 @@ def test_export_loads_and_identifies(tmp_path):
 def test_pause_on_protective_stop_stop_request_and_resume(tmp_path):
     inproc.reset_cells()
     plan = make_plan("poses", TOYM, count=12, seed=4)
-    robot = open_robot("sim://robot?seed=12&name=pause")
-    tracker = open_tracker("sim://tracker?seed=12&name=pause")
+    robot = open_robot(toy_sim("robot", 12, "pause"))
+    tracker = open_tracker(toy_sim("tracker", 12, "pause"))
     robot.connect()
     tracker.connect()
     cell = robot.cell
@@ -233,8 +235,8 @@ def test_pause_on_protective_stop_stop_request_and_resume(tmp_path):
 def test_quality_threshold_remeasures_then_gives_up(tmp_path):
     inproc.reset_cells()
     plan = make_plan("poses", TOYM, count=2, seed=5)
-    robot = open_robot("sim://robot?seed=13&name=q")
-    tracker = open_tracker("sim://tracker?seed=13&name=q")
+    robot = open_robot(toy_sim("robot", 13, "q"))
+    tracker = open_tracker(toy_sim("tracker", 13, "q"))
     robot.connect()
     tracker.connect()
     with RunStore(tmp_path / "c.db") as st:
@@ -247,11 +249,7 @@ def test_quality_threshold_remeasures_then_gives_up(tmp_path):
 
 
 # ------------------------------------------------------------------ CLI
-def test_local_urls_and_confirmation():
-    assert is_local("sim://robot") and is_local("socket://127.0.0.1:1")
-    assert is_local("modbus+tcp://localhost:502") and is_local("tracker+tcp://[::1]:5")
-    assert is_local("tracker+serial:///dev/pts/3")
-    assert not is_local("ur://192.168.0.10") and not is_local("serial:///dev/ttyUSB0")
+def test_only_identified_simulators_move_without_confirmation():
     from daq.cli import UsageError
 
     class NoTTY(io.StringIO):
@@ -262,33 +260,46 @@ def test_local_urls_and_confirmation():
         def isatty(self):
             return True
 
-    confirm_motion(["sim://robot"], yes=False, stdin=NoTTY())
-    confirm_motion(["ur://10.0.0.2"], yes=True, stdin=NoTTY())
-    with pytest.raises(UsageError, match="--yes"):
-        confirm_motion(["ur://10.0.0.2"], yes=False, stdin=NoTTY())
-    confirm_motion(["ur://10.0.0.2"], yes=False, stdin=TTY("yes\n"), stderr=io.StringIO())
+    sim = CellIdentity(DeviceIdentity("robot", "SIMBOT-1", "S1", simulator=True),
+                       DeviceIdentity("tracker", "SIMTRACK-1", "T1", simulator=True))
+    # a loopback bridge to a real controller says nothing of the kind
+    real = CellIdentity(DeviceIdentity("robot", "SIMBOT-1", "S1"), sim.tracker)
+    urls = ["socket://127.0.0.1:15021", "tracker+tcp://127.0.0.1:15700"]
+    confirm_motion(sim, urls, yes=False, stdin=NoTTY())
+    confirm_motion(real, urls, yes=True, stdin=NoTTY())
+    with pytest.raises(UsageError, match="127.0.0.1:15021.*did not identify as a simulator.*--yes"):
+        confirm_motion(real, urls, yes=False, stdin=NoTTY())
+    confirm_motion(real, urls, yes=False, stdin=TTY("yes\n"), stderr=io.StringIO())
     with pytest.raises(UsageError, match="not confirmed"):
-        confirm_motion(["ur://10.0.0.2"], yes=False, stdin=TTY("n\n"), stderr=io.StringIO())
+        confirm_motion(real, urls, yes=False, stdin=TTY("n\n"), stderr=io.StringIO())
 
 
-def test_cli_refuses_a_bad_plan_and_a_remote_robot_without_tty(tmp_path, capsys, monkeypatch):
+def test_cli_refuses_a_bad_plan_and_an_unidentified_robot_without_tty(tmp_path, capsys,
+                                                                      monkeypatch):
     db = str(tmp_path / "c.db")
     rc = main(["capture", "steps", "--model", TOY, "--start-deg", "0,20,-60", "--step-mm", "50",
                "--robot", "sim://robot", "--tracker", "sim://tracker", "--db", db])
     assert rc == 2 and "unreachable" in capsys.readouterr().err
+    inproc.reset_cells()
     monkeypatch.setattr("sys.stdin", io.StringIO(""))
+    monkeypatch.setattr(inproc.SimRobot, "identify", lambda self, timeout=2.0: DeviceIdentity(
+        "robot", "ACME-7", "A1", n_joints=3))
     rc = main(["capture", "poses", "--count", "3", "--model", TOY, "--robot",
-               "ur://192.0.2.1", "--tracker", "sim://tracker", "--db", db])
+               toy_sim("robot", 3, "real"), "--tracker", toy_sim("tracker", 3, "real"),
+               "--db", db])
     assert rc == 2 and "--yes" in capsys.readouterr().err
-    assert not (tmp_path / "c.db").exists()  # nothing created, nothing moved
+    with RunStore(db) as st:
+        assert st.runs() == []  # nothing stored, nothing moved
+    assert inproc.get_cell("real", 3).n_moves == 0
+    inproc.reset_cells()
 
 
 def test_cli_capture_runs_export_in_process(tmp_path, capsys):
     inproc.reset_cells()
     db, csv = str(tmp_path / "c.db"), str(tmp_path / "d.csv")
     rc = main(["capture", "poses", "--count", "8", "--seed", "1", "--model", TOY,
-               "--robot", "sim://robot?seed=21&name=cli", "--tracker",
-               "sim://tracker?seed=21&name=cli", "--db", db, "--json", "--measure-s", "0.01"])
+               "--robot", toy_sim("robot", 21, "cli"), "--tracker",
+               toy_sim("tracker", 21, "cli"), "--db", db, "--json", "--measure-s", "0.01"])
     out = json.loads(capsys.readouterr().out)
     assert rc == 0 and out["samples"] == 8 and out["status"] == "completed"
     assert main(["runs", "--db", db, "--json"]) == 0

@@ -71,7 +71,7 @@ def test_upgrade_turns_the_options_into_typed_contexts(v2_db):
     assert steps.context.seed == 7 and steps.context.executor.speed_rad_s == 0.4
     assert steps.context.executor.dwell_s == 0.01 and steps.context.executor.measure_s == 0.05
     # the zero-point loop's options became zero20's acquisition options; others have none
-    assert zero.context.acquire == ZeroLoopOptions(tol_mm=0.02, average=2).model_dump()
+    assert ZeroLoopOptions(**zero.context.acquire) == ZeroLoopOptions(tol_mm=0.02, average=2)
     assert frame.context.acquire == steps.context.acquire == poses.context.acquire == {}
     with RunStore(v2_db) as st:  # reopened: already current, nothing to do
         assert st.run(3).context == zero.context
@@ -141,7 +141,7 @@ def test_schema_3_gains_reflector_face_and_covariance(v3_db, tmp_path):
     n_cols = len(before[0])
     con.close()
     with RunStore(v3_db) as st:
-        assert st.version == SCHEMA_VERSION == 4
+        assert st.version == SCHEMA_VERSION == 5
         s = st.samples(2)
         assert s.reflector == [None] * len(s) and np.all(s.face == 0)
         assert np.all(np.isnan(s.cov_mm2))

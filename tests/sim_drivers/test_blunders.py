@@ -11,6 +11,7 @@ from sim_drivers import inprocess
 from sim_drivers.faults import FaultSpec
 from sim_drivers.serve import ServeConfig, SimStack
 from sim_drivers.tracker_server import TrackerServer
+from tests.daq.capture_helpers import toy_sim
 from tests.sim_drivers.helpers import make_cell
 
 #: the beam direction at a point: the tracker sits at the origin of its frame
@@ -100,8 +101,8 @@ def fresh_cells():
 
 
 def test_blunders_in_process(fresh_cells):
-    with open_robot("sim://robot?seed=11&name=bl&faults=blunder=1") as rob, \
-            open_tracker("sim://tracker?seed=11&name=bl") as trk:
+    with open_robot(toy_sim("robot", 11, "bl", faults="blunder=1")) as rob, \
+            open_tracker(toy_sim("tracker", 11, "bl")) as trk:
         rob.connect()
         trk.connect()
         cell = inprocess.get_cell("bl", 11)
