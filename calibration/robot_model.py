@@ -35,6 +35,10 @@ class JointRow(BaseModel):
     beta: float = 0.0
     min: float = Field(description="lower joint limit, deg")
     max: float = Field(description="upper joint limit, deg")
+    link_radius: float | None = Field(
+        default=None, ge=0.0,
+        description="radius of the link this row moves, as capsules around its d and a "
+        "segments, mm (the tracker's line of sight); absent: 0, the link is not checked")
 
     @model_validator(mode="after")
     def _limits(self) -> JointRow:
@@ -88,6 +92,10 @@ class RobotModel(BaseModel):
 
     def tool_mm(self) -> np.ndarray:
         return np.array(self.tool, dtype=float)
+
+    def link_radii(self) -> np.ndarray:
+        """Capsule radius of each row's link, shape (n_joints,), mm (0 where not given)."""
+        return np.array([j.link_radius or 0.0 for j in self.joints], dtype=float)
 
     def parallel_rows(self, tol_deg: float = 1e-6) -> list[int]:
         """0-based rows whose two neighbouring joint axes are (nominally) parallel.
