@@ -69,7 +69,9 @@ class Target:
     label : str
         Human label (becomes ``pose_id`` when the CSV is exported).
     info : dict
-        Routine-specific extras (plane, cycle, axis...). JSON-serialisable.
+        Routine-specific extras (plane, cycle, axis...). JSON-serialisable. ``spare: true``
+        marks a spare point, measured only in place of a skipped one (see
+        :mod:`daq.executor`).
     """
 
     index: int
@@ -95,6 +97,11 @@ class Target:
             raise ValueError(f"target {self.index}: a linear target needs xyz (3 values)")
         if not self.label:
             object.__setattr__(self, "label", str(self.index + 1))
+
+    @property
+    def spare(self) -> bool:
+        """A spare (``info.spare``): measured only in place of a point that was skipped."""
+        return bool(self.info.get("spare", False))
 
     def to_dict(self) -> dict:
         """JSON-ready dict (only the fields that are set; ``base_p_tcp`` as ``xyz``)."""
@@ -144,6 +151,11 @@ class Plan:
 
     def __len__(self) -> int:
         return len(self.targets)
+
+    @property
+    def n_planned(self) -> int:
+        """The points the plan means to measure: its targets less the spares."""
+        return sum(not t.spare for t in self.targets)
 
     def to_dict(self) -> dict:
         return {"routine": self.routine, "model": self.model, "params": self.params,
@@ -287,12 +299,13 @@ def estimate_capture_s(plan: Plan, speed_rad_s: float, measure_s: float, *,
     """Estimated capture time of ``plan`` (s): joint travel between the targets' joints
     (:func:`path_time`, vias included) plus, per target, settling, dwell and measuring.
     Linear moves are counted by their expected joints; closed loops (zero20) by one
-    measurement."""
+    measurement; spares not at all."""
     qs = []
-    for t in plan.targets:
+    targets = [t for t in plan.targets if not t.spare]
+    for t in targets:
         if t.via is not None and t.move != "linear":
             qs.append(t.via)
         if t.q is not None:
             qs.append(t.q)
     travel = path_time(np.array(qs, float), speed_rad_s, start) if qs else 0.0
-    return travel + len(qs) * (settle_s + dwell_s) + len(plan) * measure_s
+    return travel + len(qs) * (settle_s + dwell_s) + len(targets) * measure_s

@@ -267,7 +267,7 @@ class RunStore:
                 """INSERT INTO runs (routine, plan_json, plan_hash, n_points, robot_url,
                    tracker_url, robot_desc, tracker_desc, software, seed, model, started,
                    status, context_json) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?)""",
-                (plan.routine, plan.to_json(), plan.hash, len(plan), c.robot_url,
+                (plan.routine, plan.to_json(), plan.hash, plan.n_planned, c.robot_url,
                  c.tracker_url, robot_desc, tracker_desc, software, c.seed, c.model,
                  time.time(), "running", c.to_json()),
             )

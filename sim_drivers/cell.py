@@ -156,8 +156,8 @@ class SimCell:
         acceptance half-angle (:data:`calibration.cell.REFLECTOR_ACCEPTANCE_DEG`) limits
         how far the SMR may face away from the tracker.
     cell : CellSpec, optional
-        The cell's fixtures (base frame) and, in ``smr.acceptance_deg``, an acceptance
-        half-angle that overrides the reflector's.
+        The cell's fixtures (base frame); its SMR's acceptance half-angle (its reflector
+        type's, or ``acceptance_deg``) replaces the mounted reflector's.
     """
 
     def __init__(
@@ -232,8 +232,8 @@ class SimCell:
         geometry = getattr(truth, "beam_geometry", None)
         if geometry is not None:
             model, tracker_T_base, smr_axis = geometry()
-            acceptance = (cell.smr.acceptance_deg if cell is not None else None) or \
-                REFLECTOR_ACCEPTANCE_DEG.get(self.mounted_reflector.name, 30.0)
+            acceptance = (cell.smr.half_angle_deg if cell is not None else
+                          REFLECTOR_ACCEPTANCE_DEG.get(self.mounted_reflector.name, 30.0))
             self.beam = BeamPhysics(model, tracker_T_base, smr_axis, acceptance, cell)
         self.n_moves = 0
         self.n_measurements = 0

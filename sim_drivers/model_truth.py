@@ -27,9 +27,9 @@ from .truth import PoseContext
 
 #: where the SMR sits on the flange in the simulated cell (mm): on a 60 mm holder
 DEFAULT_TOOL_MM = (0.0, 0.0, 60.0)
-#: where the simulated tracker stands by default (mm, robot base frame): 2.5 m in front of
-#: a UR (its arm reaches along -x at joint 1 = 0), the head 0.5 m above the base
-DEFAULT_TRACKER_AT_MM = (-2500.0, 0.0, 500.0)
+#: where the simulated tracker stands by default (mm, robot base frame): 2.5 m from the base
+#: along +x, the head 0.5 m above the base
+DEFAULT_TRACKER_AT_MM = (2500.0, 0.0, 500.0)
 #: the hidden tilt of the true SMR axis from the nominal one (deg, std per axis)
 SMR_TILT_DEG = 1.0
 
