@@ -29,7 +29,7 @@ Faults
 
 Beam breaks (the line of sight)
     A beam break is a fault like any other (recorded with the point and the tracker's
-    reason, retried). When it persists — more than ``beam_retries`` breaks at one point
+    reason, retried). When it persists — more than :data:`BEAM_RETRIES` breaks at one point
     (a link or fixture in the beam, the SMR facing away) — the point is skipped instead
     of pausing the run: an interruption of kind ``skipped`` records it, and the plan's
     next spare point (``info.spare``, measured only for this) is measured in its place
@@ -70,6 +70,9 @@ from .errors import CaptureError, QualityError
 from .plans import Plan, Target
 from .run_context import ExecutorOptions
 from .store import RunStore, Sample
+
+#: beam breaks retried at one point before it is skipped (and a spare measured in its place)
+BEAM_RETRIES = 3
 
 
 class _Pause(Exception):  # noqa: N818 - control flow
@@ -318,7 +321,7 @@ class Executor:
             except (DriverError, CaptureError) as e:
                 self._fault(t, e)
                 beams += isinstance(e, BeamBroken)
-                if beams > self.o.beam_retries and t.move != "zero":
+                if beams > BEAM_RETRIES and t.move != "zero":
                     self.store.add_interruption(
                         self.run_id, t.index, "skipped", f"point {t.index} ({t.label}) skipped: "
                         f"the beam broke {beams} times, last: {e}")

@@ -222,6 +222,8 @@ def _two_opt(tour: np.ndarray, D: np.ndarray, max_passes: int = 50) -> np.ndarra
         for i in range(n - 2):
             a, b = tour[i], tour[i + 1]
             j = np.arange(i + 2, n if i > 0 else n - 1)
+            if j.size == 0:
+                continue
             c, d = tour[j], tour[(j + 1) % n]
             gain = D[a, b] + D[c, d] - D[a, c] - D[b, d]
             k = int(np.argmax(gain))

@@ -45,9 +45,6 @@ class ExecutorOptions(BaseModel):
     max_retries: int = 8
     backoff_s: float = 0.02
     backoff_max_s: float = 1.0
-    #: beam breaks retried at one point before it is skipped (and a spare measured in its
-    #: place); zero20's closed-loop points are never skipped
-    beam_retries: int = 3
     #: a joint moved by less than this (rad) approached with direction 0
     dir_deadband_rad: float = 1e-6
 

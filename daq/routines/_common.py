@@ -125,14 +125,40 @@ def facing_starts(model, cell, *, radii=(700.0, 900.0, 1100.0), heights=(250.0, 
     return q[s.visible], s.clearance_mm[s.visible].min(axis=1, initial=np.inf)
 
 
-def facing_start(model, cell, change: str) -> np.ndarray:
-    """The candidate start (:func:`facing_starts`) whose beam passes the links widest
-    (rad); :class:`~daq.errors.NotEnoughVisible` when there is none."""
+def facing_start(model, cell, routine: str, change: str, points) -> np.ndarray:
+    """The start posture (rad) for a routine that moves from it: the first of the postures
+    whose SMR faces the tracker straight on (:func:`facing_starts`) from which every point
+    of the routine is reachable and visible. Tried in order of room to move: whose beam
+    passes the links by twice the margin first, then the SMR nearest 55 % of the arm's
+    reach from the base axis and 500 mm up. ``points(q0)`` gives the routine's expected
+    joints (n, N), whether each is reached (n,) and labels. Refused
+    (:class:`~daq.errors.NotEnoughVisible`) with the best start's problems when none fits.
+    """
+    from calibration.visibility import smr_pose
+
     from ..errors import NotEnoughVisible
 
     q, clear = facing_starts(model, cell)
     if len(q) == 0:
-        raise NotEnoughVisible(f"no start posture found whose SMR faces the tracker at "
-                               f"{np.round(cell.tracker_mm).tolist()} mm ({cell.tracker_source});"
-                               f" change: {change}")
-    return q[int(np.argmax(clear))]
+        raise NotEnoughVisible(f"{routine}: no start posture found whose SMR faces the tracker "
+                               f"at {np.round(cell.tracker_mm).tolist()} mm "
+                               f"({cell.tracker_source}); change: {change}")
+    p, _ = smr_pose(model, q, cell.smr.axis_unit())
+    reach = float(np.sum(np.abs(model.dh_table()[:, 1:3])))
+    miss = np.abs(np.hypot(p[:, 0], p[:, 1]) - 0.55 * reach) + np.abs(p[:, 2] - 500.0)
+    miss = np.where(clear >= 2 * cell.margins.clearance_mm, miss, miss + 1e6)
+    best = None
+    for k in np.argsort(miss, kind="stable")[:40]:
+        qs, ok, labels = points(q[k])
+        bad = len(hidden(model, qs, cell)) + int((~ok).sum())
+        if bad == 0:
+            return q[k]
+        if best is None or bad < best[0]:
+            best = bad, k, qs, labels, ok
+    _, k, qs, labels, ok = best
+    if not ok.all():
+        raise NotEnoughVisible(f"{routine}: from every start posture facing the tracker some "
+                               f"points are out of reach (best: "
+                               f"{', '.join(np.asarray(labels)[~ok][:10])}); change: {change}")
+    require_visible(routine, model, qs, labels, cell, change)
+    return q[k]

@@ -167,8 +167,8 @@ def finalize(plan: Plan, samples, run) -> dict:
     """Fit the frame: ``{"frame": FrameFit.to_dict(), "summary": {...}}`` (the run's
     summary kept)."""
     part = [(t or {}).get("info", {}).get("part") for t in samples.targets]
-    circ = np.array([p == "circle" for p in part])
-    line = np.array([p == "line" for p in part])
+    circ = np.array([p == "circle" for p in part], bool)
+    line = np.array([p == "line" for p in part], bool)
     height = float(plan.params["origin_height_mm"])
     cmd_z = samples.base_p_tcp_cmd[circ, 2]
     if cmd_z.size and np.all(np.isfinite(cmd_z)):

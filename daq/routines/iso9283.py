@@ -56,17 +56,26 @@ def make_plan(model, *, centre_xyz=None, start_deg=None, side_mm: float = 200.0,
     if cycles < 1:
         raise ValueError("iso9283: cycles must be >= 1")
     sight = knows_tracker(cell)
-    if start_deg is not None:
-        q0 = np.radians(start_deg)
-    else:
-        q0 = facing_start(model, cell, CHANGE) if sight else default_start(model)
-    c = np.asarray(centre_xyz, float) if centre_xyz is not None else nominal_point(model, q0)
     d = np.asarray(approach_dir, float)
     d = d / np.linalg.norm(d)
-    pts = cube_points(c, side_mm)
-    qs, _ = expected_joints(model, pts, q0)
+    labels = [f"P{k + 1}" for k in range(5)]
+
+    def points(q0):
+        c = np.asarray(centre_xyz, float) if centre_xyz is not None else nominal_point(model, q0)
+        pts = cube_points(c, side_mm)
+        # the pre-positions must be reached too (not seen: nothing is measured there)
+        qs, ok = expected_joints(model, np.vstack([pts, pts + approach_mm * d]), q0)
+        return qs[:5], ok[:5] & ok[5:], labels, c, pts
+
+    if start_deg is not None:
+        q0 = np.radians(start_deg)
+    elif sight:
+        q0 = facing_start(model, cell, "iso9283", CHANGE, lambda q: points(q)[:3])
+    else:
+        q0 = default_start(model)
+    qs, _, _, c, pts = points(q0)
     if sight:
-        require_visible("iso9283", model, qs, [f"P{k + 1}" for k in range(5)], cell, CHANGE)
+        require_visible("iso9283", model, qs, labels, cell, CHANGE)
     q_via0 = expected_joints(model, pts[:1] + approach_mm * d, q0)[0][0]
     targets = []
     for cyc in range(cycles):

@@ -57,21 +57,28 @@ def make_plan(model, *, start_xyz=None, start_deg=None, step_mm: float = 20.0, c
     if count < 1 or not axes or set(axes) - set("xyz"):
         raise ValueError("steps: count must be >= 1 and axes a subset of 'xyz'")
     sight = knows_tracker(cell)
+
+    def points(q0):
+        p0 = np.asarray(start_xyz, float) if start_xyz is not None else nominal_point(model, q0)
+        pts, labels, info = [], [], []
+        for ax in axes:
+            k_ax = "xyz".index(ax)
+            for k in range(count + 1):
+                p = p0.copy()
+                p[k_ax] += k * step_mm
+                pts.append(p)
+                labels.append(f"{ax}{k}")
+                info.append({"axis": ax, "step": k})
+        qs, ok = expected_joints(model, np.array(pts), q0)
+        return qs, ok, labels, pts, info, p0
+
     if start_deg is not None:
         q0 = np.radians(start_deg)
+    elif sight:
+        q0 = facing_start(model, cell, "steps", CHANGE, lambda q: points(q)[:3])
     else:
-        q0 = facing_start(model, cell, CHANGE) if sight else default_start(model)
-    p0 = np.asarray(start_xyz, float) if start_xyz is not None else nominal_point(model, q0)
-    pts, labels, info = [], [], []
-    for ax in axes:
-        k_ax = "xyz".index(ax)
-        for k in range(count + 1):
-            p = p0.copy()
-            p[k_ax] += k * step_mm
-            pts.append(p)
-            labels.append(f"{ax}{k}")
-            info.append({"axis": ax, "step": k})
-    qs, _ = expected_joints(model, np.array(pts), q0)
+        q0 = default_start(model)
+    qs, _, labels, pts, info, p0 = points(q0)
     if sight:
         require_visible("steps", model, qs, labels, cell, CHANGE)
     # the start by a joint move (in the start's flange orientation, which the linear moves

@@ -11,11 +11,12 @@ from pathlib import Path
 import numpy as np
 
 from calibration import ErrorModel, load_model
+from calibration.cell import CellSpec
 from daq.run_context import ExecutorOptions, RunContext
 from daq.service import execute
 from daq.store import RunStore
 from drivers.urls import open_robot, open_tracker
-from sim_drivers.model_truth import ModelTruth
+from sim_drivers.model_truth import DEFAULT_TRACKER_AT_MM, ModelTruth
 from sim_drivers.serve import ServeConfig, SimStack
 
 DATA = Path(__file__).parent / "data"
@@ -29,8 +30,9 @@ def ur10e_controller_model():
     return load_model("ur10e").with_changes(tool=(0.0, 0.0, 60.0))
 
 
-def base_only_truth(seed: int, hidden=None) -> ModelTruth:
-    """A UR10e whose only hidden error is its pose in the tracker frame (and the tool)."""
+def base_only_truth(seed: int, hidden=None, tracker_at=DEFAULT_TRACKER_AT_MM) -> ModelTruth:
+    """A UR10e whose only hidden error is its pose in the tracker frame (and the tool), the
+    tracker at ``tracker_at`` (mm, base frame)."""
     nominal = ur10e_controller_model()
     em = ErrorModel(nominal, "base,tool")
     rng = np.random.default_rng(seed)
@@ -38,14 +40,20 @@ def base_only_truth(seed: int, hidden=None) -> ModelTruth:
 
     x = realistic_truth(em, rng)
     x[em.index("tool.x"):em.index("tool.x") + 3] = nominal.tool_mm()
-    return ModelTruth(nominal, em, x)
+    return ModelTruth(nominal, em, x, tracker_at=tracker_at)
+
+
+def rough_cell(tracker_at=DEFAULT_TRACKER_AT_MM, error_mm=(60.0, -40.0, 30.0)) -> CellSpec:
+    """The cell as a user describes it: the tracker ``error_mm`` off its true place."""
+    return CellSpec().with_tracker(np.add(tracker_at, error_mm), "--tracker-at")
 
 
 @contextlib.contextmanager
-def served_cell(truth_factory, *, faults=None, seed=0):
-    """A SimStack on free loopback ports (no pty): yields the stack."""
+def served_cell(truth_factory, *, faults=None, seed=0, cell=None):
+    """A SimStack on free loopback ports (no pty), the cell ``cell`` (fixtures, SMR):
+    yields the stack."""
     cfg = ServeConfig(seed=seed, faults=faults, ports=dict(FREE_PORTS), pty=False)
-    with SimStack(cfg, truth_factory=truth_factory) as stack:
+    with SimStack(cfg, truth_factory=truth_factory, cell=cell) as stack:
         yield stack
 
 
