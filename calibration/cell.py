@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from .robot_model import _format_validation
+from .robot_model import validate_file_mapping
 
 #: acceptance half-angle (deg) of each reflector type the tools know, by name: the
 #: planner's and the simulator's defaults (a datasheet's value goes in ``acceptance_deg``)
@@ -192,14 +192,8 @@ def tracker_in_base(tracker_T_base) -> np.ndarray:
 
 def cell_from_dict(data, source: str = "<cell>") -> CellSpec:
     """Validate a cell mapping; errors name ``source`` and the field."""
-    if data is None:
-        data = {}
-    if not isinstance(data, dict):
-        raise CellError(f"{source}: a cell file must be a mapping, got {type(data).__name__}")
-    try:
-        return CellSpec.model_validate(data)
-    except ValidationError as e:
-        raise CellError(_format_validation(e, source)) from None
+    return validate_file_mapping(CellSpec, {} if data is None else data, source, CellError,
+                                 "a cell file")
 
 
 def load_cell(path: str | Path) -> CellSpec:

@@ -146,14 +146,20 @@ def _format_validation(err: ValidationError, source: str) -> str:
     return "\n".join(lines)
 
 
+def validate_file_mapping(cls, data, source: str, error: type[ValueError], what: str):
+    """``cls.model_validate(data)`` for the mapping read from a file: ``error`` naming
+    ``source`` and the field (``what``: "a model file", for the message)."""
+    if not isinstance(data, dict):
+        raise error(f"{source}: {what} must be a mapping, got {type(data).__name__}")
+    try:
+        return cls.model_validate(data)
+    except ValidationError as e:
+        raise error(_format_validation(e, source)) from None
+
+
 def model_from_dict(data: dict, source: str = "<model>") -> RobotModel:
     """Validate a model mapping; errors name ``source`` and the field."""
-    if not isinstance(data, dict):
-        raise ModelError(f"{source}: a model file must be a mapping, got {type(data).__name__}")
-    try:
-        return RobotModel.model_validate(data)
-    except ValidationError as e:
-        raise ModelError(_format_validation(e, source)) from None
+    return validate_file_mapping(RobotModel, data, source, ModelError, "a model file")
 
 
 def load_model(name_or_path: str | Path) -> RobotModel:
