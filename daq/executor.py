@@ -35,7 +35,8 @@ Beam breaks (the line of sight)
     next spare point (``info.spare``, measured only for this) is measured in its place
     once the regular points are done. zero20's closed-loop points are never skipped.
     The run's summary counts ``beam_breaks``, lists ``skipped_points`` and counts
-    ``spares_measured``.
+    ``spares_measured``, and keeps ``capture_s``, the wall time spent executing the run
+    (summed over its sessions), to set against the dry run's estimate.
 
 Every interruption goes to the store's ``interruptions`` table. A point whose
 sample was not committed is simply done again on resume; the store's
@@ -184,6 +185,7 @@ class Executor:
         self._last_cmd_q: np.ndarray | None = None
         self.last_error: str | None = None
         self.n_faults = 0
+        self._t0 = time.monotonic()
         self.commit_s = 0.0
         self.n_committed = 0
 
@@ -225,6 +227,7 @@ class Executor:
         """
         store, rid = self.store, self.run_id
         store.set_status(rid, "running")
+        self._t0 = time.monotonic()
         n_done = store.n_samples(rid)
         t = None
         self._report(n_done)
@@ -239,7 +242,7 @@ class Executor:
             except _Pause as p:
                 kind = "sigint" if p.status == "stopped" else "pause"
                 store.add_interruption(rid, getattr(t, "index", None), kind, p.reason)
-                self._count_beam()
+                self._summarise()
                 store.set_status(rid, p.status, p.reason)
                 self.last_error = p.reason
                 self._report(n_done)
@@ -260,10 +263,10 @@ class Executor:
                 store.update_run(rid, **extra)
             except (ValueError, np.linalg.LinAlgError) as e:
                 store.add_interruption(rid, None, "finalize", str(e))
-                self._count_beam()
+                self._summarise()
                 store.set_status(rid, "failed", f"finalize: {e}")
                 return "failed"
-        self._count_beam()
+        self._summarise()
         store.set_status(rid, "completed")
         return "completed"
 
@@ -289,15 +292,18 @@ class Executor:
                 return
             yield t
 
-    def _count_beam(self) -> None:
-        """The run's summary: beam breaks, skipped points, spares measured."""
+    def _summarise(self) -> None:
+        """The run's summary: beam breaks, skipped points, spares measured, capture time."""
         rid = self.run_id
         kinds = [(p, k) for p, _, k, _ in self.store.interruptions(rid)]
         done = self.store.done_indices(rid)
         summary = dict(self.store.run(rid).summary or {})
+        session = time.monotonic() - self._t0
+        self._t0 = time.monotonic()
         summary.update(beam_breaks=sum(k == "beam" for _, k in kinds),
                        skipped_points=sorted({p for p, k in kinds if k == "skipped"}),
-                       spares_measured=sum(self.plan.targets[i].spare for i in done))
+                       spares_measured=sum(self.plan.targets[i].spare for i in done),
+                       capture_s=round(float(summary.get("capture_s", 0.0)) + session, 3))
         self.store.update_run(rid, summary=summary)
 
     # ---------------------------------------------------------------- point
