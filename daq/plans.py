@@ -6,6 +6,10 @@ executor (:mod:`daq.executor`) runs. It is plain data: it can be dry-run
 by its content hash (sha256 of a canonical JSON text) — a resumed run refuses
 a plan whose hash differs from the stored one.
 
+Order: :func:`shortest_order` visits joint vectors in a short order on the move time
+(nearest neighbour, 2-opt, Or-opt on ``max_j |Δq_j| / speed_j``), keeping labelled sets
+interleaved; :func:`estimate_capture_s` estimates a plan's capture time.
+
 Units: joints in rad, positions in mm (robot base frame). In the JSON a target's
 ``base_p_tcp`` is the key ``xyz`` (the stored plans and their hashes keep it).
 """

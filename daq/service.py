@@ -32,6 +32,8 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from calibration.cell import CellSpec
+
 from .check import CheckResult, check_plan
 from .errors import ConnectFailed, PlanRefused, RequestError
 from .executor import Executor
@@ -66,7 +68,7 @@ class CaptureRequest:
     acquire: dict = field(default_factory=dict)
     #: the cell (tracker, SMR, margins, fixtures; :mod:`calibration.cell`), the user's rough
     #: tracker position (mm, base frame), and whether to plan for the line of sight
-    cell: object | None = None
+    cell: CellSpec | None = None
     tracker_at: tuple[float, float, float] | None = None
     visibility: bool = True
 

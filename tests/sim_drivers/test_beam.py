@@ -148,3 +148,56 @@ def test_status_and_fixtures(truth):
     assert _measure(free, q) is None and free.tracker_target_visible()
     assert _measure(walled, q) == "fixture wall in the beam"
     assert not walled.tracker_target_visible()
+
+
+def test_sim_serve_places_the_tracker_and_reads_the_cell(tmp_path):
+    """``cellcal sim serve --tracker-at=... --cell FILE``: the tracker stands there (poses
+    facing it are measured, poses facing the default place are not) and the file's fixture
+    breaks the beam; bad values exit 2."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from daq.cli import main
+    from drivers.errors import BeamBroken
+    from drivers.urls import open_robot, open_tracker
+
+    from .test_serve import _read_lines
+
+    at = (-2400.0, 300.0, 700.0)
+    m = ModelTruth.from_spec("ur10e", None, 0).model
+    rng = np.random.default_rng(5)
+    q_here = sample_visible(m, CellSpec().with_tracker(at, "t"), 1, rng)[0]
+    q_default = sample_visible(m, CellSpec().with_tracker(DEFAULT_TRACKER_AT_MM, "t"), 1, rng)[0]
+    p, _ = smr_pose(m, q_here[None], (0, 0, 1))
+    f = tmp_path / "cell.yaml"
+    x, y = (p[0, :2] + np.array(at[:2])) / 2  # a post halfway along that pose's beam
+    f.write_text(f"fixtures:\n  - {{name: post, cylinder: {{start: [{x}, {y}, -500], "
+                 f"end: [{x}, {y}, 2500], radius: 60}}}}\n")
+    root = Path(__file__).resolve().parents[2]
+    for cell_args, blocked in (([], False), (["--cell", str(f)], True)):
+        proc = subprocess.Popen([sys.executable, "-m", "daq", "sim", "serve", "--no-pty",
+                                 "--no-rtde", f"--tracker-at={at[0]},{at[1]},{at[2]}",
+                                 *cell_args], cwd=root, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE)
+        try:
+            urls = _read_lines(proc, 4, timeout=30.0)
+            with open_robot(urls[1]) as rob, open_tracker(urls[2]) as trk:
+                rob.connect(2.0)
+                trk.connect(2.0)
+                for q, seen in ((q_here, not blocked), (q_default, False)):
+                    rob.move_joints(q, speed=2.0, wait=True, timeout=5.0)
+                    rob.wait_settled(timeout=5.0)
+                    if seen:
+                        assert np.all(np.isfinite(trk.measure(0.05).xyz))
+                    else:
+                        with pytest.raises(BeamBroken):
+                            trk.measure(0.05)
+        finally:
+            proc.terminate()
+            proc.wait(timeout=10)
+            proc.stdout.close()
+            proc.stderr.close()
+    assert main(["sim", "serve", "--tracker-at", "1,2"]) == 2
+    f.write_text("fixtures: [{name: x}]\n")
+    assert main(["sim", "serve", "--cell", str(f)]) == 2
