@@ -26,6 +26,8 @@ model_export    the calibrated model as model YAML and UR calibration.conf delta
 ur_conf         UR calibration.conf deltas and the exact conversion to pure DH
 zero_point/     zero-point recalibration from 20 postures on one fixed point
 frame_fit       circle, line and measurement-frame fits of the frame routine
+cell            CellSpec: the cell YAML (tracker position, SMR axis and reflector, fixtures)
+visibility      the tracker's line of sight: facing angle, link capsules, fixtures, facing IK
 simulate        synthetic measurements with a known truth
 """
 

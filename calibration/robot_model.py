@@ -40,6 +40,10 @@ class JointRow(BaseModel):
     max: float = Field(description="upper joint limit, deg (prismatic: mm)")
     type: Literal["revolute", "prismatic"] | None = Field(
         default=None, description="joint type; absent = revolute")
+    link_radius: float | None = Field(
+        default=None, ge=0.0,
+        description="radius of the link this row moves, as capsules around its d and a "
+        "segments, mm (the tracker's line of sight); absent: 0, the link is not checked")
 
     @model_validator(mode="after")
     def _limits(self) -> JointRow:
@@ -125,6 +129,10 @@ class RobotModel(BaseModel):
         mask = np.array([j.type == "prismatic" for j in self.joints])
         return mask if mask.any() else None
 
+    def link_radii(self) -> np.ndarray:
+        """Capsule radius of each row's link, shape (n_joints,), mm (0 where not given)."""
+        return np.array([j.link_radius or 0.0 for j in self.joints], dtype=float)
+
     def parallel_rows(self, tol_deg: float = 1e-6) -> list[int]:
         """0-based rows whose two neighbouring joint axes are (nominally) parallel.
 
@@ -179,14 +187,20 @@ def _format_validation(err: ValidationError, source: str) -> str:
     return "\n".join(lines)
 
 
+def validate_file_mapping(cls, data, source: str, error: type[ValueError], what: str):
+    """``cls.model_validate(data)`` for the mapping read from a file: ``error`` naming
+    ``source`` and the field (``what``: "a model file", for the message)."""
+    if not isinstance(data, dict):
+        raise error(f"{source}: {what} must be a mapping, got {type(data).__name__}")
+    try:
+        return cls.model_validate(data)
+    except ValidationError as e:
+        raise error(_format_validation(e, source)) from None
+
+
 def model_from_dict(data: dict, source: str = "<model>") -> RobotModel:
     """Validate a model mapping; errors name ``source`` and the field."""
-    if not isinstance(data, dict):
-        raise ModelError(f"{source}: a model file must be a mapping, got {type(data).__name__}")
-    try:
-        return RobotModel.model_validate(data)
-    except ValidationError as e:
-        raise ModelError(_format_validation(e, source)) from None
+    return validate_file_mapping(RobotModel, data, source, ModelError, "a model file")
 
 
 def load_model(name_or_path: str | Path) -> RobotModel:

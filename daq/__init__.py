@@ -2,7 +2,10 @@
 capture service and the ``cellcal`` command line.
 
 Modules
-    ``plans``           ``Plan`` and ``Target``: plans as data with a content hash
+    ``plans``           ``Plan`` and ``Target``: plans as data with a content hash; the
+                        shortest visiting order and the estimated capture time
+    ``sight``           the tracker's line of sight for a capture: the cell a plan is made
+                        for, the points the tracker would not see
     ``check``           the dry run of a plan against the model (limits, reach, floor)
     ``routines/``       the capture routines: each makes a plan (see its package)
     ``executor``        runs a plan point by point: move, measure, commit, fault handling

@@ -5,7 +5,8 @@ exposes ``register(subparsers)``; adding a command is one line in
 ``COMMANDS``. Exit codes: 0 success, 1 failure, 2 bad input (a file, a
 flag or a model that is refused: :class:`UsageError`, or the capture service's
 :class:`~daq.errors.RequestError`), other codes as a command documents
-(``zero`` uses 3 for "data too poor to decide").
+(``zero`` uses 3 for "data too poor to decide", ``capture`` for a plan the tracker
+would not see: :class:`~daq.errors.NotEnoughVisible`).
 """
 
 from __future__ import annotations
@@ -58,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except (UsageError, RequestError) as e:
         print(f"cellcal {args.command}: error: {e}", file=sys.stderr)
-        return 2
+        return getattr(e, "exit_code", 2)
     except KeyboardInterrupt:
         print(f"cellcal {args.command}: interrupted", file=sys.stderr)
         return 130

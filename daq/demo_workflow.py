@@ -34,8 +34,9 @@ DEMO_EFFECTS = ("compliance:3", "compliance:2", "harmonic:1", "backlash:2", "sca
                 "coupling:5")
 
 
-#: a comfortable UR posture for the frame routine (deg): TCP in front, tool down
-FRAME_START_DEG = [0.0, -60.0, 90.0, -120.0, -90.0, 0.0]
+#: where the demo's user says the tracker stands (mm, robot base frame): roughly where the
+#: simulated cell puts it (:data:`~sim_drivers.model_truth.DEFAULT_TRACKER_AT_MM`)
+TRACKER_AT_MM = (2500.0, 0.0, 500.0)
 
 
 @dataclass
@@ -95,9 +96,11 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
             robot.connect(5.0)
             tracker.connect(5.0)
             with RunStore(db_path) as store:
-                frame_run = _capture(store, "frame", {"start_deg": FRAME_START_DEG}, model,
-                                     robot, tracker,
-                                     (robot_url, tracker_url), progress, seed)
+                # the frame from a start the tracker sees (the routine picks it), then poses
+                # planned for the tracker the frame measured
+                frame_run = _capture(store, "frame", {}, model, robot, tracker,
+                                     (robot_url, tracker_url), progress, seed,
+                                     tracker_at=TRACKER_AT_MM)
                 frame = store.run(frame_run).frame
                 result.frame = frame
                 say(f"[2/7] measurement frame: joint-1 circle rms {frame['circle']['rms_mm']:.4f}"
@@ -114,8 +117,11 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
                 dataset_from_run(store, run_id).to_csv(csv_path)
                 n_int = len(store.interruptions(run_id))
                 n_samples = store.n_samples(run_id)
+                beam = store.run(run_id).summary or {}
+            broken = (f", {beam['beam_breaks']} beam breaks, {len(beam['skipped_points'])} "
+                      "points replaced" if beam.get("beam_breaks") else "")
             say(f"      {n_samples} samples stored"
-                f"{f', {n_int} interruptions recovered' if n_int else ''}; "
+                f"{f', {n_int} interruptions recovered' if n_int else ''}{broken}; "
                 f"exported {csv_path}")
         finally:
             robot.close()
@@ -170,11 +176,14 @@ def before_after(r: DemoResult) -> str:
     return "\n".join(lines)
 
 
-def _capture(store, routine, params, model, robot, tracker, urls, progress, seed) -> int:
-    """Plan, dry-run and execute one routine (:mod:`daq.service`); returns the run id
-    (raises on failure)."""
-    request = CaptureRequest(routine=routine, model=model.name, params=params, seed=seed)
-    planned = plan_run(request, model=model)
+def _capture(store, routine, params, model, robot, tracker, urls, progress, seed,
+             tracker_at=None) -> int:
+    """Plan (for the tracker at ``tracker_at``, else where the store's frame run measured
+    it), dry-run and execute one routine (:mod:`daq.service`); returns the run id (raises
+    on failure)."""
+    request = CaptureRequest(routine=routine, model=model.name, params=params, seed=seed,
+                             tracker_at=tracker_at)
+    planned = plan_run(request, model=model, db=store.path)
     prog = Progress(enabled=progress)
     try:
         out = start_run(store, planned, robot_url=urls[0], tracker_url=urls[1],

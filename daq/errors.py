@@ -9,9 +9,9 @@ interruptions table (:attr:`CaptureError.kind`).
 
 The service (:mod:`daq.service`) raises :class:`RequestError` for input it refuses (a
 model, parameters, a plan that fails the dry run, an unknown run, a tracker that fails
-its checks: :class:`TrackerRefused`) and
-:class:`ConnectFailed` when the devices cannot be reached; the commands turn them into
-exit codes 2 and 1.
+its checks: :class:`TrackerRefused`; exit code 2, but 3 for :class:`NotEnoughVisible`, a
+plan the tracker would not see) and :class:`ConnectFailed` when the devices cannot be
+reached (exit code 1).
 """
 
 from __future__ import annotations
@@ -58,6 +58,14 @@ class ZeroDiverged(CaptureError):
 
 class RequestError(ValueError):
     """The service refuses its input (model, parameters, plan, run): exit code 2 at the CLI."""
+
+
+class NotEnoughVisible(RequestError):
+    """The tracker would not see enough of a plan's targets (facing away, a link or fixture in
+    the beam); the message lists them and says what to change. Exit code 3 at the CLI (the
+    data would be too poor), not 2."""
+
+    exit_code = 3
 
 
 class PlanRefused(RequestError):

@@ -51,6 +51,17 @@ Faults
       Ctrl-C, SIGTERM or SIGHUP stops at once: the controller's stop is sent and the
       run is ``paused`` with the reason (:mod:`daq.stop_signals`; :attr:`Executor.stop_signal`).
 
+Beam breaks (the line of sight)
+    A beam break is a fault like any other (recorded with the point and the tracker's
+    reason, retried). When it persists — more than :data:`BEAM_RETRIES` breaks at one point
+    (a link or fixture in the beam, the SMR facing away) — the point is skipped instead
+    of pausing the run: an interruption of kind ``skipped`` records it, and the plan's
+    next spare point (``info.spare``, measured only for this) is measured in its place
+    once the regular points are done. zero20's closed-loop points are never skipped.
+    The run's summary counts ``beam_breaks``, lists ``skipped_points`` and counts
+    ``spares_measured``, and keeps ``capture_s``, the wall time spent executing the run
+    (summed over its sessions), to set against the dry run's estimate.
+
 Every interruption goes to the store's ``interruptions`` table. A point whose
 sample was not committed is simply done again on resume; the store's
 ``UNIQUE(run_id, point_index)`` makes a double write impossible.
@@ -86,6 +97,9 @@ from .plans import Plan, Target
 from .run_context import ExecutorOptions
 from .stop_signals import StopNow, signal_name, stop_handlers
 from .store import RunStore, Sample
+
+#: beam breaks retried at one point before it is skipped (and a spare measured in its place)
+BEAM_RETRIES = 3
 
 
 class StaleMeasurement(CaptureError):
@@ -222,6 +236,7 @@ class Executor:
         self.stop_signal: int | None = None
         self.last_error: str | None = None
         self.n_faults = 0
+        self._t0 = time.monotonic()
         self.commit_s = 0.0
         self.n_committed = 0
 
@@ -250,7 +265,7 @@ class Executor:
 
     def _report(self, done: int) -> None:
         if self.progress is not None:
-            self.progress(done, len(self.plan), self.last_error)
+            self.progress(done, self.plan.n_planned, self.last_error)
 
     # ------------------------------------------------------------------ run
     def run(self) -> str:
@@ -261,23 +276,23 @@ class Executor:
         (the finalize step failed).
         """
         store, rid = self.store, self.run_id
-        done = store.done_indices(rid)
-        pending = [t for t in self.plan.targets if t.index not in done]
         store.set_status(rid, "running")
-        n_done = len(done)
+        self._t0 = time.monotonic()
+        n_done = store.n_samples(rid)
         t = None
         self._report(n_done)
         with stop_handlers(self._stop.set, self._stop.is_set, lambda: self._halting):
             try:
-                for t in pending:
+                for t in self._pending():
                     if self._stop.is_set():
                         raise _Pause("stopped", f"stopped by the operator before point {t.index}")
-                    self._point(t)
-                    n_done += 1
+                    if self._point(t):
+                        n_done += 1
                     self._report(n_done)
             except _Pause as p:
                 kind = "sigint" if p.status == "stopped" else "pause"
                 store.add_interruption(rid, getattr(t, "index", None), kind, p.reason)
+                self._summarise()
                 store.set_status(rid, p.status, p.reason)
                 self.last_error = p.reason
                 self._report(n_done)
@@ -306,14 +321,53 @@ class Executor:
                 store.update_run(rid, **extra)
             except (ValueError, np.linalg.LinAlgError) as e:
                 store.add_interruption(rid, None, "finalize", str(e))
+                self._summarise()
                 store.set_status(rid, "failed", f"finalize: {e}")
                 return "failed"
+        self._summarise()
         store.set_status(rid, "completed")
         return "completed"
 
+    # ------------------------------------------------------- skips and spares
+    def _skipped(self) -> set[int]:
+        return {p for p, _, k, _ in self.store.interruptions(self.run_id) if k == "skipped"}
+
+    def _pending(self):
+        """The points to do: those neither stored nor skipped, then spares while fewer
+        spares are stored than points were skipped (re-read after every point)."""
+        done, skipped = self.store.done_indices(self.run_id), self._skipped()
+        for t in self.plan.targets:
+            if not t.spare and t.index not in done and t.index not in skipped:
+                yield t
+        for t in self.plan.targets:
+            if not t.spare:
+                continue
+            done, skipped = self.store.done_indices(self.run_id), self._skipped()
+            if t.index in done or t.index in skipped:
+                continue
+            owed = sum(not self.plan.targets[i].spare for i in skipped)
+            if sum(self.plan.targets[i].spare for i in done) >= owed:
+                return
+            yield t
+
+    def _summarise(self) -> None:
+        """The run's summary: beam breaks, skipped points, spares measured, capture time."""
+        rid = self.run_id
+        kinds = [(p, k) for p, _, k, _ in self.store.interruptions(rid)]
+        done = self.store.done_indices(rid)
+        summary = dict(self.store.run(rid).summary or {})
+        session = time.monotonic() - self._t0
+        self._t0 = time.monotonic()
+        summary.update(beam_breaks=sum(k == "beam" for _, k in kinds),
+                       skipped_points=sorted({p for p, k in kinds if k == "skipped"}),
+                       spares_measured=sum(self.plan.targets[i].spare for i in done),
+                       capture_s=round(float(summary.get("capture_s", 0.0)) + session, 3))
+        self.store.update_run(rid, summary=summary)
+
     # ---------------------------------------------------------------- point
-    def _point(self, t: Target) -> None:
-        attempt = 0
+    def _point(self, t: Target) -> bool:
+        """Acquire and store point ``t``; False when it was skipped (its beam stayed broken)."""
+        attempt = beams = 0
         while True:
             attempt += 1
             phase = ["robot"]
@@ -323,13 +377,19 @@ class Executor:
                 self.store.add_sample(self.run_id, sample)
                 self.commit_s += time.perf_counter() - t0
                 self.n_committed += 1
-                return
+                return True
             except ProtectiveStop as e:
                 self._fault(t, e)
                 raise _Pause("paused", f"protective stop at point {t.index}: {e}; clear it at "
                              "the controller, then `cellcal resume`") from e
             except (DriverError, CaptureError) as e:
                 self._fault(t, e)
+                beams += isinstance(e, BeamBroken)
+                if beams > BEAM_RETRIES and t.move != "zero":
+                    self.store.add_interruption(
+                        self.run_id, t.index, "skipped", f"point {t.index} ({t.label}) skipped: "
+                        f"the beam broke {beams} times, last: {e}")
+                    return False
                 if not e.transient:
                     raise _Pause("paused", f"{fault_kind(e)} at point {t.index}: {e}") from e
                 if attempt > self.o.max_retries:

@@ -51,6 +51,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from calibration.cell import CellSpec
+
 from .check import CheckResult, check_plan
 from .devices import (
     CellIdentity,
@@ -107,6 +109,11 @@ class CaptureRequest:
     frame_run: int | None = None
     executor: ExecutorOptions = field(default_factory=ExecutorOptions)
     acquire: dict = field(default_factory=dict)
+    #: the cell (tracker, SMR, margins, fixtures; :mod:`calibration.cell`), the user's rough
+    #: tracker position (mm, base frame), and whether to plan for the line of sight
+    cell: CellSpec | None = None
+    tracker_at: tuple[float, float, float] | None = None
+    visibility: bool = True
     tracker: TrackerSetup = field(default_factory=TrackerSetup)
     motion: MotionLimits | None = None
 
@@ -125,13 +132,15 @@ class CaptureRequest:
 @dataclass(frozen=True)
 class PlannedRun:
     """A request's plan, dry-run and accepted: ``model`` has the controller's tool,
-    ``acquire`` the routine's complete acquisition options."""
+    ``acquire`` the routine's complete acquisition options, ``sight`` what the tracker
+    will see of it (:class:`~daq.sight.SightReport`)."""
 
     request: CaptureRequest
     model: object
     plan: Plan
     check: CheckResult
     acquire: dict
+    sight: object | None = None
 
 
 @dataclass(frozen=True)
@@ -216,17 +225,27 @@ def plan_run(request: CaptureRequest, *, model=None, db: str | Path | None = Non
     model : RobotModel, optional
         The model already loaded (``request.model`` names it); else loaded from it.
     db : path, optional
-        The run store, opened only when the routine's parameters refer to an earlier
-        run (zero20 ``--replay``).
+        The run store, read for a measurement frame (the tracker's position) and when the
+        routine's parameters refer to an earlier run (zero20 ``--replay``).
+
+    The plan is made for the tracker's line of sight (unless ``request.visibility`` is
+    False) when the tracker position is known: ``request.tracker_at``, else the frame run
+    (``request.frame_run`` or the latest in ``db``), else ``request.cell``
+    (:func:`daq.sight.resolve_cell`); the planned run's ``sight`` says what the tracker
+    will see of it either way.
 
     Raises
     ------
     RequestError
         Unknown routine or model, bad parameters or acquisition options.
+    NotEnoughVisible
+        The tracker would not see enough of the plan (a RequestError, exit code 3).
     PlanRefused
         The plan fails the dry run (joint limits, reach, floor).
     """
     from calibration import load_model
+
+    from .sight import frame_from_store, predict, resolve_cell
 
     try:
         mod = get_routine(request.routine)
@@ -238,14 +257,18 @@ def plan_run(request: CaptureRequest, *, model=None, db: str | Path | None = Non
         resolve = getattr(mod, "resolve_params", None)
         if resolve is not None:
             params = resolve(params, lambda: _open_existing(db))
-        plan = mod.make_plan(model, **params)
+        cell = resolve_cell(request.cell, request.tracker_at,
+                            *frame_from_store(db, request.frame_run))
+        plan = mod.make_plan(model, **params, cell=cell if request.visibility else None)
         acquire = _acquire_options(mod, request.acquire)
-    except ValueError as e:  # ModelError, pydantic's ValidationError, RequestError too
+    except RequestError:  # NotEnoughVisible keeps its exit code
+        raise
+    except (ValueError, StoreError) as e:  # ModelError, CellError, pydantic's ValidationError
         raise RequestError(one_line(e)) from None
     res = check_plan(plan, model, limits=request.motion)
     if not res.ok:
         raise PlanRefused(res)
-    return PlannedRun(request, model, plan, res, acquire)
+    return PlannedRun(request, model, plan, res, acquire, predict(plan, model, cell))
 
 
 def _acquire_options(mod, given: dict) -> dict:
@@ -521,7 +544,7 @@ def execute(store: RunStore, run_id: int, plan: Plan, robot, tracker, *, model,
     elapsed = time.monotonic() - t0
     run = store.run(run_id)
     check = run.context.tracker_check
-    return RunOutcome(run_id, plan.routine, status, run.reason, len(plan),
+    return RunOutcome(run_id, plan.routine, status, run.reason, plan.n_planned,
                       store.n_samples(run_id), ex.n_faults, elapsed, plan.hash,
                       str(store.path), run.frame, run.summary, ex.stop_signal,
                       None if check is None else check.model_dump(mode="json"))

@@ -312,7 +312,7 @@ class RunStore:
                    tracker_url, robot_desc, tracker_desc, software, seed, model, started,
                    status, context_json, robot_identity, tracker_identity, source_run)
                    VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)""",
-                (plan.routine, plan.to_json(), plan.hash, len(plan), c.robot_url,
+                (plan.routine, plan.to_json(), plan.hash, plan.n_planned, c.robot_url,
                  c.tracker_url, robot_desc, tracker_desc, software, c.seed, c.model,
                  time.time(), "running", c.to_json(), _json(robot_identity),
                  _json(tracker_identity), source_run),

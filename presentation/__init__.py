@@ -10,4 +10,5 @@ html_report  build_report / render_report: the self-contained HTML page (Report,
 figures      the report's matplotlib figures (Agg canvases, deterministic PNGs), Stage
 ridge_plot   plot_ridge: L-curve, GCV and ridge trace of a ridge fit
 summaries    fit_summary (calibrate --json), zero_summary (zero --json)
+plan_figure  plan_figure: a capture plan with the robot, the tracker and the beams
 """

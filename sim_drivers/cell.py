@@ -16,9 +16,14 @@ Tracker
     Noise per axis ``σ(L) = 0.5·(0.015 mm + 0.006 mm/m · L)``, L the distance
     from the tracker origin (half the MPE ±(15 µm + 6 µm/m)). Range
     ``tracker_range_mm`` (default 800 mm – 30 m): outside it the tracker finds
-    no target. Optional occlusions: spheres ``(centre_xyz_mm, radius_mm)`` in the
-    tracker frame that break the beam when the line of sight passes through
-    them. Blunders (fault ``blunder``): a reading displaced by 0.5-5 mm, along the
+    no target. Line of sight (:mod:`sim_drivers.beam`, always on when the true
+    robot has the geometry, as :class:`~sim_drivers.model_truth.ModelTruth` does):
+    the beam breaks when the SMR faces away from the tracker by more than the mounted
+    reflector's acceptance half-angle, when it passes through one of the true robot's
+    link capsules, or through a fixture of the cell (``cell``, boxes and cylinders
+    in the robot base frame). Optional occlusions: spheres
+    ``(centre_xyz_mm, radius_mm)`` in the tracker frame that break the beam too.
+    Blunders (fault ``blunder``): a reading displaced by 0.5-5 mm, along the
     line of sight or in a random direction, drawn from the cell's own seeded generator;
     :attr:`SimCell.blunder_log` records which readings they were.
 
@@ -46,7 +51,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calibration.cell import REFLECTOR_ACCEPTANCE_DEG, CellSpec
 from calibration.simulate import blunder_offsets
+from sim_drivers.beam import BeamPhysics
 from sim_drivers.tracker_optics import TRACKER_REFLECTORS, SimReflector, tracker_reads
 from sim_drivers.truth import PoseContext, TrueRobot
 
@@ -167,7 +174,12 @@ class SimCell:
     tracker_collimation_rad : float
         The tracker's two-face (collimation) error, rad.
     reflector : str
-        Name of the reflector mounted on the robot (and selected at start).
+        Name of the reflector mounted on the robot (and selected at start); its
+        acceptance half-angle (:data:`calibration.cell.REFLECTOR_ACCEPTANCE_DEG`) limits
+        how far the SMR may face away from the tracker.
+    cell : CellSpec, optional
+        The cell's fixtures (base frame); its SMR's acceptance half-angle (its reflector
+        type's, or ``acceptance_deg``) replaces the mounted reflector's.
     """
 
     def __init__(
@@ -191,6 +203,7 @@ class SimCell:
         weather_station: bool = True,
         tracker_collimation_rad: float = 0.0,
         reflector: str = "RRR 1.5in",
+        cell: CellSpec | None = None,
     ) -> None:
         if time_scale < 0:
             raise ValueError(f"time_scale must be >= 0, got {time_scale}")
@@ -236,6 +249,16 @@ class SimCell:
         self.tracker_face = 1
         self.mounted_reflector = self.find_reflector(reflector)
         self.tracker_reflector = self.mounted_reflector
+        #: the honest line of sight (None for a true robot without geometry, e.g. ToyArm)
+        self.beam: BeamPhysics | None = None
+        geometry = getattr(truth, "beam_geometry", None)
+        if geometry is not None:
+            model, tracker_T_base, smr_axis = geometry()
+            acceptance = (cell.smr.half_angle_deg if cell is not None else
+                          REFLECTOR_ACCEPTANCE_DEG.get(self.mounted_reflector.name, 30.0))
+            self.beam = BeamPhysics(model, tracker_T_base, smr_axis, acceptance, cell)
+            if q0 is None:
+                self._place(self._facing_start(model, tracker_T_base, smr_axis))
         self.n_moves = 0
         self.n_measurements = 0
         #: every blunder returned so far (fault ``blunder``), in measurement order
@@ -428,13 +451,47 @@ class SimCell:
         """Whether the tracker's warm-up time has passed."""
         return self.now() >= self.warmup_s
 
-    def _line_of_sight(self, p: np.ndarray) -> bool:
-        for c, r in self.occlusions:
-            denom = float(p @ p)
-            s = 0.0 if denom == 0 else float(np.clip((c @ p) / denom, 0.0, 1.0))
-            if np.linalg.norm(c - s * p) < r:
-                return False
-        return True
+    def beam_blocked(self) -> str | None:
+        """Why the beam cannot reach the target now (facing, a link, a fixture, an occluding
+        sphere), or None when the line of sight is clear."""
+        with self._lock:
+            q = self._current_q(self.now())
+            p = np.asarray(self.truth.true_point(q, self.pose_context()), float)
+            for c, r in self.occlusions:
+                denom = float(p @ p)
+                s = 0.0 if denom == 0 else float(np.clip((c @ p) / denom, 0.0, 1.0))
+                if np.linalg.norm(c - s * p) < r:
+                    return "an obstacle in the beam"
+            return None if self.beam is None else self.beam.blocked(q, p)
+
+    def _facing_start(self, model, tracker_T_base, smr_axis) -> np.ndarray:
+        """Where the simulated robot stands when the cell starts: a posture whose SMR faces
+        the tracker in the clear, as at a real cell, where the operator locks the beam on
+        the SMR before a run (the middle of the limits when none is found)."""
+        from calibration.visibility import solve_facing
+
+        T = np.asarray(tracker_T_base, float)
+        tracker = -T[:3, :3].T @ T[:3, 3]
+        az = np.arctan2(tracker[1], tracker[0])
+        for radius, height, turn in ((800.0, 500.0, 0.0), (700.0, 700.0, 0.3),
+                                     (900.0, 300.0, -0.3), (600.0, 600.0, 0.6)):
+            p = np.array([[radius * np.cos(az + turn), radius * np.sin(az + turn), height]])
+            q, ok = solve_facing(model, p, tracker[None] - p, np.zeros(1), self._q[None],
+                                 smr_axis)
+            if not ok[0]:
+                continue
+            keep = self._q.copy()
+            self._place(q[0])
+            blocked = self.beam_blocked()
+            self._place(keep)
+            if blocked is None:
+                return q[0]
+        return self._q
+
+    def _place(self, q: np.ndarray) -> None:
+        """Stand the robot still at ``q`` (rad) (before any motion)."""
+        self._q = np.asarray(q, float).copy()
+        self._q_from, self._q_to, self._q_cmd = self._q.copy(), self._q.copy(), self._q.copy()
 
     # ---------------------------------------------------- tracker metrology
     @staticmethod
@@ -498,7 +555,7 @@ class SimCell:
             p = self.true_point()
             lo, hi = self.tracker_range_mm
             return (self.beam_ok and lo <= float(np.linalg.norm(p)) <= hi
-                    and self._line_of_sight(p))
+                    and self.beam_blocked() is None)
 
     def tracker_init(self) -> None:
         """Initialise the tracker (home, find the target)."""
@@ -527,8 +584,11 @@ class SimCell:
             lo, hi = self.tracker_range_mm
             if not lo <= dist <= hi:
                 raise CellRefused("NO_TARGET", f"target at {dist:.0f} mm, range {lo:.0f}-{hi:.0f}")
-            if not self.beam_ok or not self._line_of_sight(p):
+            if not self.beam_ok:
                 raise CellRefused("BEAM_BROKEN", "line of sight blocked")
+            blocked = self.beam_blocked()
+            if blocked is not None:
+                raise CellRefused("BEAM_BROKEN", blocked)
             sigma = self.tracker_sigma(p)
             n = max(1, int(round(duration_s * 1000.0)))
             xyz = self._tracker_reads(p) + self._rng.normal(0.0, sigma, 3)

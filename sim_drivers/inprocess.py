@@ -14,8 +14,9 @@ errors, ``hidden=`` effects): ``model=NAME|PATH`` is required where the cell is 
 (a URL without it is refused: there is no default robot to mistake for the one meant);
 a tracker URL may leave it out once its robot's cell exists. Other query parameters used
 when the cell is first created: ``tool=X,Y,Z`` (the controller's TCP, mm, default the SMR
-on a 60 mm holder), ``time_scale`` (default 0) and ``faults`` (only ``beam`` and
-``pstop`` apply in process).
+on a 60 mm holder), ``time_scale`` (default 0), ``faults`` (only ``beam``, ``pstop`` and
+``blunder`` apply in process) and ``reflector`` (the mounted reflector's type, e.g. ``360``
+for one with no facing limit; :data:`calibration.cell.REFLECTOR_ACCEPTANCE_DEG`).
 
 The drivers identify themselves as simulators (:meth:`SimRobot.identify`).
 """
@@ -315,7 +316,8 @@ def open_sim(url: str, kind: str, **kw):
     if what != kind:
         raise ValueError(f"bad URL {url!r}: a {what} URL where a {kind} is wanted")
     q = {k: v[-1] for k, v in parse_qs(parts.query, keep_blank_values=True).items()}
-    unknown = set(q) - {"seed", "name", "time_scale", "faults", "hidden", "model", "tool"}
+    unknown = set(q) - {"seed", "name", "time_scale", "faults", "hidden", "model", "tool",
+                        "reflector"}
     if unknown:
         raise ValueError(f"bad URL {url!r}: unknown parameter(s) {sorted(unknown)}")
     try:
@@ -332,9 +334,14 @@ def open_sim(url: str, kind: str, **kw):
     if model is None and not exists:
         raise ValueError(f"bad URL {url!r}: a simulated cell needs model=NAME|PATH (the robot "
                          f"model it moves), e.g. sim://robot?model=ur10e&seed={seed}")
+    extra = {}
+    if q.get("reflector"):
+        from calibration.cell import CellSpec, Smr
+
+        extra["cell"] = CellSpec(smr=Smr(reflector=q["reflector"]))
     try:
         cell = get_cell(name, seed, model, tool, time_scale=time_scale, faults=q.get("faults"),
-                        hidden=q.get("hidden"))
+                        hidden=q.get("hidden"), **extra)
     except (ValueError, OSError) as e:  # unknown model, bad hidden effects, another model
         raise ValueError(f"bad URL {url!r}: {e}") from None
     return SimRobot(url, cell, **kw) if kind == "robot" else SimTracker(url, cell, **kw)

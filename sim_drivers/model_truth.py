@@ -4,6 +4,12 @@
 cell: the "real" robot is an :class:`~calibration.ErrorModel` (geometric errors, the base
 2-3 m from the tracker, an SMR offset, and any hidden physical effects) at a hidden
 parameter vector; the controller only knows the nominal model.
+
+The tracker stands where the cell puts it (``tracker_at``, robot base frame; the base
+pose's orientation in the tracker frame stays random), and the SMR opens along
+``smr_axis`` on the flange (:meth:`ModelTruth.from_spec` tilts it by a hidden ~1 deg): the
+simulated tracker's line of sight (:mod:`sim_drivers.beam`) uses both with the model's link
+radii (:meth:`ModelTruth.beam_geometry`).
 """
 
 from __future__ import annotations
@@ -21,6 +27,11 @@ from .truth import PoseContext
 
 #: where the SMR sits on the flange in the simulated cell (mm): on a 60 mm holder
 DEFAULT_TOOL_MM = (0.0, 0.0, 60.0)
+#: where the simulated tracker stands by default (mm, robot base frame): 2.5 m from the base
+#: along +x, the head 0.5 m above the base
+DEFAULT_TRACKER_AT_MM = (2500.0, 0.0, 500.0)
+#: the hidden tilt of the true SMR axis from the nominal one (deg, std per axis)
+SMR_TILT_DEG = 1.0
 
 
 class ModelTruth:
@@ -33,15 +44,21 @@ class ModelTruth:
     x_true : its hidden parameters (internal units)
     """
 
-    def __init__(self, model: RobotModel, error_model: ErrorModel, x_true: np.ndarray):
+    def __init__(self, model: RobotModel, error_model: ErrorModel, x_true: np.ndarray, *,
+                 tracker_at=None, smr_axis=(0.0, 0.0, 1.0)):
         self.model = model
         self.error_model = error_model
-        self.x_true = np.asarray(x_true, float)
+        self.x_true = np.asarray(x_true, float).copy()
         self.n_joints = model.n_joints
         self.limits = model.limits_rad()
         #: the robot model the simulated controller reports it moves
         self.name = model.name
+        self.smr_axis = np.asarray(smr_axis, float) / np.linalg.norm(smr_axis)
         self._fk = ChainFK(model.convention, model.dh_table(), model.tool_mm())
+        if tracker_at is not None:  # keep the base's orientation, move the tracker there
+            k = self.error_model.index("base.x")
+            R = rotvec_to_matrix(self.x_true[k + 3 : k + 6])
+            self.x_true[k : k + 3] = -R @ np.asarray(tracker_at, float)
 
     @classmethod
     def from_spec(
@@ -50,8 +67,12 @@ class ModelTruth:
         hidden: str | None = None,
         seed: int = 0,
         tool_mm=DEFAULT_TOOL_MM,
+        tracker_at=DEFAULT_TRACKER_AT_MM,
+        smr_axis=(0.0, 0.0, 1.0),
     ) -> ModelTruth:
-        """Realistic hidden errors (seeded) plus the ``hidden`` effects (e.g. "compliance:3")."""
+        """Realistic hidden errors (seeded) plus the ``hidden`` effects (e.g. "compliance:3"),
+        the tracker at ``tracker_at`` (mm, base frame; None: 1.2-2.2 m beyond the reach in
+        a random direction), the SMR along ``smr_axis`` tilted by a hidden ~1 deg."""
         nominal = load_model(model) if isinstance(model, str) else model
         nominal = nominal.with_changes(tool=tuple(float(v) for v in tool_mm))
         spec = DEFAULT_EFFECTS + ("," + hidden if hidden else "")
@@ -61,7 +82,9 @@ class ModelTruth:
         reach = sum(abs(j.a) + abs(j.d) for j in nominal.joints) + float(np.abs(tool_mm).sum())
         x = realistic_truth(em, np.random.default_rng(seed),
                             base_distance_mm=(reach + 1200.0, reach + 2200.0))
-        return cls(nominal, em, x)
+        tilt = np.random.default_rng([seed, 7]).normal(0.0, np.radians(SMR_TILT_DEG), 3)
+        axis = rotvec_to_matrix(tilt) @ np.asarray(smr_axis, float)
+        return cls(nominal, em, x, tracker_at=tracker_at, smr_axis=axis)
 
     # ---- TrueRobot -------------------------------------------------------------
     def true_point(self, q: np.ndarray, ctx: PoseContext) -> np.ndarray:
@@ -78,18 +101,29 @@ class ModelTruth:
         return tool_points(self.model, np.asarray(q, float).reshape(1, -1))[0]
 
     def nominal_ik(self, xyz: np.ndarray, q_seed: np.ndarray) -> np.ndarray:
-        """Joints putting the nominal TCP at ``xyz`` from ``q_seed``; an arm of 6 joints or
-        more keeps the flange orientation it has at ``q_seed``, as a controller's linear
-        move does (docs/line-robot-protocol.md: "orientation kept")."""
-        q_seed = np.asarray(q_seed, float)
-        R = self._fk(q_seed[None])[1][0] if self.n_joints >= 6 else None
-        res = solve_ik(self._fk, q_seed, np.asarray(xyz, float), R, limits=self.limits)
+        """Joints putting the nominal TCP at ``xyz`` near ``q_seed``: as a controller's linear
+        move, keeping the flange orientation of ``q_seed`` on an arm that can (6+ joints)."""
+        seed = np.asarray(q_seed, float)
+        R = self._fk(seed[None])[1][0] if self.n_joints >= 6 else None
+        res = solve_ik(self._fk, seed, np.asarray(xyz, float), R, limits=self.limits,
+                       max_iter=200, success_mm=1e-5, success_rad=1e-7)
         if not res.success[0]:
             raise ValueError(f"point {np.round(xyz, 3).tolist()} mm is out of reach "
                              f"({res.reason})")
         return res.q[0]
 
     # ---- what tests may compare with ---------------------------------------------
+    def beam_geometry(self):
+        """What the simulated tracker's line of sight needs: (nominal model with link radii
+        and tool, ``tracker_T_base``, the true SMR axis in the flange frame)."""
+        return self.model, self.tracker_T_base, self.smr_axis
+
+    @property
+    def tracker_in_base(self) -> np.ndarray:
+        """The tracker head in the robot base frame (mm)."""
+        T = self.tracker_T_base
+        return -T[:3, :3].T @ T[:3, 3]
+
     @property
     def tracker_T_base(self) -> np.ndarray:
         """The hidden pose of the robot base in the tracker frame, 4x4 (mm)."""

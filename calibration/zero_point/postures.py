@@ -23,13 +23,19 @@ def _frame_from_z(z: np.ndarray, x_hint: np.ndarray) -> np.ndarray:
 
 
 def zero20_directions(target_mm: np.ndarray, *, n_planes: int = 4, per_plane: int = 5,
-                      tilts_deg=(-35.0, -17.5, 0.0, 17.5, 35.0), spin_deg: float = 25.0):
+                      tilts_deg=(-35.0, -17.5, 0.0, 17.5, 35.0), spin_deg: float = 25.0,
+                      about=None, axis_flange=None):
     """Flange orientations for the 4-plane, 20-posture routine.
 
-    Plane k is the vertical plane through the target at azimuth ``atan2(y, x) + k·45°``;
-    in it the tool axis (flange z, pointing at the target) is tilted from straight down
+    Plane k is the plane through the target that contains the direction ``about`` (unit;
+    default straight down: vertical planes), at azimuth ``k·45°`` about it from the
+    target's own azimuth; in it the tool axis (flange z, or ``axis_flange`` given in the
+    flange frame: the SMR's opening, which a tracker must face) is tilted from ``about``
     by each of ``tilts_deg``, and the flange is turned about the tool axis by
-    ``spin_deg`` times the posture's index in the plane (varied wrist postures).
+    ``spin_deg`` times the posture's index in the plane (varied wrist postures). By
+    default the tool points at the target from above; with ``about`` = the direction from
+    the target to a tracker and tilts within the reflector's acceptance the tracker sees
+    every posture's SMR.
 
     Returns
     -------
@@ -38,17 +44,32 @@ def zero20_directions(target_mm: np.ndarray, *, n_planes: int = 4, per_plane: in
     """
     t = np.asarray(target_mm, float)
     az0 = math.atan2(t[1], t[0])
+    c = np.array([0.0, 0.0, -1.0]) if about is None else np.asarray(about, float)
+    c = c / np.linalg.norm(c)
+    e1 = np.array([math.cos(az0), math.sin(az0), 0.0])
+    if abs(float(e1 @ c)) > 0.9:
+        e1 = np.array([0.0, 0.0, 1.0])
+    e1 = e1 - (e1 @ c) * c
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(e1, c)
     tilts = np.radians(np.asarray(tilts_deg, float))[:per_plane]
-    az = az0 + np.arange(n_planes) * np.pi / n_planes
+    az = np.arange(n_planes) * np.pi / n_planes
     A, T = np.meshgrid(az, tilts, indexing="ij")
     A, T = A.ravel(), T.ravel()
-    z = np.stack([np.sin(T) * np.cos(A), np.sin(T) * np.sin(A), -np.cos(T)], axis=1)
-    normal = np.stack([-np.sin(A), np.cos(A), np.zeros_like(A)], axis=1)
+    h = np.cos(A)[:, None] * e1 + np.sin(A)[:, None] * e2
+    z = np.cos(T)[:, None] * c + np.sin(T)[:, None] * h
+    normal = np.cross(h, c)
     spin = np.radians(spin_deg) * np.tile(np.arange(per_plane) - per_plane // 2, n_planes)
     # turn the in-plane normal about the tool axis by the spin
     x = (np.cos(spin)[:, None] * normal + np.sin(spin)[:, None] * np.cross(z, normal))
     plane = np.repeat(np.arange(1, n_planes + 1), per_plane)
-    return _frame_from_z(z, x), plane
+    R = _frame_from_z(z, x)
+    if axis_flange is not None:  # turn the flange so its axis_flange lies along z
+        a = np.asarray(axis_flange, float)[None]
+        R = R @ np.swapaxes(_frame_from_z(a, np.array([[1.0, 0.0, 0.0]]) if abs(a[0, 0]) < 0.9
+                                          * np.linalg.norm(a) else np.array([[0.0, 1.0, 0.0]])),
+                            1, 2)
+    return R, plane
 
 
 def zero20_postures(

@@ -135,7 +135,19 @@ def register(sub) -> None:
                        help="measurement frame from this frame run (default: the latest "
                        "completed one in the store, if any)")
         r.add_argument("--dry-run", action="store_true",
-                       help="check and print the plan, do not move")
+                       help="check and print the plan (the points the tracker would not see, "
+                       "the estimated capture time), do not move")
+        r.add_argument("--tracker-at", metavar="X,Y,Z", default=None,
+                       help="where the tracker head stands, robot base frame, mm (rough is "
+                       "fine; default: from the latest frame run in --db, else --cell)")
+        r.add_argument("--cell", metavar="cell.yaml", default=None,
+                       help="the cell: tracker position, SMR axis and reflector, margins, "
+                       "fixtures (docs/formats.md section 7)")
+        r.add_argument("--no-visibility", action="store_true",
+                       help="plan without the tracker's line of sight (the dry run still "
+                       "lists the points it would not see)")
+        r.add_argument("--plot", metavar="PNG", default=None,
+                       help="draw the plan: robot, SMR positions, tracker and beams")
         for flag, _, typ, hlp in EXEC_FLAGS + ROUTINE_ARGS[name].acquire_flags:
             r.add_argument(flag, type=typ, default=None, help=hlp)
         add_tracker_flags(r)
@@ -205,6 +217,12 @@ def report(out: dict, as_json: bool) -> int:
                 print("   " + "  ".join(f"{v:12.6f}" for v in row))
         if out.get("tracker_check"):
             print(f"  tracker: {check_line(out['tracker_check'])}")
+        summary = out.get("summary") or {}
+        if summary.get("beam_breaks") or summary.get("skipped_points"):
+            skipped = summary.get("skipped_points", [])
+            print(f"  line of sight: {summary.get('beam_breaks', 0)} beam breaks, "
+                  f"{len(skipped)} points skipped {skipped[:10]}, "
+                  f"{summary.get('spares_measured', 0)} spares measured in their place")
         if out["status"] in ("paused", "stopped"):
             print(f"  resume with: cellcal resume {out['run']} --db {out['db']}")
     signum = out.get("signal")
@@ -287,6 +305,8 @@ def request_from_args(args):
     values: every option is checked here, before a store or a run exists)."""
     import math
 
+    from calibration.cell import load_cell
+
     from ..run_context import TrackerSetup
     from ..service import CaptureRequest
 
@@ -295,7 +315,11 @@ def request_from_args(args):
     if tool is not None and not all(math.isfinite(v) for v in tool):
         raise UsageError(f"--tool-mm: expected 3 finite numbers, got {args.tool_mm!r}")
     limits = motion_limits(args)
+    tracker_at = floats(args.tracker_at, 3, "--tracker-at")
     return CaptureRequest(
+        cell=None if args.cell is None else load_cell(args.cell),
+        tracker_at=None if tracker_at is None else tuple(tracker_at),
+        visibility=not args.no_visibility,
         routine=args.routine, model=args.model, params=spec.params(args),
         tool_mm=None if tool is None else tuple(tool), seed=args.seed,
         floor_z_mm=limits.floor_z_mm, max_reach_mm=limits.max_reach_mm,
@@ -312,18 +336,35 @@ def run(args) -> int:
         request = request_from_args(args)
     except ValueError as e:
         raise UsageError(str(e)) from None
+    from ..sight import estimate_time, format_time
+
     planned = plan_run(request, db=args.db)
     plan = planned.plan
+    estimate = estimate_time(plan, request.executor)
+    if args.plot:
+        from presentation.plan_figure import plan_figure
+
+        plan_figure(planned.model, plan, planned.sight.cell).savefig(args.plot, dpi=110)
+        if not args.json:
+            print(f"wrote {args.plot}", file=sys.stderr)
     if args.dry_run:
         if args.json:
             from .common import print_json
 
-            print_json({"routine": plan.routine, "points": len(plan), "plan_hash": plan.hash,
-                        "check": "ok", "params": plan.params})
+            print_json({"routine": plan.routine, "points": plan.n_planned,
+                        "spares": len(plan) - plan.n_planned, "plan_hash": plan.hash,
+                        "check": "ok", "params": plan.params,
+                        "sight": planned.sight.to_json(), **estimate})
         else:
-            print(f"{plan.routine}: {len(plan)} points, plan {plan.hash[:16]}")
+            spares = len(plan) - plan.n_planned
+            print(f"{plan.routine}: {plan.n_planned} points"
+                  f"{f' (+ {spares} spares)' if spares else ''}, plan {plan.hash[:16]}")
             print(planned.check.report())
+            print(planned.sight.report())
+            print(format_time(estimate))
         return 0
+    if not args.json and (planned.sight.hidden or not planned.sight.checked):
+        print(f"cellcal capture: note: {planned.sight.report(limit=5)}", file=sys.stderr)
     try:
         store = RunStore(args.db, synchronous=args.synchronous)
     except (StoreError, OSError) as e:
@@ -331,7 +372,7 @@ def run(args) -> int:
 
     def started(run_id: int, _done: int) -> None:
         if not args.json:
-            print(f"run {run_id}: {plan.routine}, {len(plan)} points, plan "
+            print(f"run {run_id}: {plan.routine}, {plan.n_planned} points, plan "
                   f"{plan.hash[:16]}", file=sys.stderr)
 
     try:

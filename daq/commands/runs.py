@@ -1,5 +1,6 @@
 """``cellcal runs``: list the runs in a run store (or show one with its context and
-interruptions)."""
+interruptions). The list counts each run's interruptions, its beam breaks and the points
+skipped because the beam stayed broken (see :mod:`daq.executor`)."""
 
 from __future__ import annotations
 
@@ -66,11 +67,14 @@ def run(args) -> int:
         if args.json:
             print_json([_run_dict(store, r) for r in runs])
             return 0
-        rows = [[str(r.id), r.routine, r.status, f"{store.n_samples(r.id)}/{r.n_points}",
-                 r.model or "-", _time(r.started), len(store.interruptions(r.id)),
-                 (r.reason or "")[:60]] for r in runs]
+        rows = []
+        for r in runs:
+            kinds = [k for _, _, k, _ in store.interruptions(r.id)]
+            rows.append([str(r.id), r.routine, r.status, f"{store.n_samples(r.id)}/{r.n_points}",
+                         r.model or "-", _time(r.started), len(kinds), kinds.count("beam"),
+                         kinds.count("skipped"), (r.reason or "")[:60]])
         print(table(rows, ["run", "routine", "status", "points", "model", "started",
-                           "interruptions", "reason"]))
+                           "interruptions", "beam breaks", "skipped", "reason"]))
         return 0
     finally:
         store.close()

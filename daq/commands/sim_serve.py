@@ -3,7 +3,8 @@
 Prints one driver URL per line (Modbus robot, line robot, tracker over TCP,
 tracker over a pty, emScon tracker ``emscon://127.0.0.1:PORT``, then the
 read-only RTDE robot when port 30004 was free), then serves until Ctrl-C or
-SIGTERM and stops cleanly (exit code 0).
+SIGTERM and stops cleanly (exit code 0). The simulated tracker's line of sight is honest
+(:mod:`sim_drivers.beam`): ``--tracker-at`` places it, ``--cell`` adds fixtures.
 """
 
 from __future__ import annotations
@@ -24,6 +25,12 @@ def register(sub) -> None:
     s.add_argument("--model", default="ur10e",
                    help="the true robot: a model name or YAML with realistic hidden errors "
                         "(default ur10e), or 'toy' for a 3-joint stand-in arm")
+    s.add_argument("--tracker-at", metavar="X,Y,Z", default=None,
+                   help="where the simulated tracker stands, robot base frame, mm (default "
+                   "2500,0,500; write --tracker-at=-2500,0,500 for a negative first value)")
+    s.add_argument("--cell", metavar="cell.yaml", default=None,
+                   help="the simulated cell: fixtures that break the beam, the SMR axis and "
+                   "acceptance, the tracker position (docs/formats.md section 7)")
     s.add_argument("--hidden", default=None,
                    help="hidden physical effects of the true robot, e.g. compliance:3")
     s.add_argument("--faults", default=None,
@@ -49,21 +56,34 @@ def run(args) -> int:
 
     if args.time_scale < 0:
         raise UsageError(f"--time-scale must be >= 0, got {args.time_scale}")
+    from calibration.cell import load_cell
+
+    from .routine_args import floats
+
     config = ServeConfig(seed=args.seed, hidden=args.hidden, faults=args.faults,
                          time_scale=args.time_scale, host=args.host, pty=not args.no_pty,
                          rtde=not args.no_rtde)
+    try:
+        tracker_at = floats(args.tracker_at, 3, "--tracker-at")
+        cell = load_cell(args.cell) if args.cell else None
+    except ValueError as e:
+        raise UsageError(str(e)) from None
     if args.model == "toy":
         from sim_drivers.inprocess import default_truth as factory
     else:
-        from sim_drivers.model_truth import ModelTruth
+        from sim_drivers.model_truth import DEFAULT_TRACKER_AT_MM, ModelTruth
+
+        at = tracker_at or (cell.tracker_mm if cell is not None and cell.tracker is not None
+                            else DEFAULT_TRACKER_AT_MM)
+        axis = (0.0, 0.0, 1.0) if cell is None else cell.smr.axis
 
         def factory(seed, hidden):
-            return ModelTruth.from_spec(args.model, hidden, seed)
+            return ModelTruth.from_spec(args.model, hidden, seed, tracker_at=at, smr_axis=axis)
 
     if args.tracker_warmup_s < 0:
         raise UsageError(f"--tracker-warmup-s must be >= 0, got {args.tracker_warmup_s}")
     try:
-        stack = SimStack(config, truth_factory=factory,
+        stack = SimStack(config, truth_factory=factory, cell=cell,
                          weather_station=not args.no_weather_station,
                          tracker_collimation_rad=args.tracker_collimation_urad * 1e-6,
                          warmup_s=args.tracker_warmup_s)

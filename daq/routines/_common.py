@@ -43,3 +43,122 @@ def expected_joints(model, xyz: np.ndarray, q_start: np.ndarray) -> tuple[np.nda
         if r.success[0]:
             q_prev = r.q[0]
     return np.array(out), np.array(ok)
+
+
+# ------------------------------------------------------------ visibility
+def knows_tracker(cell) -> bool:
+    """Whether a plan can be made for the tracker's line of sight (a cell with a tracker)."""
+    return cell is not None and cell.tracker is not None
+
+
+def visibility_params(cell) -> dict | None:
+    """What a plan records about the cell it was made for (None: visibility not checked)."""
+    if not knows_tracker(cell):
+        return None
+    return {"tracker_mm": [round(float(v), 3) for v in cell.tracker_mm],
+            "tracker_source": cell.tracker_source, "smr_axis": list(cell.smr.axis),
+            "reflector": cell.smr.reflector, "half_angle_deg": cell.smr.half_angle_deg,
+            "facing_margin_deg": cell.margins.facing_deg,
+            "clearance_mm": cell.margins.clearance_mm,
+            "fixtures": [f.name for f in cell.fixtures]}
+
+
+def hidden(model, q: np.ndarray, cell) -> list[tuple[int, str]]:
+    """(row, reason) of every joint vector of ``q`` (n, N) the tracker would not see."""
+    from calibration.visibility import assess
+
+    if not knows_tracker(cell) or len(q) == 0:
+        return []
+    s = assess(model, q, cell)
+    return [(int(i), s.reason(int(i))) for i in np.flatnonzero(~s.visible)]
+
+
+def require_visible(routine: str, model, q: np.ndarray, labels, cell, change: str) -> None:
+    """Refuse (:class:`~daq.errors.NotEnoughVisible`, exit 3) when the tracker would not see
+    some of the joint vectors ``q`` (n, N); the message lists them and says what to change."""
+    from ..errors import NotEnoughVisible
+
+    bad = hidden(model, q, cell)
+    if not bad:
+        return
+    lines = [f"{routine}: the tracker at {np.round(cell.tracker_mm).tolist()} mm "
+             f"({cell.tracker_source}) would not see {len(bad)} of {len(q)} points:"]
+    lines += [f"  point {i} ({labels[i]}): {why}" for i, why in bad[:20]]
+    if len(bad) > 20:
+        lines.append(f"  ... and {len(bad) - 20} more")
+    lines.append(f"change: {change}")
+    raise NotEnoughVisible("\n".join(lines))
+
+
+def facing_starts(model, cell, *, radii=(700.0, 900.0, 1100.0), heights=(250.0, 550.0, 850.0),
+                  azimuths_deg=tuple(range(-120, 121, 15)), seed: int = 0,
+                  min_sv: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate start postures whose SMR faces the tracker straight on: SMR positions at
+    ``radii`` from the base axis, ``heights`` above the base, at ``azimuths_deg`` from the
+    tracker's azimuth, solved by pose IK from a few fixed starts; only those the tracker
+    sees with the cell's margins, above the floor, away from singularities (smallest
+    singular value of the Jacobian [Jp / 1 m; Jw] at least ``min_sv``). Returns
+    (q (m, N) rad, clearance (m,) mm: how far the beam passes the nearest link)."""
+    from calibration.visibility import assess, solve_facing, workspace_ok
+
+    T = cell.tracker_mm
+    az0 = np.arctan2(T[1], T[0])
+    R, H, A = np.meshgrid(radii, heights, az0 + np.radians(azimuths_deg), indexing="ij")
+    p = np.stack([R.ravel() * np.cos(A.ravel()), R.ravel() * np.sin(A.ravel()), H.ravel()], 1)
+    lim = np.clip(model.limits_rad(), -np.pi, np.pi)
+    seeds = np.random.default_rng(seed).uniform(lim[:, 0], lim[:, 1], (4, model.n_joints))
+    seeds = np.vstack([default_start(model), seeds])
+    P = np.repeat(p, len(seeds), axis=0)
+    q, ok = solve_facing(model, P, T - P, np.zeros(len(P)), np.tile(seeds, (len(p), 1)),
+                         cell.smr.axis_unit())
+    q = q[ok]
+    if model.n_joints < 6 or len(q) == 0:
+        return np.zeros((0, model.n_joints)), np.zeros(0)
+    q = q[workspace_ok(model, q) & np.all(np.abs(q) <= np.pi + 1e-9, axis=1)]
+    # away from singularities: the smallest singular value of [Jp / 1 m; Jw]
+    _, _, Jp, Jw = ChainFK.from_model(model)(q)
+    sv = np.linalg.svd(np.concatenate([Jp / 1000.0, Jw], axis=1), compute_uv=False)
+    q = q[sv[:, -1] >= min_sv] if len(q) else q
+    if len(q) == 0:
+        return q, np.zeros(0)
+    s = assess(model, q, cell)
+    return q[s.visible], s.clearance_mm[s.visible].min(axis=1, initial=np.inf)
+
+
+def facing_start(model, cell, routine: str, change: str, points) -> np.ndarray:
+    """The start posture (rad) for a routine that moves from it: the first of the postures
+    whose SMR faces the tracker straight on (:func:`facing_starts`) from which every point
+    of the routine is reachable and visible. Tried in order of room to move: whose beam
+    passes the links by twice the margin first, then the SMR nearest 55 % of the arm's
+    reach from the base axis and 500 mm up. ``points(q0)`` gives the routine's expected
+    joints (n, N), whether each is reached (n,) and labels. Refused
+    (:class:`~daq.errors.NotEnoughVisible`) with the best start's problems when none fits.
+    """
+    from calibration.visibility import smr_pose
+
+    from ..errors import NotEnoughVisible
+
+    q, clear = facing_starts(model, cell)
+    if len(q) == 0:
+        raise NotEnoughVisible(f"{routine}: no start posture found whose SMR faces the tracker "
+                               f"at {np.round(cell.tracker_mm).tolist()} mm "
+                               f"({cell.tracker_source}); change: {change}")
+    p, _ = smr_pose(model, q, cell.smr.axis_unit())
+    reach = float(np.sum(np.abs(model.dh_table()[:, 1:3])))
+    miss = np.abs(np.hypot(p[:, 0], p[:, 1]) - 0.55 * reach) + np.abs(p[:, 2] - 500.0)
+    miss = np.where(clear >= 2 * cell.margins.clearance_mm, miss, miss + 1e6)
+    best = None
+    for k in np.argsort(miss, kind="stable")[:40]:
+        qs, ok, labels = points(q[k])
+        bad = len(hidden(model, qs, cell)) + int((~ok).sum())
+        if bad == 0:
+            return q[k]
+        if best is None or bad < best[0]:
+            best = bad, k, qs, labels, ok
+    _, k, qs, labels, ok = best
+    if not ok.all():
+        raise NotEnoughVisible(f"{routine}: from every start posture facing the tracker some "
+                               f"points are out of reach (best: "
+                               f"{', '.join(np.asarray(labels)[~ok][:10])}); change: {change}")
+    require_visible(routine, model, qs, labels, cell, change)
+    return q[k]

@@ -23,6 +23,14 @@ loop with :class:`~daq.errors.ZeroDiverged` naming the point (the run pauses).
 Needs an arm that can orient its tool (6 joints or more): a smaller arm reaches
 a point in too few postures.
 
+Line of sight (``cell`` with a tracker position): the 20 SMR axes gather about the
+direction from the target to the tracker, tilted within the acceptance cone less the
+margin (instead of the tool pointing down at the target), so the tracker sees every
+posture; postures whose beam a link would block are avoided by trying the postures in
+one shoulder configuration, and a plan the tracker would not see is refused
+(:class:`~daq.errors.NotEnoughVisible`). The postures are visited in a short order
+(:func:`daq.plans.shortest_order`).
+
 Replay (``--replay RUN``, :func:`replay_plan`): the same 20 postures again, from
 the joints recorded in run RUN's samples (not re-solved): for the seed method's
 second, fine pass after a manual adjustment of the joint zeros. The executor
@@ -36,12 +44,13 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from calibration.transforms import fit_rigid
 
-from ..errors import ZeroDiverged, ZeroNotReached
-from ..plans import Plan, Target
+from ..errors import NotEnoughVisible, ZeroDiverged, ZeroNotReached
+from ..plans import Plan, Target, shortest_order
+from ._common import hidden, knows_tracker, visibility_params
 
 
 def make_plan(model, *, target_xyz=None, seed_deg=None, seed: int = 0,
-              replay: dict | None = None) -> Plan:
+              replay: dict | None = None, cell=None) -> Plan:
     """The zero20 plan.
 
     Parameters
@@ -57,9 +66,9 @@ def make_plan(model, *, target_xyz=None, seed_deg=None, seed: int = 0,
         Replay recorded postures instead (see :func:`replay_plan`): keys ``run``
         (source run id), ``q`` ((20, N) joints read, rad), ``plane`` ((20,)), ``label``
         (20 str), ``target_xyz_mm`` (the source plan's target, mm).
+    cell : CellSpec, optional
+        Plan for the tracker's line of sight (see the module docstring).
     """
-    from calibration.zero_point import zero20_postures
-
     if replay is not None:
         return replay_plan(model, **replay)
 
@@ -73,22 +82,54 @@ def make_plan(model, *, target_xyz=None, seed_deg=None, seed: int = 0,
         raise ValueError("zero20: the target point is required (--target-xyz X,Y,Z)")
     target = np.asarray(target_xyz, float)
     q_seed = np.radians(seed_deg) if seed_deg is not None else None
-    q, plane, ok = zero20_postures(model.convention, model.dh_table(), model.tool_mm(), target,
-                                   q_seed=q_seed, limits=model.limits_rad(),
-                                   rng=np.random.default_rng(seed))
-    if not ok.all():
-        bad = (np.flatnonzero(~ok) + 1).tolist()
-        raise ValueError(f"zero20: postures {bad} cannot reach the target {target.tolist()} mm")
+    q, plane = _postures(model, target, q_seed, seed, cell)
+    order = shortest_order(q, 1.0)
     per = {}
-    targets = []
+    labels = []
     for i in range(len(q)):
         k = int(plane[i])
         per[k] = per.get(k, 0) + 1
-        targets.append(Target(i, "zero", q=q[i], base_p_tcp=target, label=f"p{k}.{per[k]}",
-                              info={"plane": k}))
+        labels.append(f"p{k}.{per[k]}")
+    targets = [Target(n, "zero", q=q[i], base_p_tcp=target, label=labels[i],
+                      info={"plane": int(plane[i])}) for n, i in enumerate(order)]
     params = {"target_xyz_mm": target.tolist(),
               "seed_deg": None if q_seed is None else np.degrees(q_seed).tolist(), "seed": seed}
+    if knows_tracker(cell):
+        params["visibility"] = visibility_params(cell)
     return Plan("zero20", params, tuple(targets), model=model.name)
+
+
+def _postures(model, target: np.ndarray, q_seed, seed: int, cell):
+    """The 20 postures (rad) and their planes: facing the tracker when ``cell`` knows it."""
+    from calibration.zero_point import zero20_postures
+
+    sight = knows_tracker(cell)
+    options = {}
+    if sight:
+        cone = max(cell.smr.half_angle_deg - cell.margins.facing_deg - 0.5, 0.0)  # 0.5: IK
+        options = {"about": cell.tracker_mm - target, "axis_flange": cell.smr.axis_unit(),
+                   "tilts_deg": (-cone, -cone / 2, 0.0, cone / 2, cone)}
+    tried = []
+    for flip in (True, False) if sight else (True,):
+        q, plane, ok = zero20_postures(model.convention, model.dh_table(), model.tool_mm(),
+                                       target, q_seed=q_seed, limits=model.limits_rad(),
+                                       rng=np.random.default_rng(seed), flip_shoulder=flip,
+                                       **options)
+        if not ok.all():
+            bad = (np.flatnonzero(~ok) + 1).tolist()
+            tried.append(f"postures {bad} cannot reach the target")
+            continue
+        blocked = hidden(model, q, cell) if sight else []
+        if not blocked:
+            return q, plane
+        tried.append("; ".join(f"posture {i + 1}: {why}" for i, why in blocked[:5]))
+    if not sight:
+        raise ValueError(f"zero20: {tried[0]} {target.tolist()} mm")
+    raise NotEnoughVisible(
+        f"zero20: no 20 postures on {target.tolist()} mm that the tracker at "
+        f"{np.round(cell.tracker_mm).tolist()} mm ({cell.tracker_source}) sees: "
+        f"{' / '.join(tried)}; change: another --target-xyz (between the robot and the "
+        "tracker, well within reach), --seed-deg, or move the tracker")
 
 
 def replay_plan(model, *, run: int, q, plane, label, target_xyz_mm) -> Plan:

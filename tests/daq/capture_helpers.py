@@ -12,11 +12,12 @@ from pathlib import Path
 import numpy as np
 
 from calibration import ErrorModel, load_model
+from calibration.cell import CellSpec
 from daq.run_context import ExecutorOptions, RunContext
 from daq.service import execute
 from daq.store import RunStore
 from drivers.urls import open_robot, open_tracker
-from sim_drivers.model_truth import ModelTruth
+from sim_drivers.model_truth import DEFAULT_TRACKER_AT_MM, ModelTruth
 from sim_drivers.serve import ServeConfig, SimStack
 
 DATA = Path(__file__).parent / "data"
@@ -27,10 +28,12 @@ FREE_PORTS = {"modbus": 0, "line_robot": 0, "tracker": 0, "emscon": 0}
 
 def toy_sim(kind: str, seed: int, name: str = "default", **extra) -> str:
     """An in-process ``sim://`` URL of the toy arm (tests/daq/data/toyarm.yaml; the SMR at
-    the wrist: no tool) for cell ``name``."""
+    the wrist: no tool) for cell ``name``. The 3-joint toy cannot turn its SMR towards the
+    tracker, so it carries a 360-degree reflector (the beam still breaks on occlusions)."""
     from urllib.parse import urlencode
 
-    query = {"model": TOY, "tool": "0,0,0", "seed": seed, "name": name, **extra}
+    query = {"model": TOY, "tool": "0,0,0", "seed": seed, "name": name, "reflector": "360",
+             **extra}
     return f"sim://{kind}?{urlencode(query)}"
 
 
@@ -39,8 +42,9 @@ def ur10e_controller_model():
     return load_model("ur10e").with_changes(tool=(0.0, 0.0, 60.0))
 
 
-def base_only_truth(seed: int, hidden=None) -> ModelTruth:
-    """A UR10e whose only hidden error is its pose in the tracker frame (and the tool)."""
+def base_only_truth(seed: int, hidden=None, tracker_at=DEFAULT_TRACKER_AT_MM) -> ModelTruth:
+    """A UR10e whose only hidden error is its pose in the tracker frame (and the tool), the
+    tracker at ``tracker_at`` (mm, base frame)."""
     nominal = ur10e_controller_model()
     em = ErrorModel(nominal, "base,tool")
     rng = np.random.default_rng(seed)
@@ -48,17 +52,23 @@ def base_only_truth(seed: int, hidden=None) -> ModelTruth:
 
     x = realistic_truth(em, rng)
     x[em.index("tool.x"):em.index("tool.x") + 3] = nominal.tool_mm()
-    return ModelTruth(nominal, em, x)
+    return ModelTruth(nominal, em, x, tracker_at=tracker_at)
+
+
+def rough_cell(tracker_at=DEFAULT_TRACKER_AT_MM, error_mm=(60.0, -40.0, 30.0)) -> CellSpec:
+    """The cell as a user describes it: the tracker ``error_mm`` off its true place."""
+    return CellSpec().with_tracker(np.add(tracker_at, error_mm), "--tracker-at")
 
 
 @contextlib.contextmanager
-def served_cell(truth_factory, *, faults=None, seed=0, time_scale=0.0, **cell_kw):
+def served_cell(truth_factory, *, faults=None, seed=0, time_scale=0.0, cell=None, **cell_kw):
     """A SimStack on free loopback ports (no pty): yields the stack (what ``cellcal sim
-    serve`` runs, in this process so a test can read the simulator's truth). ``cell_kw``:
-    extra :class:`~sim_drivers.cell.SimCell` arguments (weather station, collimation...)."""
+    serve`` runs, in this process so a test can read the simulator's truth). ``cell``: the
+    cell (fixtures, SMR); ``cell_kw``: extra :class:`~sim_drivers.cell.SimCell` arguments
+    (weather station, collimation...)."""
     cfg = ServeConfig(seed=seed, faults=faults, ports=dict(FREE_PORTS), pty=False,
                       time_scale=time_scale)
-    with SimStack(cfg, truth_factory=truth_factory, **cell_kw) as stack:
+    with SimStack(cfg, truth_factory=truth_factory, cell=cell, **cell_kw) as stack:
         yield stack
 
 

@@ -28,6 +28,7 @@ from .capture_helpers import (
     base_only_truth,
     connected,
     count_samples,
+    rough_cell,
     run_plan,
     served_cell,
     sim_serve,
@@ -43,15 +44,17 @@ def _frame_error(T_fit, T_true):
 @pytest.mark.parametrize("truth", ["ur10e", "toy"])
 def test_frame_routine_recovers_the_measurement_frame(tmp_path, truth):
     if truth == "ur10e":
-        factory, model = base_only_truth, ur10e_controller_model()
-        start = [20.0, -100.0, 100.0, -90.0, -90.0, 0.0]
+        # the tracker where the simulated cell puts it, known to the plan only roughly; the
+        # routine picks the start whose joint-1 arc the tracker sees widest (~60 deg)
+        factory, model, start, cell = base_only_truth, ur10e_controller_model(), None, \
+            rough_cell()
     else:
         from calibration import load_model
 
-        factory, model, start = default_truth, load_model(TOY), [0.0, 20.0, -60.0]
+        factory, model, start, cell = default_truth, load_model(TOY), [0.0, 20.0, -60.0], None
     length = 400.0 if truth == "ur10e" else 150.0
     plan = make_plan("frame", model, start_deg=start, line_length_mm=length, circle_points=24,
-                     circle_span_deg=120.0, line_points=31)
+                     circle_span_deg=120.0, line_points=31, cell=cell)
     assert check_plan(plan, model, floor_z_mm=None).ok
     with served_cell(factory, seed=4) as stack, RunStore(tmp_path / "c.db") as store:
         with connected(stack.urls[1], stack.urls[2]) as (robot, tracker):
@@ -65,14 +68,16 @@ def test_frame_routine_recovers_the_measurement_frame(tmp_path, truth):
     print(f"\n{truth}: axis error {ang:.5f} deg, origin error {org:.4f} mm, "
           f"circle rms {frame['circle']['rms_mm']:.4f}, line rms {frame['line']['rms_mm']:.4f}")
     assert ang < 0.01
-    assert org < 0.05
+    # the UR's circle is the ~60 deg arc the tracker sees (the toy's 120 deg): its centre,
+    # hence the origin, is known less well
+    assert org < (0.12 if truth == "ur10e" else 0.05)
     assert frame["circle"]["rms_mm"] < 0.05 and frame["line"]["rms_mm"] < 0.05
 
 
 def test_steps_export_calibrates(tmp_path, capsys):
     model = ur10e_controller_model()
-    plan = make_plan("steps", model, start_deg=[20.0, -100.0, 100.0, -90.0, -90.0, 0.0],
-                     step_mm=40.0, count=8)
+    # the start chosen facing the tracker (the cell's default place, known roughly)
+    plan = make_plan("steps", model, step_mm=40.0, count=8, cell=rough_cell())
     with served_cell(model_truth_factory, seed=2) as stack, RunStore(tmp_path / "c.db") as st:
         with connected(stack.urls[0], stack.urls[2]) as (robot, tracker):
             run_id, status = run_plan(st, plan, robot, tracker)
@@ -118,7 +123,8 @@ def test_sigkill_three_times_then_resume(tmp_path):
         urls = _read_lines(serve, 3, timeout=30)
         robot, tracker = urls[1], urls[2]
         capture = [*cli, "capture", "poses", "--count", "150", "--seed", "2", "--model",
-                   "ur10e", "--tool-mm", "0,0,60", "--no-floor", "--robot", robot,
+                   "ur10e", "--tool-mm", "0,0,60", "--no-floor", "--tracker-at", "2500,0,500",
+                   "--robot", robot,
                    "--tracker", tracker, "--db", str(db), "--json"]
         resume = [*cli, "resume", "--db", str(db), "--json"]
         kills = []

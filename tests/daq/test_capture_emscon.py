@@ -38,6 +38,7 @@ ROUTINES = {
 def _capture(routine: str, robot: str, tracker: str, db, *extra: str) -> dict:
     out = subprocess.run(
         [*CLI, "capture", routine, "--model", "ur10e", "--tool-mm", "0,0,60", "--no-floor",
+         "--tracker-at", "2500,0,500",
          "--robot", robot, "--tracker", tracker, "--db", str(db), "--json", *extra],
         cwd=ROOT, capture_output=True, timeout=300)
     assert out.returncode == 0, f"{routine}: {out.stderr.decode()}"

@@ -12,7 +12,13 @@ from daq.run_context import ExecutorOptions
 from daq.store import RunStore
 from sim_drivers.model_truth import model_truth_factory
 
-from .capture_helpers import connected, run_plan, served_cell, ur10e_controller_model
+from .capture_helpers import (
+    connected,
+    rough_cell,
+    run_plan,
+    served_cell,
+    ur10e_controller_model,
+)
 
 #: every fault the servers know, each on ~5 % of the points (a point is ~15 commands)
 FAULTS = ("beam=0.05,slow=0.004,drop=0.004,garbage=0.025,pstop=0.035,modbus=0.005,"
@@ -24,7 +30,7 @@ FAST = dict(io_timeout_s=0.2, measure_timeout_s=0.25, move_timeout_s=0.25, backo
 @pytest.mark.slow
 def test_500_points_with_faults_of_every_kind(tmp_path):
     model = ur10e_controller_model()
-    plan = make_plan("poses", model, count=500, seed=3)
+    plan = make_plan("poses", model, count=500, seed=3, cell=rough_cell())
     with served_cell(model_truth_factory, faults=FAULTS, seed=3) as stack:
         robot_url, tracker_url = stack.urls[0], stack.urls[2]  # Modbus robot, TCP tracker
         store = RunStore(tmp_path / "cell.db")

@@ -15,7 +15,6 @@ from sim_drivers.truth import PoseContext
 
 from .capture_helpers import served_cell
 
-START = "20,-100,100,-90,-90,0"
 CYCLES = 10
 
 
@@ -23,9 +22,11 @@ def test_iso9283_summary_is_plausible(tmp_path, capsys):
     db = tmp_path / "cell.db"
     with served_cell(model_truth_factory, seed=2) as stack:
         common = ["--model", "ur10e", "--tool-mm", "0,0,60", "--no-floor", "--robot",
-                  stack.urls[1], "--tracker", stack.urls[2], "--db", str(db), "--json",
-                  "--start-deg", START]
-        assert main(["capture", "frame", *common, "--line-length-mm", "400"]) == 0
+                  stack.urls[1], "--tracker", stack.urls[2], "--db", str(db), "--json"]
+        # the frame from a start facing the tracker (given roughly), the cube from a posture
+        # facing the tracker the frame measured
+        assert main(["capture", "frame", *common, "--line-length-mm", "400",
+                     "--tracker-at", "2450,40,520"]) == 0
         assert main(["capture", "iso9283", *common, "--cycles", str(CYCLES)]) == 0
         cell = stack.cell
         truth = cell.truth

@@ -25,6 +25,7 @@ import time
 import numpy as np
 import pytest
 
+from calibration.cell import CellSpec, Smr
 from calibration.transforms import make_T, rotvec_to_matrix
 from daq.cli import main
 from daq.plans import Plan
@@ -37,7 +38,12 @@ from .line_proxy import LineProxy
 from .test_zero_e2e import TARGET, zero_truth
 
 CLI = [sys.executable, "-m", "daq"]
-UR = ["--model", "ur10e", "--tool-mm", "0,0,60"]
+#: the simulated cell's tracker stands at (2500, 0, 500) mm in the base frame
+UR = ["--model", "ur10e", "--tool-mm", "0,0,60", "--tracker-at", "2500,0,500"]
+#: plans made without line of sight (compared with make_plan's), on a cell whose 360-degree
+#: reflector the tracker sees from anywhere (links still break the beam)
+UR0 = ["--model", "ur10e", "--tool-mm", "0,0,60", "--no-visibility"]
+SEE_ALL = CellSpec(smr=Smr(reflector="360"))
 
 
 
@@ -164,10 +170,11 @@ def _jump_proxy(stack, db, dz_mm: float):
 
 def test_a_tracker_that_jumps_mid_loop_pauses_the_zero_run(tmp_path, capsys):
     db = tmp_path / "zero.db"
-    with served_cell(zero_truth, seed=3) as stack, _jump_proxy(stack, db, 900.0) as proxy:
+    with served_cell(zero_truth, seed=3, cell=SEE_ALL) as stack, \
+            _jump_proxy(stack, db, 900.0) as proxy:
         plan = make_plan("zero20", ur10e_controller_model(),
                          target_xyz=[float(v) for v in TARGET.split(",")])
-        rc = main(["capture", "zero20", *UR, "--floor-z-mm", "-150", "--robot", stack.urls[1],
+        rc = main(["capture", "zero20", *UR0, "--floor-z-mm", "-150", "--robot", stack.urls[1],
                    "--tracker", proxy.url("tracker+tcp"), "--db", str(db), "--json",
                    "--target-xyz", TARGET])
         out = _json(capsys)
@@ -182,10 +189,10 @@ def test_a_tracker_that_jumps_mid_loop_pauses_the_zero_run(tmp_path, capsys):
 
 def test_a_frame_of_the_wrong_orientation_pauses_the_zero_run(tmp_path, capsys):
     db = str(tmp_path / "zero.db")
-    with served_cell(zero_truth, seed=4) as stack:
+    with served_cell(zero_truth, seed=4, cell=SEE_ALL) as stack:
         truth_T = stack.cell.truth.tracker_T_base
         # a frame run measured in this cell, whose frame is turned 120 deg about z
-        assert main(["capture", "frame", *UR, "--start-deg", "20,-100,100,-90,-90,0",
+        assert main(["capture", "frame", *UR0, "--start-deg", "20,-100,100,-90,-90,0",
                      "--circle-points", "4", "--line-points", "3", "--robot", stack.urls[1],
                      "--tracker", stack.urls[2], "--db", db, "--json"]) == 0
         capsys.readouterr()
@@ -195,7 +202,7 @@ def test_a_frame_of_the_wrong_orientation_pauses_the_zero_run(tmp_path, capsys):
             st.update_run(1, frame={**st.run(1).frame, "tracker_T_base": wrong.tolist()})
         plan = make_plan("zero20", ur10e_controller_model(),
                          target_xyz=[float(v) for v in TARGET.split(",")])
-        rc = main(["capture", "zero20", *UR, "--floor-z-mm", "-150", "--robot", stack.urls[1],
+        rc = main(["capture", "zero20", *UR0, "--floor-z-mm", "-150", "--robot", stack.urls[1],
                    "--tracker", stack.urls[2], "--db", db, "--json", "--target-xyz", TARGET])
         out = _json(capsys)
         q = stack.cell.robot_state().q
@@ -236,8 +243,8 @@ def test_a_tracker_repeating_its_reply_is_not_stored_twice(tmp_path, capsys):
 # ------------------------------------------------------------ multi-turn
 def test_a_720_deg_frame_circle_completes(tmp_path, capsys):
     db = str(tmp_path / "frame.db")
-    with served_cell(model_truth_factory, seed=4) as stack:
-        rc = main(["capture", "frame", *UR, "--start-deg", "0,-100,100,-90,-90,0",
+    with served_cell(model_truth_factory, seed=4, cell=SEE_ALL) as stack:
+        rc = main(["capture", "frame", *UR0, "--start-deg", "0,-100,100,-90,-90,0",
                    "--circle-span-deg", "720", "--circle-points", "17", "--line-points", "5",
                    "--robot", stack.urls[1], "--tracker", stack.urls[2], "--db", db,
                    "--json"])
@@ -251,7 +258,7 @@ def test_a_720_deg_frame_circle_completes(tmp_path, capsys):
     assert j1.min() == pytest.approx(-360.0, abs=0.01) and j1.max() == pytest.approx(360, abs=0.01)
     assert abs(np.degrees(s.joints_rad[17, 0])) < 10.0  # back for the line
     # turned from 20 deg, the same circle leaves the joint range: refused before motion
-    rc = main(["capture", "frame", *UR, "--start-deg", "20,-100,100,-90,-90,0",
+    rc = main(["capture", "frame", *UR0, "--start-deg", "20,-100,100,-90,-90,0",
                "--circle-span-deg", "720", "--robot", "socket://127.0.0.1:9", "--tracker",
                "tracker+tcp://127.0.0.1:9", "--db", db, "--dry-run"])
     assert rc == 2 and "beyond its max limit 360 deg" in capsys.readouterr().err

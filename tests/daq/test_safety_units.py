@@ -372,7 +372,8 @@ def test_the_robot_must_be_the_models_before_a_run_exists(tmp_path, capsys):
     assert inproc.get_cell("default", 1).n_moves == 0
     assert inproc.get_cell("ur", 1).n_moves == 0
     rc = main(["capture", "poses", "--count", "3", "--model", "ur10e", "--tool-mm", "0,0,60",
-               "--no-floor", "--robot", "sim://robot?model=ur10e&seed=1&name=ur", "--tracker",
+               "--no-floor", "--tracker-at", "2500,0,500",
+               "--robot", "sim://robot?model=ur10e&seed=1&name=ur", "--tracker",
                "sim://tracker?seed=1&name=ur", "--db", str(db), "--json", "--measure-s", "0.01"])
     out = json.loads(capsys.readouterr().out)
     assert rc == 0 and out["samples"] == 3

@@ -13,6 +13,7 @@ import sqlite3
 import numpy as np
 import pytest
 
+from calibration.cell import CellSpec, Smr
 from daq.cli import main
 from daq.plans import Plan
 from daq.routines.zero20 import ZeroLoopOptions
@@ -104,7 +105,10 @@ def test_upgraded_store_exports_as_schema_2_did(v2_db, tmp_path, capsys):
 
 
 def test_paused_schema_2_run_resumes_with_its_context(v2_db, capsys):
-    with served_cell(model_truth_factory, seed=5) as stack:
+    # the fixture's poses were drawn before plans knew the tracker's line of sight: a
+    # 360-degree reflector sees them from where the simulated tracker stands
+    with served_cell(model_truth_factory, seed=5, cell=CellSpec(smr=Smr(reflector="360"))) \
+            as stack:
         robot, tracker = stack.urls[1], stack.urls[2]
         rc = main(["resume", "4", "--db", str(v2_db), "--robot", robot, "--tracker", tracker,
                    "--json"])

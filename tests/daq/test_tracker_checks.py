@@ -23,8 +23,8 @@ METEO = (21.5, 998.0, 38.0)
 def _capture(stack, db, tracker: str = "emscon", *extra, count: int = 4) -> int:
     url = {"line": stack.urls[2], "emscon": stack.urls[3]}[tracker]
     return main(["capture", "poses", "--count", str(count), "--seed", "1", "--model", "ur10e",
-                 "--tool-mm", "0,0,60", "--no-floor", "--robot", stack.urls[1], "--tracker",
-                 url, "--db", str(db), "--json", *extra])
+                 "--tool-mm", "0,0,60", "--no-floor", "--tracker-at", "2500,0,500",
+                 "--robot", stack.urls[1], "--tracker", url, "--db", str(db), "--json", *extra])
 
 
 def _runs(db) -> list:
@@ -117,7 +117,7 @@ def test_reflector_by_name_is_selected_and_recorded(tmp_path, capsys):
 @pytest.mark.parametrize("tracker", ["emscon", "line"])
 def test_two_face_check_refuses_a_tracker_that_needs_compensation(tmp_path, capsys, tracker):
     db = tmp_path / "cell.db"
-    c = 40e-6  # rad: turns the point by +c in face 1, -c in face 2
+    c = 80e-6  # rad: turns the point by +c in face 1, -c in face 2
     with served_cell(model_truth_factory, seed=2, tracker_collimation_rad=c) as stack:
         p = stack.cell.true_point()
         assert _capture(stack, db, tracker) == 2

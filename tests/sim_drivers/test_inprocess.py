@@ -24,7 +24,7 @@ def fresh_cells():
 
 
 def test_robot_and_tracker_share_a_cell():
-    rob = open_robot(f"sim://robot?model={TOY}&seed=4")
+    rob = open_robot(f"sim://robot?model={TOY}&seed=4&reflector=360")
     trk = open_tracker("sim://tracker?seed=4")
     assert isinstance(rob, RobotDriver) and isinstance(rob, CommandedPosition)
     assert isinstance(trk, TrackerDriver)
@@ -41,7 +41,7 @@ def test_robot_and_tracker_share_a_cell():
 
 
 def test_errors_are_typed():
-    rob = open_robot(f"sim://robot?model={TOY}&seed=1&faults=pstop@2,beam@3")
+    rob = open_robot(f"sim://robot?model={TOY}&seed=1&reflector=360&faults=pstop@2,beam@3")
     trk = open_tracker("sim://tracker?seed=1")
     rob.connect()
     trk.connect()
