@@ -263,6 +263,15 @@ def _retune_tables(fit: Fit, ho: Heldout, data: Dataset, folds: int, seed: int):
     return fit, ho
 
 
+def _without_blunders(calib: Dataset, fit: Fit) -> Dataset:
+    """``calib`` without the rows ``fit`` left out as blunders."""
+    screen = getattr(fit, "outliers", None)
+    if screen is None or not screen.excluded:
+        return calib
+    return calib.subset(~np.isin(np.asarray(calib.pose_id, dtype=object),
+                                 np.asarray(screen.ids, dtype=object)))
+
+
 def _significant(s: Screened, n_screened: int, alpha: float) -> bool:
     return s.edf >= 0.5 and s.log10_p + math.log10(max(n_screened, 1)) < math.log10(alpha)
 
@@ -341,7 +350,9 @@ def _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress)
             reason = f"time budget of {budget_s:g} s spent (--budget-s)"
             break
         ts = time.perf_counter()
-        lin = linearise(cur, calib, valid)
+        # screen on the rows the current fit used: its blunders left out (else a few
+        # millimetre blunders swamp every candidate's F-test and the loop stops early)
+        lin = linearise(cur, _without_blunders(calib, cur), valid)
         effects = candidate_effects(cur, data)
         if not effects:
             reason = "no candidate effects left to try"

@@ -152,8 +152,10 @@ def solver_summary(fit: Fit) -> dict:
     return out
 
 
-def save_params(fit: Fit, path: str | Path, effect_files: list[str] | None = None) -> None:
-    Path(path).write_text(json.dumps(fit_to_dict(fit, effect_files), indent=1) + "\n")
+def save_params(fit: Fit, path: str | Path, effect_files: list[str] | None = None,
+                auto=None) -> None:
+    """Write :func:`fit_to_dict` (with ``auto``'s steps when given) as JSON."""
+    Path(path).write_text(json.dumps(fit_to_dict(fit, effect_files, auto), indent=1) + "\n")
 
 
 def params_from_dict(

@@ -20,7 +20,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from calibration.diagnosis import ALPHA, Diagnosis
-from calibration.identify import Fit, error_stats
+from calibration.identify import Fit
 
 from .plot_base import (
     BLUNDER_COLOUR,
@@ -83,10 +83,12 @@ def _short(effects: str, width: int = 34) -> str:
 
 
 def fig_hist(stages: list[Stage], floor: float | None) -> Figure:
+    """Histograms of the per-pose error of every stage (calibration and validation poses);
+    one legend under both panels."""
     sets = [("calibration poses", lambda f: f.residuals)]
     if any(s.fit.valid_residuals is not None for s in stages):
         sets.append(("validation poses", lambda f: f.valid_residuals))
-    fig = Figure(figsize=(FIG_WIDTH, 3.2), layout="constrained")
+    fig = Figure(figsize=(FIG_WIDTH, 3.5), layout="constrained")
     axes = fig.subplots(1, len(sets), squeeze=False, sharex=True).ravel()
     errs_all = [np.linalg.norm(get(s.fit), axis=1) for _, get in sets for s in stages
                 if get(s.fit) is not None]
@@ -95,6 +97,7 @@ def fig_hist(stages: list[Stage], floor: float | None) -> Figure:
     lo = min(float(v.min()), floor / 3 if floor else np.inf)
     edges = np.geomspace(lo * 0.9, float(v.max()) * 1.1, 60)
     sigma = floor / math.sqrt(3.0) if floor else None
+    handles = {}
     for ax, (name, get) in zip(axes, sets, strict=True):
         n_max = 0
         for s in stages:
@@ -102,23 +105,23 @@ def fig_hist(stages: list[Stage], floor: float | None) -> Figure:
             if r is None:
                 continue
             e = np.linalg.norm(r, axis=1)
-            st = error_stats(r)
             ax.hist(e, bins=edges, histtype="stepfilled", color=s.colour, alpha=0.25)
-            ax.hist(e, bins=edges, histtype="step", color=s.colour, lw=1.4,
-                    label=f"{s.label}: RMS {st['rms_mm']:.3f} mm")
+            h = ax.hist(e, bins=edges, histtype="step", color=s.colour, lw=1.4)[2][0]
+            handles.setdefault(s.label, h)
             n_max = max(n_max, len(e))
         if sigma:
             cdf = scipy.stats.maxwell.cdf(edges, scale=sigma)
             expect = n_max * np.diff(cdf)
-            ax.stairs(expect, edges, color="#222", ls="--", lw=1.1,
-                      label="pure tracker noise (expected)")
-            ax.axvline(floor, color=FLOOR_COLOUR, lw=1.2, label=f"noise floor {floor:.3f} mm")
+            handles.setdefault("pure tracker noise (expected)",
+                               ax.stairs(expect, edges, color="#222", ls="--", lw=1.1))
+            handles.setdefault(f"noise floor {floor:.3f} mm",
+                               ax.axvline(floor, color=FLOOR_COLOUR, lw=1.2))
         ax.set_xscale("log")
-        ax.set_ylim(0, ax.get_ylim()[1] * 1.45)
         ax.set_xlabel("3-D error per pose, mm (log scale)")
         ax.set_ylabel("poses per bin")
         ax.set_title(name)
-        ax.legend(loc="upper left", frameon=True, framealpha=0.92, edgecolor="none")
+    fig.legend(list(handles.values()), list(handles), loc="outside lower center", ncols=2,
+               frameon=False)
     return fig
 
 

@@ -20,6 +20,8 @@ from __future__ import annotations
 import base64
 import html
 import math
+import os
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,6 +48,7 @@ from .html_tables import (
     blunders_section,
     candidates_table,
     correlations_text,
+    effects_html,
     params_table,
     stats_table,
     steps_table,
@@ -96,9 +99,25 @@ class Report:
     provenance: Provenance | None = None
 
     def write(self, path: str | Path) -> Path:
+        """Write the page through a temporary file in the same folder (an existing page is
+        replaced only by a whole new one)."""
         path = Path(path)
-        path.write_text(self.html, encoding="utf-8")
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                fh.write(self.html)
+            os.chmod(tmp, 0o666 & ~_umask())  # as an ordinary new file (mkstemp makes 0600)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
         return path
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 # ---- computing the stages ------------------------------------------------------------
@@ -273,7 +292,8 @@ def _body(page: _Page, diag: Diagnosis, stages: list[Stage], title: str,
                              "noise outline, and for a tail to the right: a few poses the "
                              "model cannot explain."))
     screens = _screens(stages, diag)
-    parts.append(blunders_section(screens))
+    parts.append(blunders_section(screens, (stages[0].label, stages[0].fit.outliers)
+                                  if len(stages) > 1 else None))
     parts.append(_where_it_fails(page, diag, stages, story, data, screens))
     parts.append(candidates_table(diag))
     new = ([e for e in stages[-1].fit.error_model.labels
@@ -307,7 +327,7 @@ def _cards(diag: Diagnosis, stages: list[Stage], story: AutoStory | None) -> str
             f'<div class="lbl">{html.escape(label)}</div>'
             f'<div class="big">{rms:.3f}<span> mm</span></div>'
             f'<div class="sub">RMS on {which} poses</div>'
-            f'<div class="sub"><code>{html.escape(s.effects)}</code></div></div>'
+            f'<div class="sub">{effects_html(s.effects)}</div></div>'
         )
     floor = diag.noise_floor_mm
     if floor:
@@ -358,10 +378,12 @@ def _step_section(page: _Page, story: AutoStory) -> str:
 
 
 def _screens(stages: list[Stage], diag: Diagnosis):
-    """(label, blunder screen) of every stage's fit and of the diagnosis, each once."""
+    """(label, blunder screen) of every calibrated stage's fit and of the diagnosis, each
+    once (the uncalibrated reference is left out: its residuals are the missing
+    calibration, its blunder test judges only itself)."""
     out, seen = [], set()
-    for label, sc in [(s.label, s.fit.outliers) for s in stages] + [("diagnosis",
-                                                                      diag.outliers)]:
+    for label, sc in [(s.label, s.fit.outliers) for s in stages[1:]] + [("diagnosis",
+                                                                          diag.outliers)]:
         if sc is not None and id(sc) not in seen:
             seen.add(id(sc))
             out.append((label, sc))

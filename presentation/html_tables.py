@@ -40,7 +40,7 @@ def stats_table(stages: list[Stage], floor: float | None) -> str:
         f = s.fit
         cells = [f'<td><span class="dot" style="background:{s.colour}"></span>'
                  f"{html.escape(s.label)}</td>",
-                 f"<td><code>{html.escape(s.effects)}</code></td>",
+                 f"<td>{effects_html(s.effects)}</td>",
                  f"<td>{f.error_model.n_params} ({f.identifiability.n_identifiable})</td>"]
         for st in (f.calib, f.valid or error_stats(np.zeros((0, 3)))):
             cells.append(f"<td>{st['n']}</td>")
@@ -76,7 +76,7 @@ def candidates_table(diag: Diagnosis) -> str:
             f"<tr{cls}><td><code>{html.escape(c.effect)}</code></td>"
             f"<td>{html.escape(describe_effect(c))}</td><td>{c.n_params}</td>"
             f'<td class="num">{100 * c.explained_fraction:.1f}</td>'
-            f'<td class="num">{fmt(after)}</td><td class="num">{c.log10_p:.0f}</td>'
+            f'<td class="num">{fmt(after)}</td><td class="num">{_log10p(c.log10_p)}</td>'
             f"<td>{'yes' if c.significant else 'no'}</td><td class=\"num\">{held}</td>"
             f'<td class="num">{bic}</td><td>{html.escape(c.note)}</td></tr>')
     more = len(diag.candidates) - TOP_CANDIDATES
@@ -93,6 +93,18 @@ def candidates_table(diag: Diagnosis) -> str:
         "<th>explains %</th><th>RMS after, mm</th><th>log10 p</th><th>significant</th>"
         "<th>held-out RMS, mm</th><th>BIC gain</th><th>note</th></tr>"
         f"{''.join(rows)}</table></div>{tail}")
+
+
+def _log10p(v: float) -> str:
+    text = f"{v:.0f}"
+    return "0" if text == "-0" else text
+
+
+def effects_html(effects: str | list[str]) -> str:
+    """An effect list as <code>, breakable after its commas."""
+    if not isinstance(effects, str):
+        effects = ",".join(effects)
+    return "<code>" + html.escape(effects).replace(",", ",<wbr>") + "</code>"
 
 
 def params_table(stage: Stage, new_effects: list[str] | set[str]) -> str:
@@ -135,14 +147,16 @@ def steps_table(story: AutoStory, floor: float | None) -> str:
     """The automatic diagnosis step by step: what each step added and what it bought."""
     rows = []
     for k, st in enumerate(story.steps):
-        what = ("start: <code>" + html.escape(",".join(st.fit.error_model.labels)) + "</code>"
-                if st.effect is None else f"+ <code>{html.escape(st.effect)}</code>")
+        what = "start" if st.effect is None else f"+ <code>{html.escape(st.effect)}</code>"
+        about = (html.escape(st.explanation) if st.effect is not None else
+                 "the model the diagnosis starts from: "
+                 + effects_html(st.fit.error_model.labels))
         rows.append(
             f"<tr><td class=\"num\">{k}</td><td>{what}</td><td class=\"num\">{st.n_params}</td>"
             f'<td class="num">{fmt(st.calib_rms_mm)}</td>'
             f'<td class="num">{fmt(st.heldout_rms_mm)}</td>'
             f'<td class="num">{"" if st.seconds is None else f"{st.seconds:.1f}"}</td>'
-            f"<td>{html.escape(st.explanation)}</td></tr>")
+            f"<td>{about}</td></tr>")
     final = story.final.heldout_rms_mm
     verdict = (f" The final held-out RMS is {final / floor:.2f} × the noise floor "
                f"({floor:.4f} mm)." if floor and final else "")
@@ -162,40 +176,52 @@ def steps_table(story: AutoStory, floor: float | None) -> str:
 _BEAM = {True: "along the beam", False: "across the beam", None: "unknown"}
 
 
-def blunders_section(screens: list[tuple[str, BlunderScreen]]) -> str:
-    """The measurements left out as blunders: one table over every fit's screen (the
-    first to name a pose gives its numbers), and the verdict of the last screen."""
-    seen: dict[str, tuple] = {}
+def blunders_section(screens: list[tuple[str, BlunderScreen]],
+                     reference: tuple[str, BlunderScreen | None] | None = None) -> str:
+    """The measurements left out as blunders: one table over every fit's screen (a pose's
+    numbers from the last screen that names it: the fit the diagnosis looks at), and that
+    screen's verdict; ``reference`` (the uncalibrated fit's) only in a sentence."""
+    ref = ""
+    if reference is not None and reference[1] is not None and reference[1].excluded:
+        ref = (f'<p class="meta">The {html.escape(reference[0])} reference fit left out '
+               + ", ".join(html.escape(b.describe()) for b in reference[1].blunders)
+               + ": its residuals are mostly the missing calibration, so its blunder test "
+               "speaks only for that fit.</p>")
+    named: dict[str, object] = {}
     left_out: dict[str, list[str]] = {}
     for label, sc in screens:
         for b in sc.blunders:
-            seen.setdefault(b.pose_id, (b, sc))
+            named[b.pose_id] = b
             if sc.mode == "exclude":
                 left_out.setdefault(b.pose_id, []).append(label)
     head = "<h2>Measurements left out (blunders)</h2>"
     if not screens:
-        return head + "<p>No blunder test was made.</p>"
+        return head + "<p>No blunder test was made.</p>" + ref
     verdict = html.escape(screens[-1][1].message("fit", list_points=False))
-    if not seen:
-        return head + f'<p id="blunders-none">{verdict}</p>'
+    if not named:
+        return head + f'<p id="blunders-none">{verdict}</p>' + ref
+    everywhere = [label for label, _ in screens]
     rows = []
-    for pid, (b, _) in seen.items():
-        where = ", ".join(left_out.get(pid, [])) or "kept in the fit (only flagged)"
+    for pid, b in named.items():
+        where = left_out.get(pid, [])
+        text = ("every fit" if where == everywhere else ", ".join(where)
+                or "kept in the fit (only flagged)")
         rows.append(
             f"<tr><td><code>{html.escape(pid)}</code></td><td class=\"num\">{b.line or '–'}</td>"
             f'<td class="num">{b.residual_mm:.3f}</td><td class="num">{b.ratio:.1f}</td>'
             f"<td>{_BEAM[b.along_beam]}</td><td class=\"num\">{fmt(b.angle_deg, 0)}</td>"
-            f"<td>{html.escape(where)}</td></tr>")
+            f"<td>{html.escape(text)}</td></tr>")
     return (
         head + f"<p>{verdict}</p>"
         '<div class="scroll"><table id="tab-blunders"><caption>Each blunder\'s residual is its '
         "distance from what the other poses predict; <i>× threshold</i>: how far beyond "
         "the out-of-line threshold it is; <i>beam</i>: whether the residual runs along the "
         "tracker's line of sight (a range error: a wrong return, a re-seated SMR) or across "
-        "it (the robot not yet still, the beam clipped). They are marked with orange "
-        "crosses in the residual figures.</caption><tr><th>pose</th><th>line</th>"
-        "<th>residual, mm</th><th>× threshold</th><th>beam</th><th>angle to beam, °</th>"
-        f"<th>left out of</th></tr>{''.join(rows)}</table></div>")
+        "it (the robot not yet still, the beam clipped); <i>left out of</i>: the fits that "
+        "named it. They are marked with orange crosses in the residual figures.</caption>"
+        "<tr><th>pose</th><th>line</th><th>residual, mm</th><th>× threshold</th>"
+        "<th>beam</th><th>angle to beam, °</th><th>left out of</th></tr>"
+        f"{''.join(rows)}</table></div>{ref}")
 
 
 def _value_std(value: float, std: float | None) -> tuple[str, str]:
@@ -252,7 +278,6 @@ td.num{text-align:right;font-variant-numeric:tabular-nums}
 tr.best td{background:#eef8f0}tr.fixed td{color:#8a939e}
 tr.floor td{color:#c0392b}
 .dot{display:inline-block;width:9px;height:9px;border-radius:50%;margin-right:6px}
-td code{overflow-wrap:anywhere}
 figure{margin:18px 0}figure img{max-width:100%;height:auto;display:block}
 figcaption{font-size:12.5px;color:#39424c;max-width:800px;margin-top:4px}
 .scroll{overflow-x:auto;max-width:100%}

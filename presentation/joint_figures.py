@@ -40,6 +40,7 @@ from .plot_base import (
 from .residual_points import LEVER_ARM_MIN_MM, Points
 
 _DIR_COLOURS = {1: "#1f6fb4", -1: "#8e44ad", 0: "#9a9a9a"}
+_DIR_MEDIAN = {1: "#0b3d66", -1: "#4a1f5c"}
 
 
 # ---- the diagnosis' view ------------------------------------------------------------------
@@ -74,16 +75,23 @@ def same_basis_overlay(diag: Diagnosis, stages: list[Stage], cloud: Points):
 
 
 def _panel(ax, x, y, shown, *, colour=STAGE_COLOURS[1], colours=None, overlay=None,
-           ylim=None):
+           ylim=None, groups=None):
     """One joint's cloud (only ``shown`` poses), its binned median and an overlay; returns
-    the y values drawn (for limits)."""
+    the y values drawn (for limits). ``groups`` (n,) of -1/0/+1 (approach directions)
+    draws one median per direction instead of one over both bands."""
     idx = subsample(len(x))
     idx = idx[shown[idx]]
     s = marker_size(len(idx))
     c = colour if colours is None else colours[idx]
     ax.scatter(x[idx], y[idx], s=s, c=c, alpha=0.55, linewidths=0)
-    bx, by = binned_median(x[shown], y[shown])
-    ax.plot(bx, by, color="black", lw=1.4)
+    if groups is None:
+        bx, by = binned_median(x[shown], y[shown])
+        ax.plot(bx, by, color="black", lw=1.4)
+    else:
+        for g in (1, -1):
+            sel = shown & (groups == g)
+            bx, by = binned_median(x[sel], y[sel])
+            ax.plot(bx, by, color=_DIR_MEDIAN[g], lw=1.4)
     ys = [y[idx]]
     if overlay is not None:
         ax.scatter(x[idx], overlay[idx], s=s * 0.7, color=CANDIDATE_COLOUR, alpha=0.8,
@@ -186,7 +194,7 @@ def fig_step(before: Fit, after: Fit, effect: str, rows, number: int,
         y_a = view.project(r_after)[:, j] * 1e6
         shown = view.lever_arm_mm[:, j] >= LEVER_ARM_MIN_MM
         x, xlabel = _step_x(eff, rows, before)
-        colours = None
+        colours = direction = None
         if eff.family == "backlash":
             direction = _directions(eff, rows, after)
             colours = np.array([_DIR_COLOURS.get(int(d), "#9a9a9a") for d in direction])
@@ -199,15 +207,18 @@ def fig_step(before: Fit, after: Fit, effect: str, rows, number: int,
         y_b, y_a = np.sum(r_b * u, axis=1) * 1e3, np.sum(r_after * u, axis=1) * 1e3
         shown = np.ones(rows.n, bool)
         x, xlabel = _step_x(eff, rows, before)
-        colours, masked = None, 0
+        colours = direction = None
+        masked = 0
         ylabel = "residual along the change, µm"
     if not shown.any():
         _empty(ax_b, "before")
         _empty(ax_a, "after")
     else:
         ylim = robust_ylim(y_b[shown], (y_b - y_a)[shown])
-        _panel(ax_b, x, y_b, shown, colours=colours, overlay=y_b - y_a, ylim=ylim)
-        _panel(ax_a, x, y_a, shown, colours=colours, colour=STAGE_COLOURS[2], ylim=ylim)
+        _panel(ax_b, x, y_b, shown, colours=colours, overlay=y_b - y_a, ylim=ylim,
+               groups=direction)
+        _panel(ax_a, x, y_a, shown, colours=colours, colour=STAGE_COLOURS[2], ylim=ylim,
+               groups=direction)
     rms_b, rms_a = before.calib["rms_mm"], after.calib["rms_mm"]
     ax_b.set_title(f"before: RMS {rms_b:.4f} mm (orange: what the step changes)")
     ax_a.set_title(f"after + {effect}: RMS {rms_a:.4f} mm")
@@ -228,8 +239,10 @@ def fig_step(before: Fit, after: Fit, effect: str, rows, number: int,
            ", along the direction the step moved each prediction")
         + "; orange: what the step changed in the model's prediction, on the same basis "
         "(the cloud scatters around it by what the new model still leaves). Right: the "
-        "residual after the step, same scale. Black: median in bins of x, broken where a "
-        "bin holds fewer than 5 poses."
+        "residual after the step, same scale. "
+        + ("Dark lines: the median of each approach direction"
+           if eff.family == "backlash" else "Black: the median")
+        + " in bins of x, broken where a bin holds fewer than 5 poses."
         + (f" {masked} of {rows.n} poses are masked: there joint {eff.joint} moves the "
            f"target by less than {LEVER_ARM_MIN_MM:g} mm per radian." if masked else ""))
     return StepFigure(fig, f"Step {number}: what adding {effect} fixed", caption)

@@ -157,12 +157,14 @@ def mark_blunders(ax, x: np.ndarray, y: np.ndarray, label: str | None = None) ->
     lo, hi = ax.get_ylim()
     inside = (y >= lo) & (y <= hi)
     kw = {"color": BLUNDER_COLOUR, "zorder": 5, "clip_on": False}
-    ax.scatter(x[inside], y[inside], marker="X", s=46, linewidths=0.6, edgecolors="white",
-               label=label, **kw)
     pad = 0.02 * (hi - lo)
     up, down = y > hi, y < lo
-    ax.scatter(x[up], np.full(up.sum(), hi - pad), marker="^", s=40,
-               label=None if inside.any() else label, **kw)
-    ax.scatter(x[down], np.full(down.sum(), lo + pad), marker="v", s=40,
-               label=None if inside.any() or up.any() else label, **kw)
+    groups = [(inside, y, "X"), (up, np.full(x.size, hi - pad), "^"),
+              (down, np.full(x.size, lo + pad), "v")]
+    for sel, yy, marker in groups:
+        if sel.any():
+            ax.scatter(x[sel], yy[sel], marker=marker, s=46 if marker == "X" else 40,
+                       linewidths=0.6 if marker == "X" else 0,
+                       edgecolors="white" if marker == "X" else None, label=label, **kw)
+            label = None
     ax.set_ylim(lo, hi)
