@@ -60,6 +60,8 @@ def run(args) -> int:
     if out.resolve() in [Path(f).resolve() for f in (args.data, args.params) if f]:
         raise UsageError(f"--out {args.out} would overwrite an input file")
     model, data = load_inputs(args)
+    if args.params and not Path(args.params).is_file():
+        raise UsageError(f"{args.params}: no such file")
     prov = wrap_errors(lambda: Provenance.of(model.name, args.data, data, args.params),
                        OSError)
     rep = wrap_errors(lambda: build_report(data, model, args.effects, args.params,

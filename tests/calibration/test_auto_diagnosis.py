@@ -107,3 +107,19 @@ def test_every_family_is_explained_in_its_own_words():
     assert "joint 4's angle" in texts["coupling:5"] and "every 3°" in texts["table3:4"]
     assert "thermal expansion" in texts["thermal"] and "tracker" in texts["tracker_scale"]
     assert len(set(texts.values())) == len(texts)
+
+
+def test_blunders_left_out_of_the_fit_do_not_stop_the_loop():
+    """Millimetre blunders in the calibration rows: the start fit leaves them out, and so
+    does the screening, which finds the same effects as on the clean data."""
+    from calibration.simulate import add_blunders
+
+    em, x, data = _capture("compliance:3,harmonic2:4", seed=5, n=500)
+    clean = auto_diagnose(identify(ErrorModel(UR10E), data), data)
+    bad, truth = add_blunders(data, 0.02, np.random.default_rng(5), rows=~data.is_valid)
+    assert len(truth.pose_id) >= 3
+    fit = identify(ErrorModel(UR10E), bad)
+    assert set(fit.outliers.ids) == set(truth.pose_id)
+    result = auto_diagnose(fit, bad)
+    assert [s.effect for s in result.steps] == [s.effect for s in clean.steps]
+    assert {"compliance:3", "harmonic2:4"} <= set(result.effects)
