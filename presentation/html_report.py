@@ -425,8 +425,14 @@ def _where_it_fails(page: _Page, diag: Diagnosis, stages: list[Stage],
                   "basis as the cloud (the cloud scatters around it by what the refitted "
                   "model still leaves).")
     is_compliance = best is not None and best.family == "compliance"
+    backlash = best.joint - 1 if best is not None and best.family == "backlash" else None
+    dir_txt = ("" if backlash is None else
+               f" Joint {backlash + 1}, where the diagnosis recommends backlash, is coloured "
+               "by approach direction (blue: the joint came turning positive, purple: "
+               "negative) with a median for each direction: two bands ±b apart.")
     parts.append(page.figure(
-        "fig-joints", fig_joints(cloud, None if is_compliance else overlay, blunders),
+        "fig-joints", fig_joints(cloud, None if is_compliance else overlay, blunders,
+                                 backlash),
         "Residual seen from each joint vs its angle",
         "For every joint, the correction of that joint's angle that would explain each "
         "pose's residual on its own (µrad), against the joint's angle; the black line is "
@@ -434,21 +440,23 @@ def _where_it_fails(page: _Page, diag: Diagnosis, stages: list[Stage],
         "cloud around zero means nothing depends on this joint's angle; a wave is a "
         "periodic (harmonic) error of as many cycles per turn as it has crests, a straight "
         "slope a scale (gear ratio) error, a smooth irregular curve an error for a "
-        "correction table. Backlash does not show here: it is two bands ±b by approach "
-        "direction, not a function of the angle."
-        + masked_note(cloud) + ("" if is_compliance else ov_txt) + marked))
+        "correction table. Backlash is not a function of the angle but two bands ±b apart "
+        "by approach direction (a single median across both bands means nothing)."
+        + dir_txt + masked_note(cloud) + ("" if is_compliance else ov_txt) + marked))
     tj = torque_joints(cloud)
     no_torque = sorted(set(range(cloud.q.shape[1])) - set(tj))
     if tj:
         parts.append(page.figure(
-            "fig-torque", fig_torque(cloud, overlay if is_compliance else None, blunders),
+            "fig-torque", fig_torque(cloud, overlay if is_compliance else None, blunders,
+                                     backlash),
             "Residual seen from each joint vs its gravity torque",
             "The same joint-equivalent residual against the gravity torque on that joint "
             "(model's mass model). A straight line through zero is joint compliance "
             "(deflection proportional to load): its slope is the missing compliance term."
             + (f" Joint(s) {', '.join(str(j + 1) for j in no_torque)} carry no gravity "
                "torque in the mass model and are not shown." if no_torque else "")
-            + masked_note(cloud, tj) + (ov_txt if is_compliance else "") + marked))
+            + (dir_txt if backlash in tj else "") + masked_note(cloud, tj)
+            + (ov_txt if is_compliance else "") + marked))
     parts.append(page.figure(
         "fig-time", fig_time(cloud, diag.noise_floor_mm, blunders), "Error over the capture",
         "Each calibration pose's 3-D error in capture order"

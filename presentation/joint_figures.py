@@ -102,9 +102,14 @@ def _panel(ax, x, y, shown, *, colour=STAGE_COLOURS[1], colours=None, overlay=No
     return ys
 
 
-def _masked_title(title: str, shown: np.ndarray) -> str:
+def _panel_title(joint: int, notes: list[str], shown: np.ndarray) -> str:
+    """``joint 2`` and what the panel shows besides (on a second line when long)."""
     hidden = int((~shown).sum())
-    return title + (f"  ({hidden} of {shown.size} masked)" if hidden else "")
+    notes = notes + ([f"{hidden} of {shown.size} masked"] if hidden else [])
+    text = ", ".join(notes)
+    if not text:
+        return f"joint {joint}"
+    return f"joint {joint} ({text})" if len(text) < 22 else f"joint {joint}\n{text}"
 
 
 def _empty(ax, title: str) -> None:
@@ -116,39 +121,49 @@ def _empty(ax, title: str) -> None:
 
 
 def _residual_grid(cloud: Points, joints: list[int], xs: np.ndarray, xs_blunders, xlabel: str,
-                   overlay, blunders: Points | None) -> Figure:
+                   overlay, blunders: Points | None, by_direction: int | None = None) -> Figure:
     fig, axes = grid(len(joints))
     for ax, j in zip(axes, joints, strict=False):
         shown = cloud.shown(j)
-        title = f"joint {j + 1}"
+        notes = []
         if not shown.any():
-            _empty(ax, title)
+            _empty(ax, f"joint {j + 1}")
             continue
         ov = overlay[1] * 1e6 if overlay is not None and overlay[0] == j else None
-        _panel(ax, xs[:, j], cloud.joint_rad[:, j] * 1e6, shown, overlay=ov)
+        colours = groups = None
+        if by_direction == j and cloud.dirs is not None:
+            groups = cloud.dirs[:, j]
+            colours = np.array([_DIR_COLOURS.get(int(d), "#9a9a9a") for d in groups])
+            notes.append("by direction")
+        _panel(ax, xs[:, j], cloud.joint_rad[:, j] * 1e6, shown, overlay=ov, colours=colours,
+               groups=groups)
         if ov is not None:
-            title += " (orange: fitted)"
+            notes.append("orange: the fix")
         if blunders is not None:
             b = blunders.shown(j)
             mark_blunders(ax, xs_blunders[b, j], blunders.joint_rad[b, j] * 1e6)
-        ax.set_title(_masked_title(title, shown))
+        ax.set_title(_panel_title(j + 1, notes, shown))
         ax.set_xlabel(xlabel.format(j=j + 1))
         ax.set_ylabel("equivalent joint error, µrad")
     return fig
 
 
-def fig_joints(cloud: Points, overlay=None, blunders: Points | None = None) -> Figure:
-    """Each joint's equivalent residual against its angle."""
+def fig_joints(cloud: Points, overlay=None, blunders: Points | None = None,
+               by_direction: int | None = None) -> Figure:
+    """Each joint's equivalent residual against its angle; on joint ``by_direction``
+    (0-based) coloured by approach direction, with a median for each (backlash)."""
     return _residual_grid(cloud, list(range(cloud.q.shape[1])), np.degrees(cloud.q),
                           None if blunders is None else np.degrees(blunders.q),
-                          "q{j}, deg", overlay, blunders)
+                          "q{j}, deg", overlay, blunders, by_direction)
 
 
-def fig_torque(cloud: Points, overlay=None, blunders: Points | None = None) -> Figure:
-    """Each joint's equivalent residual against its gravity torque."""
+def fig_torque(cloud: Points, overlay=None, blunders: Points | None = None,
+               by_direction: int | None = None) -> Figure:
+    """Each joint's equivalent residual against its gravity torque (``by_direction`` as
+    in :func:`fig_joints`)."""
     return _residual_grid(cloud, torque_joints(cloud), cloud.torque_nm,
                           None if blunders is None else blunders.torque_nm,
-                          "gravity torque on joint {j}, N·m", overlay, blunders)
+                          "gravity torque on joint {j}, N·m", overlay, blunders, by_direction)
 
 
 def masked_note(cloud: Points, joints: list[int] | None = None) -> str:

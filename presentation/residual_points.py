@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calibration.dataset import Dataset
+from calibration.effects.physical import derive_directions
 from calibration.gravity import gravity_torques, has_mass_model
 from calibration.identify import Fit
 from calibration.workflow import joint_view
@@ -37,6 +38,8 @@ class Points:
     torque_nm : (n, N) gravity torques, None without a mass model
     position : (n,) place among the data's calibration rows in capture order (0-based)
     t_s, temp_c : (n,) or None
+    dirs : (n, N) approach direction of every joint (-1, 0, +1): the data's, else derived
+        from consecutive rows
     """
 
     pose_id: list[str]
@@ -50,6 +53,7 @@ class Points:
     position: np.ndarray
     t_s: np.ndarray | None
     temp_c: np.ndarray | None
+    dirs: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -77,9 +81,10 @@ def points_of(fit: Fit, rows: Dataset, order: Dataset | None = None) -> Points:
     ref_ids = ref.calib().pose_id if ref.is_valid.any() else ref.pose_id
     where = {p: i for i, p in enumerate(ref_ids)}
     position = np.array([where.get(p, i) for i, p in enumerate(rows.pose_id)], float)
+    dirs = rows.dirs if rows.dirs is not None else derive_directions(rows.q)
     return Points(list(rows.pose_id), np.asarray(rows.lines), rows.q, rows.tracker_p_smr,
                   view.residuals, view.joint_residual_rad, view.lever_arm_mm, torque,
-                  position, rows.t_s, rows.temp_c)
+                  position, rows.t_s, rows.temp_c, np.asarray(dirs))
 
 
 def blunder_rows(data: Dataset | None, ids: list[str]) -> Dataset | None:
