@@ -234,3 +234,21 @@ def test_candidates_are_listed_in_ranking_order(story):
     for group in ([c for c in rest if c.significant], [c for c in rest if not c.significant]):
         scores = [c.score for c in group]
         assert scores == sorted(scores, reverse=True)
+
+
+def test_backlash_joint_is_split_by_approach_direction(story):
+    """Before the backlash step, joint 2's residual is two bands: coloured by direction,
+    one median per band, about 2b apart (a little less: the model without backlash absorbs
+    part of it in its other parameters, since the approach direction correlates with the
+    angle)."""
+    _, _, rep = story
+    k = [s.effect for s in rep.story.added].index("backlash:2")
+    before, after = rep.story.steps[k].fit, rep.story.steps[k + 1].fit
+    cloud = points_of(before, before.data)
+    fig = fig_joints(cloud, by_direction=1)
+    medians = [ln for ln in fig.axes[1].lines if len(ln.get_xdata()) > 2]
+    assert len(medians) == 2
+    b = after.param("backlash.j2.b")[0] * 1e6
+    levels = sorted(float(np.nanmedian(ln.get_ydata())) for ln in medians)
+    gap = levels[1] - levels[0]
+    assert 0.7 * 2 * abs(b) < gap < 1.1 * 2 * abs(b)
