@@ -330,6 +330,10 @@ def _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress)
         notes.append("backlash candidates: approach directions derived from consecutive "
                      "rows in capture order (the data have no dir columns)")
     calib = data.calib() if data.is_valid.any() else data
+    # screen without the starting fit's blunders (else a few millimetre blunders swamp
+    # every candidate's F-test and the loop stops early); points a later, more flexible
+    # fit leaves out stay in: they may be a local effect still to be found
+    calib = _without_blunders(calib, fit)
     valid = data.valid() if data.is_valid.any() else None
     sigma = calib.sigma()
     floor = None if sigma is None else math.sqrt(3.0) * sigma
@@ -350,9 +354,7 @@ def _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress)
             reason = f"time budget of {budget_s:g} s spent (--budget-s)"
             break
         ts = time.perf_counter()
-        # screen on the rows the current fit used: its blunders left out (else a few
-        # millimetre blunders swamp every candidate's F-test and the loop stops early)
-        lin = linearise(cur, _without_blunders(calib, cur), valid)
+        lin = linearise(cur, calib, valid)
         effects = candidate_effects(cur, data)
         if not effects:
             reason = "no candidate effects left to try"
