@@ -44,10 +44,13 @@ from .screening import Screened, kfold_errors, linearise, screen
 
 @dataclass
 class Heldout:
-    """Held-out error of a fit: per pose squared 3-D error (mm²) and how it was measured."""
+    """Held-out error of a fit: per pose squared 3-D error (mm²) and how it was measured;
+    ``ids`` the poses (fits that left out other blunders are compared on the poses both
+    kept)."""
 
     sq: np.ndarray
     method: str
+    ids: np.ndarray | None = None
 
     @property
     def rms_mm(self) -> float:
@@ -189,13 +192,21 @@ def heldout_errors(fit: Fit, folds: int = 10, seed: int = 0) -> Heldout:
     """Per pose squared error on held-out poses: the validation rows when there are at
     least :data:`MIN_HELDOUT`, else ``folds``-fold cross-validation of the linearised fit."""
     if fit.valid is not None and fit.valid["n"] >= MIN_HELDOUT:
-        return Heldout(np.sum(fit.valid_residuals**2, axis=1), "validation poses")
-    return Heldout(kfold_errors(fit, folds, seed), f"{folds}-fold cross-validation")
+        return Heldout(np.sum(fit.valid_residuals**2, axis=1), "validation poses",
+                       np.asarray(fit.valid_data.pose_id, dtype=object))
+    return Heldout(kfold_errors(fit, folds, seed), f"{folds}-fold cross-validation",
+                   np.asarray(fit.data.pose_id, dtype=object))
 
 
 def paired_gain(before: Heldout, after: Heldout) -> tuple[float, float]:
-    """Mean drop of the squared held-out error per pose (mm²) and its standard error."""
-    d = before.sq - after.sq
+    """Mean drop of the squared held-out error per pose (mm²) and its standard error, over
+    the poses both held out (a refit may leave out other blunders)."""
+    b, a = before.sq, after.sq
+    if (before.ids is not None and after.ids is not None
+            and not np.array_equal(before.ids, after.ids)):
+        _, ib, ia = np.intersect1d(before.ids, after.ids, return_indices=True)
+        b, a = b[ib], a[ia]
+    d = b - a
     se = float(d.std(ddof=1) / math.sqrt(d.size)) if d.size > 1 else float("inf")
     return float(d.mean()), se
 
