@@ -152,7 +152,8 @@ def steps_table(story: AutoStory, floor: float | None) -> str:
                  "the model the diagnosis starts from: "
                  + effects_html(st.fit.error_model.labels))
         rows.append(
-            f"<tr><td class=\"num\">{k}</td><td>{what}</td><td class=\"num\">{st.n_params}</td>"
+            f'<tr><td class="num">{k}</td><td class="nw">{what}</td>'
+            f'<td class="num">{st.n_params}</td>'
             f'<td class="num">{fmt(st.calib_rms_mm)}</td>'
             f'<td class="num">{fmt(st.heldout_rms_mm)}</td>'
             f'<td class="num">{"" if st.seconds is None else f"{st.seconds:.1f}"}</td>'
@@ -280,7 +281,7 @@ tr.floor td{color:#c0392b}
 .dot{display:inline-block;width:9px;height:9px;border-radius:50%;margin-right:6px}
 figure{margin:18px 0}figure img{max-width:100%;height:auto;display:block}
 figcaption{font-size:12.5px;color:#39424c;max-width:800px;margin-top:4px}
-.scroll{overflow-x:auto;max-width:100%}
+.scroll{overflow-x:auto;max-width:100%}.nw{white-space:nowrap}
 dl.prov{display:grid;grid-template-columns:max-content 1fr;gap:1px 14px;font-size:12.5px;
 color:#39424c;margin:6px 0 4px}
 dl.prov dt{color:#5b6470}dl.prov dd{margin:0;overflow-wrap:anywhere}
