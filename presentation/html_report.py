@@ -355,14 +355,14 @@ def _steps_figure(page: _Page, stages: list[Stage], story: AutoStory,
     n = len(story.added)
     return page.figure(
         "fig-steps", fig, "RMS error at every step",
-        f"The error falling step by step: the uncalibrated robot (nominal kinematics, base "
-        f"and tool fitted), the start model, then the model after each of the {n} step"
-        f"{'s' if n != 1 else ''} of the automatic diagnosis (each adds the one missing "
-        "effect that lowers the held-out error most). Solid: RMS of the 3-D error on the "
-        f"calibration poses; dashed: on held-out poses ({html.escape(story.heldout_method)}), "
-        "the figure to trust; log scale. The red line is the noise floor, what a perfect "
-        "model would leave with this tracker. "
-        f"Stopped: {html.escape(story.stop_reason)}.")
+        "The error falling step by step: the uncalibrated robot (nominal kinematics, base "
+        "and tool fitted), the start model, then the model after "
+        + (f"each of the {n} steps" if n != 1 else "the one step")
+        + " of the automatic diagnosis (a step adds the one missing effect that lowers the "
+        "held-out error most). Solid: RMS of the 3-D error on the calibration poses; "
+        f"dashed: on held-out poses ({html.escape(story.heldout_method)}), the figure to "
+        "trust; log scale. The red line is the noise floor, what a perfect model would "
+        "leave with this tracker.")
 
 
 def _step_section(page: _Page, story: AutoStory) -> str:
