@@ -1,13 +1,17 @@
 """Render a ``cellcal report`` page with headless Chromium and check every plot decoded.
 
     .venv/bin/python benchmarks/report_screenshot.py [REPORT.html] [--out shot.png]
+                                                     [--width 800] [--plain]
 
-Without REPORT.html, simulates a UR5e with a hidden joint-3 compliance (300 + 300 poses),
-writes its report to a temporary directory and renders that. A small script is injected
-into a copy of the page: once loaded, it sets ``document.title`` to
-``IMAGES ok/total`` (an <img> counts as ok when it decoded: ``complete`` and
-``naturalWidth > 0``), which Chromium prints with ``--dump-dom``. The screenshot is
-written too (default report_screenshot.png) for a person to look at.
+Without REPORT.html, simulates a UR5e with three hidden effects (joint-3 compliance, a
+twice-per-turn error of joint 4, joint-2 backlash; 300 + 300 poses, 1 % blunders in the
+calibration rows), writes its report with the automatic diagnosis' story (``--plain``: the
+three-stage report without it) to a temporary directory, prints a table of its size and
+build times, and renders it. A small script is injected into a copy of the page: once
+loaded, it sets ``document.title`` to ``IMAGES ok/total`` (an <img> counts as ok when it
+decoded: ``complete`` and ``naturalWidth > 0``), which Chromium prints with
+``--dump-dom``. The screenshot is written too (default report_screenshot.png, 800 px wide:
+the narrowest window the report is made for) for a person to look at.
 
 Exit codes: 0 every image decoded, 1 some did not (or Chromium failed), 2 no Chromium
 (install it with ``apt-get install -y chromium``).
@@ -49,25 +53,38 @@ def find_chromium() -> str | None:
     return "/usr/bin/chromium" if Path("/usr/bin/chromium").exists() else None
 
 
-def make_report(workdir: Path) -> Path:
+def make_report(workdir: Path, auto: bool = True) -> Path:
     import numpy as np
 
     from calibration import DEFAULT_EFFECTS, ErrorModel, load_model
-    from calibration.simulate import random_joints, realistic_truth, simulate
+    from calibration.simulate import add_blunders, random_joints, realistic_truth, simulate
     from presentation.html_report import build_report
+    from presentation.provenance import Provenance
 
+    hidden = "compliance:3,harmonic2:4,backlash:2"
     model = load_model("ur5e")
-    em = ErrorModel(model, DEFAULT_EFFECTS + ",compliance:3")
+    em = ErrorModel(model, DEFAULT_EFFECTS + "," + hidden)
     rng = np.random.default_rng(1)
     x = realistic_truth(em, rng)
-    q = random_joints(model, 600, rng)
-    data = simulate(em, x, q, 0.015, rng, is_valid=np.arange(600) >= 300)
-    data.source = "simulated UR5e, hidden compliance:3"
+    n = 600
+    q = random_joints(model, n, rng)
+    dirs = np.zeros((n, 6), int)
+    dirs[1:] = np.sign(np.diff(q, axis=0))
+    data = simulate(em, x, q, 0.015, rng, is_valid=np.arange(n) >= 300, dirs=dirs)
+    data, _ = add_blunders(data, 0.01, np.random.default_rng(5), rows=~data.is_valid)
+    data.source = f"simulated UR5e, hidden {hidden}"
+    csv = workdir / "sim.csv"
+    data.to_csv(csv)
     t0 = time.perf_counter()
-    rep = build_report(data, model)
+    rep = build_report(data, model, auto=auto, provenance=Provenance.of(model.name, csv, data))
     path = rep.write(workdir / "report.html")
-    print(f"report: {path} ({path.stat().st_size / 1e6:.2f} MB, {len(rep.figures)} figures, "
-          f"{time.perf_counter() - t0:.1f} s)")
+    total = time.perf_counter() - t0
+    t = rep.timings
+    print(f"{'poses':>6} {'figures':>7} {'MB':>5} {'fit s':>6} {'auto s':>6} "
+          f"{'diag s':>6} {'render s':>8} {'total s':>7}")
+    print(f"{n:>6} {len(rep.figures):>7} {path.stat().st_size / 1e6:>5.2f} "
+          f"{t.get('fit_s', 0):>6.1f} {t.get('auto_s', 0):>6.1f} {t.get('diagnose_s', 0):>6.1f} "
+          f"{t.get('render_s', 0):>8.1f} {total:>7.1f}")
     return path
 
 
@@ -81,8 +98,10 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("report", nargs="?", help="report HTML (default: make one)")
     ap.add_argument("--out", default="report_screenshot.png", help="screenshot PNG")
-    ap.add_argument("--width", type=int, default=1400)
-    ap.add_argument("--height", type=int, default=5000)
+    ap.add_argument("--width", type=int, default=800)
+    ap.add_argument("--height", type=int, default=9000)
+    ap.add_argument("--plain", action="store_true",
+                    help="without REPORT.html: the report without the automatic diagnosis")
     args = ap.parse_args(argv)
 
     chromium = find_chromium()
@@ -92,7 +111,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     with tempfile.TemporaryDirectory(prefix="cellcal-report-") as tmp:
         tmp = Path(tmp)
-        page = Path(args.report).resolve() if args.report else make_report(tmp)
+        page = (Path(args.report).resolve() if args.report
+                else make_report(tmp, auto=not args.plain))
         text = page.read_text(encoding="utf-8")
         n_img = len(re.findall(r"<img\b", text))
         probe = tmp / "probe.html"

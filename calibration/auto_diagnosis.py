@@ -44,10 +44,13 @@ from .screening import Screened, kfold_errors, linearise, screen
 
 @dataclass
 class Heldout:
-    """Held-out error of a fit: per pose squared 3-D error (mm²) and how it was measured."""
+    """Held-out error of a fit: per pose squared 3-D error (mm²) and how it was measured;
+    ``ids`` the poses (fits that left out other blunders are compared on the poses both
+    kept)."""
 
     sq: np.ndarray
     method: str
+    ids: np.ndarray | None = None
 
     @property
     def rms_mm(self) -> float:
@@ -189,13 +192,21 @@ def heldout_errors(fit: Fit, folds: int = 10, seed: int = 0) -> Heldout:
     """Per pose squared error on held-out poses: the validation rows when there are at
     least :data:`MIN_HELDOUT`, else ``folds``-fold cross-validation of the linearised fit."""
     if fit.valid is not None and fit.valid["n"] >= MIN_HELDOUT:
-        return Heldout(np.sum(fit.valid_residuals**2, axis=1), "validation poses")
-    return Heldout(kfold_errors(fit, folds, seed), f"{folds}-fold cross-validation")
+        return Heldout(np.sum(fit.valid_residuals**2, axis=1), "validation poses",
+                       np.asarray(fit.valid_data.pose_id, dtype=object))
+    return Heldout(kfold_errors(fit, folds, seed), f"{folds}-fold cross-validation",
+                   np.asarray(fit.data.pose_id, dtype=object))
 
 
 def paired_gain(before: Heldout, after: Heldout) -> tuple[float, float]:
-    """Mean drop of the squared held-out error per pose (mm²) and its standard error."""
-    d = before.sq - after.sq
+    """Mean drop of the squared held-out error per pose (mm²) and its standard error, over
+    the poses both held out (a refit may leave out other blunders)."""
+    b, a = before.sq, after.sq
+    if (before.ids is not None and after.ids is not None
+            and not np.array_equal(before.ids, after.ids)):
+        _, ib, ia = np.intersect1d(before.ids, after.ids, return_indices=True)
+        b, a = b[ib], a[ia]
+    d = b - a
     se = float(d.std(ddof=1) / math.sqrt(d.size)) if d.size > 1 else float("inf")
     return float(d.mean()), se
 
@@ -263,6 +274,15 @@ def _retune_tables(fit: Fit, ho: Heldout, data: Dataset, folds: int, seed: int):
     return fit, ho
 
 
+def _without_blunders(calib: Dataset, fit: Fit) -> Dataset:
+    """``calib`` without the rows ``fit`` left out as blunders."""
+    screen = getattr(fit, "outliers", None)
+    if screen is None or not screen.excluded:
+        return calib
+    return calib.subset(~np.isin(np.asarray(calib.pose_id, dtype=object),
+                                 np.asarray(screen.ids, dtype=object)))
+
+
 def _significant(s: Screened, n_screened: int, alpha: float) -> bool:
     return s.edf >= 0.5 and s.log10_p + math.log10(max(n_screened, 1)) < math.log10(alpha)
 
@@ -321,6 +341,10 @@ def _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress)
         notes.append("backlash candidates: approach directions derived from consecutive "
                      "rows in capture order (the data have no dir columns)")
     calib = data.calib() if data.is_valid.any() else data
+    # screen without the starting fit's blunders (else a few millimetre blunders swamp
+    # every candidate's F-test and the loop stops early); points a later, more flexible
+    # fit leaves out stay in: they may be a local effect still to be found
+    calib = _without_blunders(calib, fit)
     valid = data.valid() if data.is_valid.any() else None
     sigma = calib.sigma()
     floor = None if sigma is None else math.sqrt(3.0) * sigma

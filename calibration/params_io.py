@@ -15,13 +15,22 @@ The file embeds the nominal model, so it is self-contained::
      "solver_info": {"xi": 2e-05, "condition_class": "strong", "rejected": ["17"], ...},
      "outliers": [{"pose_id": "p017", "residual_mm": 2.41, "along_beam": true,
                    "excluded": true, "line": 19, "angle_to_beam_deg": 8.2}, ...],
-     "outlier_check": {"mode": "exclude", "clean_cloud": true, "threshold_mm": 0.07, ...}}
+     "outlier_check": {"mode": "exclude", "clean_cloud": true, "threshold_mm": 0.07, ...},
+     "auto_steps": {"start_effects": ["geometric", "base", "tool"],
+                    "start_calib_rms_mm": 0.21, "start_heldout_rms_mm": 0.23,
+                    "heldout_method": "validation poses", "noise_floor_mm": 0.026,
+                    "steps": [{"effect": "compliance:3", "n_params": 1,
+                               "calib_rms_mm": 0.03, "heldout_rms_mm": 0.031,
+                               "seconds": 1.2, "explanation": "..."}, ...],
+                    "stop_reason": "..."}}
 
 ``correlation``, ``strongest_correlations``, ``solver_info`` (only for solvers with
 extras: ridge, besa, sa), ``outliers`` (the blunders left out of the fit, or only named
 with ``--outliers flag``) and ``outlier_check`` were added after version 1 and are
 ignored when reading the parameters (:func:`read_outliers` reads the blunders; a file
-without them has none); ``smoothing`` (effect name -> the penalty weight of a correction
+without them has none); so is ``auto_steps``, written by ``diagnose --auto --out``: the
+steps the automatic diagnosis took to reach these parameters (:func:`read_auto_steps`);
+``smoothing`` (effect name -> the penalty weight of a correction
 table) is read back. A table's knots are its parameter names (``table5.j2.kp010``: +10°),
 so a table whose knots span only the data's angles reads back as it was fitted.
 
@@ -49,7 +58,10 @@ class ParamsError(ValueError):
     """A params.json that cannot be used."""
 
 
-def fit_to_dict(fit: Fit, effect_files: list[str] | None = None) -> dict:
+def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto=None) -> dict:
+    """The params.json mapping of ``fit``; ``auto`` (an
+    :class:`~calibration.auto_diagnosis.AutoDiagnosis` whose final fit ``fit`` is) adds
+    its steps as ``auto_steps``."""
     em = fit.error_model
     out = {
         "format": FORMAT,
@@ -81,7 +93,34 @@ def fit_to_dict(fit: Fit, effect_files: list[str] | None = None) -> dict:
     if fit.outliers is not None:
         out["outliers"] = fit.outliers.to_json()
         out["outlier_check"] = fit.outliers.check_json()
+    if auto is not None:
+        out["auto_steps"] = auto_steps_json(auto)
     return out
+
+
+def auto_steps_json(auto) -> dict:
+    """The ``auto_steps`` record of an :class:`~calibration.auto_diagnosis.AutoDiagnosis`:
+    the start model, every step (as in ``diagnose --auto --json``) and why it stopped."""
+    return {
+        "start_effects": list(auto.start.error_model.labels),
+        "start_calib_rms_mm": float(auto.start.calib["rms_mm"]),
+        "start_heldout_rms_mm": float(auto.start_heldout_rms_mm),
+        "heldout_method": auto.heldout_method,
+        "noise_floor_mm": auto.noise_floor_mm,
+        "steps": [s.to_json() for s in auto.steps],
+        "stop_reason": auto.stop_reason,
+    }
+
+
+def read_auto_steps(source: str | Path | dict) -> dict | None:
+    """The ``auto_steps`` record of a params.json (a path or its mapping), None when the
+    file has none (written by ``calibrate``, or before steps were recorded) or it is not
+    a mapping with a ``steps`` list."""
+    data = source if isinstance(source, dict) else _read_json(Path(source))
+    rec = data.get("auto_steps")
+    if not isinstance(rec, dict) or not isinstance(rec.get("steps"), list):
+        return None
+    return rec
 
 
 def params_by_name(fit: Fit) -> dict:
@@ -113,8 +152,10 @@ def solver_summary(fit: Fit) -> dict:
     return out
 
 
-def save_params(fit: Fit, path: str | Path, effect_files: list[str] | None = None) -> None:
-    Path(path).write_text(json.dumps(fit_to_dict(fit, effect_files), indent=1) + "\n")
+def save_params(fit: Fit, path: str | Path, effect_files: list[str] | None = None,
+                auto=None) -> None:
+    """Write :func:`fit_to_dict` (with ``auto``'s steps when given) as JSON."""
+    Path(path).write_text(json.dumps(fit_to_dict(fit, effect_files, auto), indent=1) + "\n")
 
 
 def params_from_dict(

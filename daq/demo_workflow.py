@@ -4,8 +4,9 @@
 hidden physical effect) behind its wire protocols on loopback, connects the real drivers
 (Modbus TCP robot, line-protocol tracker over TCP), sets up the measurement frame,
 captures calibration and validation poses into a SQLite run store, exports the
-measurement CSV, calibrates the default model, diagnoses, adds the recommended effect,
-calibrates again and writes the HTML report.
+measurement CSV, calibrates the default model, diagnoses, lets the automatic diagnosis
+add the missing effects one at a time, and writes the HTML report, which tells that story
+step by step.
 """
 
 from __future__ import annotations
@@ -17,10 +18,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from calibration import load_csv
+from calibration.auto_diagnosis import auto_diagnose
+from calibration.diagnosis import diagnose
 from calibration.params_io import save_params
-from calibration.workflow import UNCALIBRATED_LABEL, staged_fit
+from calibration.workflow import UNCALIBRATED_LABEL, AutoStory, staged_fit
 from drivers.urls import open_robot, open_tracker
-from presentation.html_report import render_report
+from presentation.html_report import render_report, story_stages
+from presentation.provenance import Provenance
 from sim_drivers.model_truth import ModelTruth
 from sim_drivers.serve import ServeConfig, SimStack
 
@@ -130,27 +134,31 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     data = load_csv(csv_path, model)  # through the interchange format, as a user would
     floor = data.noise_floor_mm()
     result.noise_floor_mm = floor
-    sf = staged_fit(data, model)
+    sf = staged_fit(data, model, refit=False)
     fit, diag = sf.current, sf.diagnosis
     say(f"[4/7] calibrated {','.join(fit.error_model.labels)}: validation RMS "
         f"{fit.valid['rms_mm']:.4f} mm (uncalibrated {sf.uncalibrated.valid['rms_mm']:.3f} "
         f"mm, noise floor {floor:.4f} mm)")
     say(f"[5/7] diagnosis ({diag.n_screened} candidates): {diag.recommendation()}")
-    stages = [(UNCALIBRATED_LABEL, sf.uncalibrated), (",".join(fit.error_model.labels), fit)]
-    final = fit
-    if sf.improved is not None:
-        result.found = sf.added_effect
-        final = sf.improved
-        stages.append((f"+ {sf.added_effect}", final))
-        say(f"[6/7] calibrated --effects {diag.next_effects()}: validation RMS "
-            f"{final.valid['rms_mm']:.4f} mm")
+    auto = auto_diagnose(fit, data)
+    story = AutoStory.from_auto(auto, sf.uncalibrated)
+    stages = story_stages(sf.uncalibrated, story, ",".join(fit.error_model.labels),
+                          UNCALIBRATED_LABEL)
+    final = story.final.fit
+    added = [s.effect for s in story.added]
+    if added:
+        result.found = hidden if hidden in added else added[0]
+        say(f"[6/7] calibrated --effects {','.join(final.error_model.labels)}: validation "
+            f"RMS {final.valid['rms_mm']:.4f} mm")
+        diag = diagnose(final, data)
     else:
         say("[6/7] nothing to add")
-    save_params(final, params_path)
-    render_report(diag, stages, title=f"cellcal demo, seed {seed}").write(report_path)
+    save_params(final, params_path, auto=auto)
+    render_report(diag, stages, title=f"cellcal demo, seed {seed}", story=story, data=data,
+                  provenance=Provenance.of(model.name, csv_path, data)).write(report_path)
     say(f"[7/7] wrote {params_path} and {report_path}")
 
-    result.rms = {label: f.valid["rms_mm"] for label, f in stages}
+    result.rms = {s.label: s.fit.valid["rms_mm"] for s in stages}
     result.seconds = time.perf_counter() - t_start
     result.files = {"store": str(db_path), "csv": str(csv_path), "params": str(params_path),
                     "report": str(report_path)}

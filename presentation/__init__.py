@@ -7,7 +7,13 @@ this package loads nothing else: matplotlib comes with the modules that draw.
 Modules
 -------
 html_report  build_report / render_report: the self-contained HTML page (Report, ReportError)
-figures      the report's matplotlib figures (Agg canvases, deterministic PNGs), Stage
+html_tables  the report's tables (statistics, steps, blunders, candidates, parameters), style
+figures      the report's figures of the whole story (RMS by stage and by step, histograms,
+             workspace, error over the capture, periodogram)
+joint_figures  the residual seen from each joint, and each auto step's before/after
+plot_base    what the figures share: style, Stage, deterministic PNGs, binned medians
+residual_points  the poses as a fit sees them (joint-equivalent residual, lever arm, torque)
+provenance   Provenance: software, date, data file and SHA-256, run id, model
 ridge_plot   plot_ridge: L-curve, GCV and ridge trace of a ridge fit
 summaries    fit_summary (calibrate --json), zero_summary (zero --json)
 plan_figure  plan_figure: a capture plan with the robot, the tracker and the beams

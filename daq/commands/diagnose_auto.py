@@ -80,8 +80,8 @@ def run_auto(args, fit, data) -> int:
     result = auto_diagnose(fit, data, max_steps=args.max_steps, budget_s=args.budget_s,
                            progress=progress)
     if args.out:
-        write_atomic(args.out, json.dumps(fit_to_dict(result.fit, args.effect_file),
-                                          indent=1) + "\n")
+        write_atomic(args.out, json.dumps(fit_to_dict(result.fit, args.effect_file,
+                                                      auto=result), indent=1) + "\n")
     if quiet:
         print_json(result.to_json(args.out))
         return 0

@@ -107,3 +107,36 @@ def test_every_family_is_explained_in_its_own_words():
     assert "joint 4's angle" in texts["coupling:5"] and "every 3°" in texts["table3:4"]
     assert "thermal expansion" in texts["thermal"] and "tracker" in texts["tracker_scale"]
     assert len(set(texts.values())) == len(texts)
+
+
+def test_blunders_left_out_of_the_fit_do_not_stop_the_loop():
+    """Millimetre blunders in the calibration rows: the start fit leaves them out, and so
+    does the screening, which finds the same effects as on the clean data."""
+    from calibration.simulate import add_blunders
+
+    em, x, data = _capture("compliance:3,harmonic2:4", seed=5, n=500)
+    clean = auto_diagnose(identify(ErrorModel(UR10E), data), data)
+    bad, truth = add_blunders(data, 0.02, np.random.default_rng(5), rows=~data.is_valid)
+    assert len(truth.pose_id) >= 3
+    fit = identify(ErrorModel(UR10E), bad)
+    assert set(fit.outliers.ids) == set(truth.pose_id)
+    result = auto_diagnose(fit, bad)
+    assert [s.effect for s in result.steps] == [s.effect for s in clean.steps]
+    assert {"compliance:3", "harmonic2:4"} <= set(result.effects)
+
+
+def test_cross_validated_errors_of_fits_without_other_blunders_are_paired_by_pose():
+    """Fewer validation rows than MIN_HELDOUT: held-out errors are cross-validated over each
+    fit's own rows; a refit that leaves out other blunders is compared on the poses both
+    kept (it used to crash on the mismatched lengths)."""
+    from calibration.auto_diagnosis import Heldout, paired_gain
+
+    ids = np.array([f"p{i}" for i in range(6)], dtype=object)
+    before = Heldout(np.array([1.0, 2.0, 3.0, 4.0, 5.0, 6.0]), "cv", ids)
+    after = Heldout(np.array([0.5, 1.5, 3.5, 5.5]), "cv", ids[[0, 1, 3, 5]])
+    gain, se = paired_gain(before, after)
+    d = np.array([0.5, 0.5, 0.5, 0.5])  # p0, p1, p3, p5
+    assert gain == pytest.approx(d.mean()) and se == pytest.approx(0.0)
+    # the same count, other poses: still paired by id
+    after2 = Heldout(np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), "cv", ids[::-1])
+    assert paired_gain(before, after2)[0] == pytest.approx(3.5)

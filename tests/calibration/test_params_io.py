@@ -44,3 +44,32 @@ def test_bad_params_files(tmp_path):
     p.write_text(json.dumps(doc))
     with pytest.raises(ParamsError, match="unit 'rad', expected 'deg'"):
         load_params(p)
+
+
+def test_auto_steps_are_recorded_and_read_back(tmp_path):
+    """``diagnose --auto --out``'s steps ride along in params.json; the parameters read as
+    before, and a file without them (``calibrate``) has none."""
+    from calibration.auto_diagnosis import auto_diagnose
+    from calibration.params_io import read_auto_steps
+
+    m = load_model("ur5e")
+    em = ErrorModel(m, "geometric,base,tool,compliance:3")
+    rng = np.random.default_rng(3)
+    data = simulate(em, realistic_truth(em, rng), random_joints(m, 200, rng), 0.015, rng)
+    start = identify(ErrorModel(m), data)
+    auto = auto_diagnose(start, data, max_steps=2)
+    assert [s.effect for s in auto.steps][:1] == ["compliance:3"]
+    p = tmp_path / "auto.json"
+    save_params(auto.fit, p, auto=auto)
+    rec = read_auto_steps(p)
+    assert rec["start_effects"] == ["geometric", "base", "tool"]
+    assert [s["effect"] for s in rec["steps"]] == [s.effect for s in auto.steps]
+    assert rec["steps"][0] == auto.steps[0].to_json()
+    assert rec["stop_reason"] == auto.stop_reason
+    assert rec["start_heldout_rms_mm"] == pytest.approx(auto.start_heldout_rms_mm)
+    em2, x, _ = load_params(p)
+    assert em2.labels == auto.effects
+    np.testing.assert_allclose(x, auto.fit.values, rtol=1e-12, atol=1e-12)
+    plain = tmp_path / "plain.json"
+    save_params(start, plain)
+    assert read_auto_steps(plain) is None and read_auto_steps({"auto_steps": 3}) is None

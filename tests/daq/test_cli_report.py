@@ -67,3 +67,98 @@ def test_missing_data_file_exits_2(tmp_path, capsys):
     assert main(["report", str(tmp_path / "none.csv"), "--model", "ur5e",
                  "--out", str(tmp_path / "r.html")]) == 2
     assert "report" in capsys.readouterr().err
+
+
+def _sha256(path) -> str:
+    import hashlib
+
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_provenance_names_the_file_its_hash_and_the_run(c3_csv, tmp_path, capsys):
+    data = tmp_path / "run.csv"
+    data.write_text("# run: 42\n" + c3_csv.read_text())
+    out = tmp_path / "r.html"
+    capsys.readouterr()
+    assert main(["report", str(data), "--model", "ur5e", "--out", str(out), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    prov = doc["provenance"]
+    assert prov["data_sha256"] == _sha256(data) and prov["data_file"] == str(data)
+    assert prov["run_id"] == "42" and prov["model"] == "ur5e"
+    assert prov["software"].startswith("cellcal ") and prov["created"].endswith("+00:00")
+    page = out.read_text()
+    block = re.search(r'<dl class="prov" id="provenance">(.*?)</dl>', page, re.S)[1]
+    assert _sha256(data) in block and ">42<" in block and str(data) in block
+    # a file without a run says so
+    capsys.readouterr()
+    assert main(["report", str(c3_csv), "--model", "ur5e", "--out", str(out)]) == 0
+    assert "not recorded in the data file" in out.read_text()
+
+
+def test_auto_steps_recorded_by_diagnose_show_in_the_report(tmp_path, capsys):
+    data = tmp_path / "two.csv"
+    assert main(["simulate", "--model", "ur5e", "--hidden", "compliance:3,harmonic2:4",
+                 "--poses", "250", "--valid", "150", "--blunders", "0.02",
+                 "--out", str(data)]) == 0
+    params = tmp_path / "auto.json"
+    capsys.readouterr()
+    assert main(["diagnose", str(data), "--model", "ur5e", "--auto", "--out", str(params),
+                 "--json"]) == 0
+    auto = json.loads(capsys.readouterr().out)
+    recorded = json.loads(params.read_text())["auto_steps"]
+    assert [s["effect"] for s in recorded["steps"]] == [s["effect"] for s in auto["steps"]]
+    assert recorded["start_effects"] == auto["start_effects"]
+    assert {"compliance:3", "harmonic2:4"} <= {s["effect"] for s in auto["steps"]}
+    out = tmp_path / "p.html"
+    assert main(["report", str(data), "--model", "ur5e", "--params", str(params),
+                 "--out", str(out), "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    k = len(auto["steps"])
+    assert doc["steps"]["recorded"] is True
+    assert [s["effect"] for s in doc["steps"]["steps"]] == [None] + [
+        s["effect"] for s in auto["steps"]]
+    assert doc["figures"][0] == "fig-steps"
+    assert doc["figures"][1:k + 1] == [f"fig-step-{i}" for i in range(1, k + 1)]
+    assert doc["provenance"]["params_sha256"] == _sha256(params)
+    # the last step is the given parameters: the same numbers as diagnose reported
+    assert doc["steps"]["steps"][-1]["calib_rms_mm"] == pytest.approx(
+        auto["steps"][-1]["calib_rms_mm"], rel=1e-6)
+    page = out.read_text()
+    assert "Replayed from the steps recorded" in page
+    # the blunders diagnose left out are listed in the report too
+    left = {o["pose_id"] for o in auto["outliers"]}
+    assert left and left <= {o["pose_id"] for o in doc["outliers"]}
+    assert all(f"<code>{p}</code>" in page for p in left)
+
+
+def test_report_auto_from_the_command_line(c3_csv, tmp_path, capsys):
+    out = tmp_path / "a.html"
+    capsys.readouterr()
+    assert main(["report", str(c3_csv), "--model", "ur5e", "--auto", "--max-steps", "1",
+                 "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "+ compliance:3" in text and "automatic diagnosis:" in text
+    assert "maximum of 1 steps" in text
+    page = out.read_text()
+    assert page.index("<figure") == page.index('<figure id="fig-steps">')
+    assert 'id="fig-step-1"' in page and 'id="fig-step-2"' not in page
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--max-steps", "3"], "need --auto"),
+    (["--auto", "--max-steps", "0"], "--max-steps"),
+    (["--auto", "--budget-s", "-1"], "--budget-s"),
+])
+def test_bad_auto_options_exit_2(c3_csv, tmp_path, capsys, extra, message):
+    capsys.readouterr()
+    out = tmp_path / "r.html"
+    assert main(["report", str(c3_csv), "--model", "ur5e", "--out", str(out), *extra]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_report_never_overwrites_its_input(c3_csv, capsys):
+    before = c3_csv.read_bytes()
+    assert main(["report", str(c3_csv), "--model", "ur5e", "--out", str(c3_csv)]) == 2
+    assert "overwrite an input" in capsys.readouterr().err
+    assert c3_csv.read_bytes() == before

@@ -22,6 +22,13 @@ def test_demo_finds_the_hidden_effect_and_reaches_the_noise_floor(tmp_path):
         assert (tmp_path / "demo" / r.files[f].split("/")[-1]).stat().st_size > 0
     html = (tmp_path / "demo" / "report.html").read_text()
     assert hidden in html and html.count("<img") >= 5
+    # the report tells the story: the RMS at every step first, then what each step fixed,
+    # with the capture's provenance (run id from the exported CSV)
+    assert html.index("<figure") == html.index('<figure id="fig-steps">')
+    assert f"+ <code>{hidden}</code>" in html and 'id="fig-step-1"' in html
+    assert 'id="provenance"' in html and "capture.csv" in html
+    params = json.loads((tmp_path / "demo" / "params.json").read_text())
+    assert hidden in [s["effect"] for s in params["auto_steps"]["steps"]]
     text = (tmp_path / "demo.txt").read_text()
     assert "[7/7]" in text and f"hidden effect: {hidden} -> found it" in text
 
