@@ -40,6 +40,10 @@ Tracker metrology
     it. Reflectors: :data:`TRACKER_REFLECTORS` (names and constants invented
     for the simulator); measuring with one selected that is not the mounted one
     shifts the distance by the difference of their distance constants.
+
+Length: over 500 lines because the cell is one state machine (robot motion, tracker
+metrology, line of sight, faults share one lock and one clock); the pure physics lives
+in :mod:`sim_drivers.beam` and :mod:`sim_drivers.tracker_optics`.
 """
 
 from __future__ import annotations
