@@ -3,8 +3,10 @@
 For each target not yet in the store: move (via the pre-position if any) →
 wait until settled (+ an optional dwell) → read the joints (and the
 controller's nominal TCP when the robot offers :class:`CommandedPosition`) →
-measure (averaged; a per-axis std above ``max_std_mm`` is remeasured) → write
-one sample in one SQLite transaction. That commit is the checkpoint.
+measure (averaged; a per-axis std above ``max_std_mm`` is remeasured) → the
+re-measure policy when there is one (the reading judged against the model fitted so
+far, a suspect re-measured: :mod:`daq.remeasure`) → write one sample (with the readings
+not accepted) in one SQLite transaction. That commit is the checkpoint.
 
 Adaptive acquisition
     A routine may hand the executor an :class:`Acquisition` strategy: after the move
@@ -80,6 +82,12 @@ def fault_kind(e: BaseException) -> str:
     return "rejected" if isinstance(e, DriverError) else "error"
 
 
+def approach_dirs(prev, cmd_q, deadband_rad: float) -> np.ndarray:
+    """The sign of each joint's motion from ``prev`` to ``cmd_q`` (0 within the deadband)."""
+    step = np.asarray(cmd_q, float) - np.asarray(prev, float)
+    return np.where(np.abs(step) > deadband_rad, np.sign(step), 0).astype(int)
+
+
 class Acquisition(Protocol):
     """A routine's adaptive acquisition of a point (see the module docstring)."""
 
@@ -107,6 +115,14 @@ class PointContext:
     def move_joints(self, q) -> None:
         """Joint move to ``q`` (rad), then wait until settled."""
         self._ex._move_joints(q, self._phase)
+
+    def move_linear(self, xyz) -> None:
+        """Linear move to ``xyz`` (mm, base frame), then wait until settled."""
+        self._ex._move_linear(xyz, self._phase)
+
+    def left_target(self) -> None:
+        """The robot was moved away from the point: the next point reads where it is."""
+        self._ex._last_cmd_q = None
 
     def read_joints(self) -> JointReading:
         return self._ex._read_q(self._phase)
@@ -142,6 +158,9 @@ class Executor:
     finalize : callable(plan, samples, run) -> dict, optional
         Called once every point is stored; may return ``frame`` and/or ``summary``
         dicts for the run.
+    remeasure : daq.remeasure.Remeasure, optional
+        The re-measure policy: judges each point's sample before its commit (and may
+        re-measure it), see :mod:`daq.remeasure`.
     """
 
     def __init__(
@@ -156,6 +175,7 @@ class Executor:
         acquisition: Acquisition | None = None,
         progress: Callable[[int, int, str | None], None] | None = None,
         finalize: Callable | None = None,
+        remeasure=None,
     ) -> None:
         run = store.run(run_id)
         if run.plan_hash != plan.hash:
@@ -167,6 +187,7 @@ class Executor:
         self.acquisition = acquisition
         self.progress = progress
         self.finalize = finalize
+        self.remeasure = remeasure
         self._stop = threading.Event()
         self._last_cmd_q: np.ndarray | None = None
         self.last_error: str | None = None
@@ -261,10 +282,17 @@ class Executor:
             phase = ["robot"]
             try:
                 sample = self._acquire(t, attempt, phase)
+                rejected, revisited = (), ()
+                if self.remeasure is not None:
+                    settled = self.remeasure.settle(t, sample, PointContext(self, phase))
+                    sample, rejected, revisited = (settled.sample, settled.rejected,
+                                                   settled.revisited)
                 t0 = time.perf_counter()
-                self.store.add_sample(self.run_id, sample)
+                stored = self.store.add_sample(self.run_id, sample, rejected, revisited)
                 self.commit_s += time.perf_counter() - t0
                 self.n_committed += 1
+                if stored and self.remeasure is not None:
+                    self.remeasure.committed(settled)
                 return
             except ProtectiveStop as e:
                 self._fault(t, e)
@@ -357,8 +385,7 @@ class Executor:
             jr = self._read_q(phase)
             m = None
         cmd_q = np.asarray(t.q, float) if t.move == "joints" else jr.q
-        step = cmd_q - prev
-        dirs = np.where(np.abs(step) > o.dir_deadband_rad, np.sign(step), 0).astype(int)
+        dirs = approach_dirs(prev, cmd_q, o.dir_deadband_rad)
         cmd = None
         if isinstance(self.robot, CommandedPosition):
             cmd = np.asarray(self.robot.read_tcp(timeout=o.io_timeout_s), float)

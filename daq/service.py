@@ -36,6 +36,7 @@ from .check import CheckResult, check_plan
 from .errors import ConnectFailed, PlanRefused, RequestError
 from .executor import Executor
 from .plans import Plan
+from .remeasure import Remeasure
 from .routines import get as get_routine
 from .run_context import ExecutorOptions, RunContext
 from .store import Run, RunStore, StoreError
@@ -392,14 +393,39 @@ def execute(store: RunStore, run_id: int, plan: Plan, robot, tracker, *, model,
     routine's finalize and acquisition; the outcome as stored afterwards."""
     mod = get_routine(plan.routine)
     make_acquisition = getattr(mod, "acquisition", None)
+    remeasure = None
+    if make_acquisition is None and model is not None:  # a closed loop judges its own
+        remeasure = Remeasure.for_run(store, run_id, plan, model, context.executor)
     ex = Executor(store, run_id, plan, robot, tracker, context.executor,
                   acquisition=None if make_acquisition is None
                   else make_acquisition(model, context),
-                  progress=progress, finalize=getattr(mod, "finalize", None))
+                  progress=progress, finalize=getattr(mod, "finalize", None),
+                  remeasure=remeasure)
     t0 = time.monotonic()
-    status = ex.run()
+    try:
+        status = ex.run()
+    finally:
+        if remeasure is not None:
+            _remeasure_summary(store, run_id, remeasure)
     elapsed = time.monotonic() - t0
     run = store.run(run_id)
     return RunOutcome(run_id, plan.routine, status, run.reason, len(plan),
                       store.n_samples(run_id), ex.n_faults, elapsed, plan.hash,
                       str(store.path), run.frame, run.summary)
+
+
+def _remeasure_summary(store: RunStore, run_id: int, remeasure: Remeasure) -> None:
+    """The run summary's ``remeasure``: the counts of the store
+    (:meth:`RunStore.remeasure_counts`), the running model's warm-up and its refits over
+    every session."""
+    summary = dict(store.run(run_id).summary or {})
+    before = summary.get("remeasure") or {}
+    running = remeasure.running
+    sizes = [n for n, _ in running.refits]
+    summary["remeasure"] = {
+        **store.remeasure_counts(run_id), "max_remeasures": remeasure.n,
+        "warmup_points": running.min_points,
+        "refits": int(before.get("refits", 0)) + len(running.refits),
+        "refit_s": float(before.get("refit_s", 0.0)) + sum(s for _, s in running.refits),
+        "largest_refit_rows": max([int(before.get("largest_refit_rows", 0)), *sizes])}
+    store.update_run(run_id, summary=summary)
