@@ -16,7 +16,7 @@ from daq.plans import Plan
 from daq.routines.zero20 import ZeroLoopOptions
 from daq.run_context import CONTEXT_VERSION, ExecutorOptions
 from daq.store import RunStore
-from daq.store_schema import SCHEMA_VERSION
+from daq.store_schema import _V2_EXECUTOR_KEYS, SCHEMA_VERSION
 from sim_drivers.model_truth import model_truth_factory
 
 from .capture_helpers import DATA, served_cell
@@ -58,8 +58,10 @@ def test_upgrade_turns_the_options_into_typed_contexts(v2_db):
         assert c.model == "ur10e" and c.tool_mm == (0.0, 0.0, 60.0)
         assert c.robot_url == r.robot_url and c.robot_url.startswith("socket://127.0.0.1:")
         assert c.tracker_url.startswith("tracker+tcp://127.0.0.1:")
-        # every executor option as it was stored, none lost
-        assert c.executor.model_dump() == {k: old[r.id][k] for k in ExecutorOptions.model_fields}
+        # every executor option as it was stored, none lost; options added since at their
+        # defaults
+        assert c.executor.model_dump() == {**ExecutorOptions().model_dump(),
+                                           **{k: old[r.id][k] for k in _V2_EXECUTOR_KEYS}}
     assert frame.context.frame_run is None and frame.context.tracker_T_base is None
     for r in (steps, zero, poses):
         assert r.context.frame_run == 1
@@ -85,7 +87,12 @@ def test_upgraded_store_exports_as_schema_2_did(v2_db, tmp_path, capsys):
     assert out.read_text() == (V2 / "postures3.csv").read_text()
     capsys.readouterr()
     assert main(["runs", "--db", str(v2_db), "--json"]) == 0
-    assert json.loads(capsys.readouterr().out) == json.loads((V2 / "runs.json").read_text())
+    runs = json.loads(capsys.readouterr().out)
+    # schema 4 added the re-measure counts (nothing judged, nothing re-measured)
+    assert all(r.pop("remeasure") == {"judged": 0, "warmup": 0, "suspects": 0,
+                                      "remeasurements": 0, "rejected": 0,
+                                      "model_disagrees": 0, "unresolved": 0} for r in runs)
+    assert runs == json.loads((V2 / "runs.json").read_text())
 
 
 def test_paused_schema_2_run_resumes_with_its_context(v2_db, capsys):
