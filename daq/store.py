@@ -188,7 +188,8 @@ class Samples:
         return Sample(
             point_index=int(self.point_index[i]), joints_rad=self.joints_rad[i].copy(),
             tracker_p_smr=self.tracker_p_smr[i].copy(), std_mm=self.std_mm[i].copy(),
-            n=int(self.n_averaged[i]), t=float(self.t[i]), pose_id=self.pose_id[i],
+            n=int(np.nan_to_num(self.n_averaged[i])), t=float(self.t[i]),
+            pose_id=self.pose_id[i],
             set_name=self.set_name[i], target=self.targets[i], temp_c=opt(self.temp_c),
             pressure_hpa=opt(self.pressure_hpa), humidity_pct=opt(self.humidity_pct),
             base_p_tcp_cmd=None if np.isnan(cmd).any() else cmd.copy(),

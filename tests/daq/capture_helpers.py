@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sqlite3
 import subprocess
 import sys
 from pathlib import Path
@@ -89,3 +90,15 @@ def sim_serve(*args: str):
             serve.kill()
             serve.wait()
         serve.stdout.close()
+
+
+def stored_samples(db) -> int:
+    """Samples in a run store being written by another process (0 before it exists)."""
+    try:
+        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5)
+        try:
+            return int(con.execute("SELECT count(*) FROM samples").fetchone()[0])
+        finally:
+            con.close()
+    except sqlite3.OperationalError:
+        return 0

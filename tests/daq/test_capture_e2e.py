@@ -6,7 +6,6 @@ import json
 import os
 import select
 import signal
-import sqlite3
 import subprocess
 import sys
 import time
@@ -31,6 +30,7 @@ from .capture_helpers import (
     run_plan,
     served_cell,
     sim_serve,
+    stored_samples,
     ur10e_controller_model,
 )
 
@@ -107,17 +107,6 @@ def _read_lines(proc, n, timeout):
     return lines
 
 
-def _count(db) -> int:
-    try:
-        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5)
-        try:
-            return int(con.execute("SELECT count(*) FROM samples").fetchone()[0])
-        finally:
-            con.close()
-    except sqlite3.OperationalError:
-        return 0
-
-
 @pytest.mark.slow
 def test_sigkill_three_times_then_resume(tmp_path):
     db = tmp_path / "cell.db"
@@ -132,18 +121,18 @@ def test_sigkill_three_times_then_resume(tmp_path):
         resume = [*cli, "resume", "--db", str(db), "--json"]
         kills = []
         for k in range(3):
-            start = _count(db)
+            start = stored_samples(db)
             target = start + int(rng.integers(5, 35))
             p = subprocess.Popen(capture if k == 0 else resume, cwd=ROOT,
                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             deadline = time.monotonic() + 60
-            while _count(db) < target:
+            while stored_samples(db) < target:
                 assert p.poll() is None, f"capture ended early (rc {p.returncode})"
                 assert time.monotonic() < deadline
                 time.sleep(0.001)
             p.send_signal(signal.SIGKILL)
             p.wait(timeout=10)
-            kills.append(_count(db))
+            kills.append(stored_samples(db))
         out = subprocess.run(resume, cwd=ROOT, capture_output=True, timeout=120)
         assert out.returncode == 0, out.stderr.decode()
         summary = json.loads(out.stdout)
