@@ -26,9 +26,11 @@ Re-measuring a suspect
     The robot moves away and back: to the target's pre-position when the plan has one
     (the approach is the plan's own), else a retract of ``retract_rad`` on every
     joint against its approach direction (clipped to the model's joint limits), then
-    the move to the target again, both through the executor's own moves; the joints
-    are read and the tracker measures again (quality-checked as any measurement). Up
-    to ``n`` times:
+    to the target again (a linear target without a pre-position: by a joint move to
+    the joints read at the suspect reading, since a linear move to the same position
+    may end in another wrist posture), both through the executor's own moves; the
+    joints are read and the tracker measures again (quality-checked as any
+    measurement). Up to ``n`` times:
 
     * a re-measurement within the model's threshold is accepted (verdict
       ``remeasured``); the suspect reading is kept as rejected;
@@ -337,10 +339,12 @@ class Remeasure:
         else:
             prev = self.retract(t, ref)
             ctx.move_joints(prev)
-        if t.move == "linear":
-            ctx.move_linear(t.base_p_tcp)
-        else:
+        if t.move == "joints":
             ctx.move_joints(t.q)
+        elif t.via is not None:
+            ctx.move_linear(t.base_p_tcp)
+        else:  # the posture the point was read in (a linear move fixes only the position)
+            ctx.move_joints(ref.joints_rad)
         jr = ctx.read_joints()
         m = ctx.measure()
         cmd_q = np.asarray(t.q, float) if t.move == "joints" else jr.q

@@ -30,8 +30,6 @@ from sim_drivers.model_truth import model_truth_factory
 
 from .capture_helpers import ROOT, served_cell, stored_samples, ur10e_controller_model
 
-pytestmark = pytest.mark.slow
-
 #: a blunder's reading is its true point + offset + noise (per-axis sigma ~0.02 mm)
 MATCH_MM = 0.2
 
@@ -54,6 +52,7 @@ def _where(blunder, accepted: np.ndarray, rejected: np.ndarray) -> tuple[str, in
     return "rejected", int(np.argmin(dr))
 
 
+@pytest.mark.slow
 def test_blunders_are_re_measured_and_the_export_calibrates_at_the_noise_floor(
         tmp_path, capsys):
     db = tmp_path / "cell.db"
@@ -111,6 +110,7 @@ def test_blunders_are_re_measured_and_the_export_calibrates_at_the_noise_floor(
 
 
 
+@pytest.mark.slow
 def test_a_kill_in_the_middle_of_a_re_measurement_leaves_one_accepted_sample_per_point(
         tmp_path):
     db = tmp_path / "cell.db"
@@ -172,3 +172,39 @@ def test_a_kill_in_the_middle_of_a_re_measurement_leaves_one_accepted_sample_per
     assert s.verdict[p_hit] == "ok" and s.remeasures[p_hit] == 0
     assert "killed" in kinds
     assert summary["summary"]["remeasure"]["suspects"] == 0
+
+
+@pytest.mark.parametrize("routine, params", [
+    ("steps", {"start_deg": [20.0, -100.0, 100.0, -90.0, -90.0, 0.0], "step_mm": 30.0,
+               "count": 14}),
+    # linear moves through a pre-position
+    ("iso9283", {"start_deg": [20.0, -100.0, 100.0, -90.0, -90.0, 0.0], "cycles": 12}),
+])
+def test_linear_targets_are_re_measured_through_their_own_approach(routine, params):
+    from daq.service import CaptureRequest, plan_run, start_run
+
+    from .capture_helpers import connected
+
+    planned = plan_run(CaptureRequest(routine=routine, model="ur10e", params=params,
+                                      tool_mm=(0.0, 0.0, 60.0), floor_z_mm=None))
+    arm_at = RunningModel(planned.model, planned.plan).min_points + 3
+    assert arm_at < len(planned.plan)
+    with served_cell(model_truth_factory, seed=6) as stack, RunStore(":memory:") as st:
+        def progress(done, total, error):
+            if done == arm_at and not stack.faults.log:
+                stack.faults.arm("blunder")  # the next point's reading
+
+        with connected(stack.urls[1], stack.urls[2]) as devices:
+            out = start_run(st, planned, robot_url=stack.urls[1], tracker_url=stack.urls[2],
+                            devices=devices, progress=progress)
+        (blunder,) = stack.cell.blunder_log
+        s = st.samples(out.run_id)
+        (rej,) = st.readings(out.run_id)
+    assert out.status == "completed" and out.summary["remeasure"]["suspects"] == 1
+    p = rej.sample.point_index
+    assert p == arm_at and s.verdict[p] == "remeasured" and s.remeasures[p] == 1
+    np.testing.assert_allclose(rej.sample.tracker_p_smr, blunder.true_xyz + blunder.offset_mm,
+                               atol=MATCH_MM)
+    np.testing.assert_allclose(s.tracker_p_smr[p], blunder.true_xyz, atol=MATCH_MM)
+    # back where the suspect reading was taken (the joints carry the arrival noise)
+    np.testing.assert_allclose(s.joints_rad[p], rej.sample.joints_rad, atol=1e-3)
