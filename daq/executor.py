@@ -120,10 +120,6 @@ class PointContext:
         """Linear move to ``xyz`` (mm, base frame), then wait until settled."""
         self._ex._move_linear(xyz, self._phase)
 
-    def left_target(self) -> None:
-        """The robot was moved away from the point: the next point reads where it is."""
-        self._ex._last_cmd_q = None
-
     def read_joints(self) -> JointReading:
         return self._ex._read_q(self._phase)
 
@@ -284,9 +280,12 @@ class Executor:
                 sample = self._acquire(t, attempt, phase)
                 rejected, revisited = (), ()
                 if self.remeasure is not None:
+                    at_target, self._last_cmd_q = self._last_cmd_q, None  # moved: read again
                     settled = self.remeasure.settle(t, sample, PointContext(self, phase))
                     sample, rejected, revisited = (settled.sample, settled.rejected,
                                                    settled.revisited)
+                    if not revisited:  # a re-measurement ends at the target
+                        self._last_cmd_q = at_target
                 t0 = time.perf_counter()
                 stored = self.store.add_sample(self.run_id, sample, rejected, revisited)
                 self.commit_s += time.perf_counter() - t0

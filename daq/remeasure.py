@@ -281,8 +281,6 @@ class Remeasure:
                 out.revisited.append((new, rejected))
             else:  # no longer out of line (a later fit), nothing measured
                 self.pending.remove(p)
-        if out.revisited:
-            ctx.left_target()
         return out
 
     def committed(self, settled: Settled) -> None:

@@ -60,7 +60,6 @@ class ScriptedPoint:
         self.truth, self.offsets = truth, list(offsets)
         self.q = np.asarray(q, float)
         self.moves: list[tuple[str, np.ndarray]] = []
-        self.left = False
         self.rng = np.random.default_rng(0)
 
     def move_joints(self, q):
@@ -69,9 +68,6 @@ class ScriptedPoint:
 
     def move_linear(self, xyz):
         raise AssertionError("no linear targets here")
-
-    def left_target(self):
-        self.left = True
 
     def read_joints(self):
         return JointReading(self.q.copy(), 1.0)
@@ -121,7 +117,7 @@ def test_a_suspect_reading_re_measured_after_a_retract_against_its_approach(cell
     np.testing.assert_allclose(away - np.array(t.q), -0.01 * np.array([1, -1, 1, 0, -1, 1]))
     np.testing.assert_array_equal(back, t.q)
     np.testing.assert_array_equal(s.dirs, [1, -1, 1, 0, -1, 1])  # approached as before
-    assert not settled.revisited and not ctx.left
+    assert not settled.revisited
 
 
 def test_re_measurements_that_agree_with_each_other_and_not_the_model_are_accepted(cell):
@@ -162,7 +158,7 @@ def test_warmup_blunders_are_revisited_with_the_next_point(cell):
     nxt = plan.targets[i]
     ctx = ScriptedPoint(truth, nxt.q, [(0, 0, 0)] * 2)
     settled = policy.settle(nxt, _sample(plan, P, i), ctx)
-    assert settled.sample.verdict == "ok" and ctx.left
+    assert settled.sample.verdict == "ok"
     assert [new.point_index for new, _ in settled.revisited] == sorted(bad)
     for new, (old,) in settled.revisited:
         assert new.verdict == "remeasured" and new.remeasures == 1
