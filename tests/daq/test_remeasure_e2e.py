@@ -71,14 +71,16 @@ def test_blunders_are_re_measured_and_the_export_calibrates_at_the_noise_floor(
     where = [_where(b, s.tracker_p_smr, rej_xyz) for b in log]
     caught = [i for k, i in where if k == "rejected"]
     missed = [i for k, i in where if k == "accepted"]
-    # after the warm-up every blunder was re-measured; nothing else was rejected
-    assert all(s.verdict[i] == "warmup" for i in missed)
+    # after the warm-up every blunder was re-measured (only one whose re-measurements
+    # were blunders too could stay: unresolved); nothing else was rejected
+    assert all(s.verdict[i] in ("warmup", "unresolved") for i in missed)
     assert sorted(caught) == list(range(len(rejected)))
-    assert all("a re-measurement agrees with the model" in r.reason for r in rejected)
+    assert all("a re-measurement agrees with the model" in r.reason or
+               "no two readings agree" in r.reason for r in rejected)
     n_warm = sum(r.reason.startswith("warm-up") for r in rejected) + len(missed)
     assert rm["rejected"] == len(rejected) == len(log) - len(missed)
-    assert rm["suspects"] == rm["remeasurements"] == len(rejected)
-    assert rm["model_disagrees"] == rm["unresolved"] == 0
+    assert rm["suspects"] <= rm["remeasurements"] == len(rejected)
+    assert rm["model_disagrees"] == 0
     assert rm["warmup"] == s.verdict.count("warmup") and rm["warmup_points"] == 50
 
     # the export calibrates at the noise floor; a warm-up blunder still there is left out
@@ -90,7 +92,7 @@ def test_blunders_are_re_measured_and_the_export_calibrates_at_the_noise_floor(
     fit = identify(ErrorModel(model, "geometric,base,tool"), data)
     named = {b.pose_id for b in fit.outliers.blunders}
     assert {s.pose_id[i] for i in missed} <= named
-    assert all(s.set_name[i] == "calib" for i in missed)  # validation rows were revisited
+    assert all(s.set_name[i] == "calib" for i in missed)  # no screen for validation rows
     floor = data.noise_floor_mm()
     assert fit.valid["rms_mm"] <= 1.10 * floor
     assert load_csv(every, model).pose_id == data.pose_id  # the rejected rows left out
