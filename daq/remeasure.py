@@ -17,8 +17,9 @@ The running model (:class:`RunningModel`)
     solver is the robust one (``ridge`` with IGG3 pose weights, no ridge: a blunder
     gets no weight however many the warm-up holds; least squares with the blunder
     screen could not leave out more than 6 %, and four blunders in the 50 warm-up
-    rows of a UR10e at a 5 % rate are not rare), on one BLAS thread (small systems). A new reading (calibration or validation row) is judged by
-    the test of :func:`calibration.outliers.find_blunders`: its residual from the
+    rows of a UR10e at a 5 % rate are not rare), on one BLAS thread (small systems).
+    A new reading (calibration or validation row) is judged by the test of
+    :func:`calibration.outliers.find_blunders`: its residual from the
     prediction, studentised with the prediction's covariance (``I + H``), over the
     tracker's sigma of the reading (the RMS of its per-axis std) is out of line when
     it exceeds ``k c``: ``k`` the chi(3) quantile at ``1 - alpha / n`` over the plan's
