@@ -41,8 +41,11 @@ Re-measuring a suspect
     * a re-measurement that agrees with an earlier reading (their difference within
       ``k c`` of their combined sigma) but not with the model is accepted: the model,
       not the reading, is off there (verdict ``model``);
-    * after ``n`` re-measurements that agree with nothing, the reading closest to the
-      model is accepted (verdict ``unresolved``) and left to the calibration's screen.
+    * after ``n`` re-measurements that agree with nothing, none is accepted: the
+      point's sample keeps the reading closest to the model (so the run has one row
+      per point and resumes as any other) with the verdict ``unresolved``, which
+      ``cellcal export`` leaves out (a rejected reading with ``--all-readings``) and
+      the running model does not take. Nothing would screen such a validation row.
 
 Warm-up
     Readings taken before the first fit are not judged then (verdict ``warmup``). Once
@@ -92,8 +95,8 @@ VERDICTS = {
     "ok": "",
     "remeasured": "re-measured: agrees with the model",
     "model": "re-measurements agree with each other, not with the model: the model is off",
-    "unresolved": "no two readings agree, none with the model: the one closest to the "
-                  "model kept",
+    "unresolved": "unresolved: no two readings agree, none with the model (the one "
+                  "closest to the model kept in the store, left out of the export)",
 }
 
 
@@ -160,8 +163,12 @@ class RunningModel:
         return [s for s in self.samples.values() if s.set_name == "calib"]
 
     def add(self, s: Sample) -> bool:
-        """Take an accepted reading (a new point's, or one replacing a point's); refit when
-        due. Returns True when this made the first fit of the session."""
+        """Take a point's reading (a new point's, or one replacing a point's; an
+        unresolved one is left out); refit when due. Returns True when this made the
+        first fit of the session."""
+        if s.verdict == "unresolved":
+            self.samples.pop(int(s.point_index), None)
+            return False
         self.samples[int(s.point_index)] = s
         first = self.fit is None
         n = len(self._calib())
@@ -262,7 +269,8 @@ class Remeasure:
                      limits=model.limits_rad(), deadband_rad=options.dir_deadband_rad)
         stored = store.samples(run_id)
         for i in range(len(stored)):
-            running.samples[int(stored.point_index[i])] = stored.sample(i)
+            if stored.verdict[i] != "unresolved":
+                running.samples[int(stored.point_index[i])] = stored.sample(i)
         if len(running._calib()) >= running.min_points:
             running.refit()
             policy.pending = running.warmup_suspects()

@@ -21,10 +21,11 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
 
     ``cmd``, ``temp_c`` and ``dirs`` are set only when every sample has them.
 
-    ``all_readings``: also the readings the capture did not accept (the ``readings``
-    table, :mod:`daq.remeasure`), ordered by point, then by time taken; returns
-    ``(dataset, reading, reason)`` with ``reading`` ``accepted`` or ``rejected`` per row
-    and ``reason`` why (the verdict's note for an accepted one).
+    A point whose readings the capture could not resolve (verdict ``unresolved``,
+    :mod:`daq.remeasure`) is left out. ``all_readings``: also those and the readings
+    the capture did not accept (the ``readings`` table), ordered by point, then by time
+    taken; returns ``(dataset, reading, reason)`` with ``reading`` ``accepted`` or
+    ``rejected`` per row and ``reason`` why (the verdict's note for an accepted one).
     """
     from calibration import Dataset
 
@@ -40,10 +41,15 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
     if len(set(ids)) != len(ids):
         ids = [f"{p}#{i}" for p, i in zip(ids, s.point_index, strict=True)]
     rows = [s.sample(i) for i in range(len(s))]
-    reading = ["accepted"] * len(rows)
+    reading = ["rejected" if v == "unresolved" else "accepted" for v in s.verdict]
     reason = [VERDICTS.get(v or "", "") for v in s.verdict]
     valid = [v == "valid" for v in s.set_name]
-    if all_readings:
+    if not all_readings:
+        keep = [i for i, r in enumerate(reading) if r == "accepted"]
+        if not keep:
+            raise StoreError(f"{store.path}: run {run_id} has no accepted readings")
+        rows, ids, valid = ([a[i] for i in keep] for a in (rows, ids, valid))
+    else:
         pid = {int(p): (ids[i], valid[i]) for i, p in enumerate(s.point_index)}
         for r in store.readings(run_id):
             rows.append(r.sample)

@@ -19,7 +19,9 @@ Only the accepted reading of each point is written. ``--all-readings`` adds the
 readings the capture did not accept (a suspect that was re-measured,
 :mod:`daq.remeasure`), each with its point's ``pose_id``, and two columns:
 ``reading`` (``accepted`` or ``rejected``) and ``reason``. ``cellcal calibrate``
-leaves the rejected rows out.
+leaves the rejected rows out. A point whose readings the capture could not
+resolve (none agreed with another or with the model) has no accepted reading:
+it is left out (rejected, with ``--all-readings``).
 """
 
 from __future__ import annotations
@@ -76,6 +78,10 @@ def run(args) -> int:
             if extra is not None:
                 n_rej = extra["reading"].count("rejected")
                 what = f"{data.n - n_rej}/{r.n_points} points and {n_rej} rejected readings"
+            unresolved = store.remeasure_counts(r.id)["unresolved"]
+            if unresolved:
+                note += (f" ({unresolved} unresolved point(s) left out: their readings agree "
+                         "neither with each other nor with the model)")
             print(f"run {r.id}: {what} written to {args.out}{note}", file=sys.stderr)
         return 0
     finally:

@@ -8,6 +8,7 @@ it accepts, which it rejects and why, where the robot is sent.
 
 from __future__ import annotations
 
+import csv
 import json
 import shutil
 import sqlite3
@@ -224,27 +225,35 @@ def test_rejected_readings_are_stored_with_the_point_exported_on_request_and_lis
         new1.remeasures, new1.t = 1, 1500.0
         st.add_sample(rid, _sample(plan, P, 2, verdict="ok"),
                       revisited=[(new1, [Reading(_sample(plan, P, 1), "warm-up: off")])])
+        unresolved = _sample(plan, P, 3, offset=(0, 0, 1.0), verdict="unresolved")
+        unresolved.remeasures = 2
+        other = Reading(_sample(plan, P, 3, offset=(3.0, 0, 0)), "3.000 mm; no two readings "
+                        "agree")
+        other.sample.t -= 10
+        st.add_sample(rid, unresolved, [other])
         s = st.samples(rid)
-        assert len(s) == 3 and s.verdict == ["remeasured", "remeasured", "ok"]
+        assert len(s) == 4 and s.verdict == ["remeasured", "remeasured", "ok", "unresolved"]
         np.testing.assert_array_equal(s.tracker_p_smr[1], new1.tracker_p_smr)
-        assert [r.sample.point_index for r in st.readings(rid)] == [0, 1]
-        assert st.remeasure_counts(rid) == {"judged": 3, "warmup": 0, "suspects": 2,
-                                            "remeasurements": 2, "rejected": 2,
-                                            "model_disagrees": 0, "unresolved": 0}
+        assert [r.sample.point_index for r in st.readings(rid)] == [0, 1, 3]
+        assert st.remeasure_counts(rid) == {"judged": 4, "warmup": 0, "suspects": 3,
+                                            "remeasurements": 4, "rejected": 3,
+                                            "model_disagrees": 0, "unresolved": 1}
     accepted, every = tmp_path / "a.csv", tmp_path / "all.csv"
     assert main(["export", "--db", str(db), "--out", str(accepted)]) == 0
     assert main(["export", "--db", str(db), "--out", str(every), "--all-readings"]) == 0
-    assert "3/90 points and 2 rejected readings" in capsys.readouterr().err
-    lines = [ln for ln in every.read_text().splitlines() if not ln.startswith("#")]
-    header = lines[0].split(",")
+    err = capsys.readouterr().err
+    assert "run 1: 3/90 points written" in err and "1 unresolved point(s) left out" in err
+    assert "3/90 points and 4 rejected readings" in err
+    header, *rows = csv.reader(ln for ln in every.read_text().splitlines()
+                               if not ln.startswith("#"))
     assert header[-2:] == ["reading", "reason"] and ",reading" not in accepted.read_text()
-    rows = [ln.split(",") for ln in lines[1:]]
-    ids = [t.label for t in plan.targets[:3]]
+    ids = [t.label for t in plan.targets[:4]]
     assert [(r[0], r[-2]) for r in rows] == [
         (ids[0], "rejected"), (ids[0], "accepted"), (ids[1], "rejected"), (ids[1], "accepted"),
-        (ids[2], "accepted")]
+        (ids[2], "accepted"), (ids[3], "rejected"), (ids[3], "rejected")]
     assert rows[0][-1] == "2.000 mm from the model"
     assert rows[1][-1] == "re-measured: agrees with the model"
+    assert rows[6][-1].startswith("unresolved: no two readings agree")
     # the reader leaves the rejected rows out: both files are the same data
     a, b = load_csv(accepted, model), load_csv(every, model)
     assert a.pose_id == b.pose_id
@@ -255,12 +264,12 @@ def test_rejected_readings_are_stored_with_the_point_exported_on_request_and_lis
     assert "column reading: 'maybe'" in capsys.readouterr().err
     assert main(["runs", "--db", str(db)]) == 0
     out = capsys.readouterr().out
-    assert "remeasured" in out.splitlines()[0] and out.splitlines()[2].split()[-1] == "2"
+    assert "remeasured" in out.splitlines()[0] and out.splitlines()[2].split()[-1] == "3"
     assert main(["runs", "1", "--db", str(db), "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
-    assert d["remeasure"]["suspects"] == 2
-    assert [x["reason"] for x in d["rejected_readings"]] == ["2.000 mm from the model",
-                                                             "warm-up: off"]
+    assert d["remeasure"]["suspects"] == 3
+    assert [x["reason"] for x in d["rejected_readings"]] == [
+        "2.000 mm from the model", "warm-up: off", "3.000 mm; no two readings agree"]
 
 
 def test_remeasure_option_is_validated_and_0_disables_the_model(cell, tmp_path):
