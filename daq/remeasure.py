@@ -140,6 +140,7 @@ class RunningModel:
     plan : Plan, the run's plan (its calibration poses set the warm-up, its size ``k``)
     refit_every : refit after this many new accepted calibration rows (at least)
     alpha : chance of one false suspect in a run at the noise floor
+    solver : the running fit's solver (``ridge``, with :data:`SOLVER_OPTIONS`: robust)
     """
 
     def __init__(self, model, plan: Plan, *, refit_every: int = 10,
@@ -185,12 +186,15 @@ class RunningModel:
                        pose_id=[str(s.point_index) for s in rows],
                        sigma_mm=np.array([reading_sigma(s) for s in rows]))
         t0 = time.perf_counter()
-        with threadpool_limits(limits=1, user_api="blas"):  # small systems: one thread
-            self.fit = identify(self.error_model, data, self.solver,
-                                x0=None if self.fit is None else self.fit.values,
-                                solver_options=SOLVER_OPTIONS.get(self.solver))
+        try:
+            with threadpool_limits(limits=1, user_api="blas"):  # small systems: one thread
+                fit = identify(self.error_model, data, self.solver,
+                               x0=None if self.fit is None else self.fit.values,
+                               solver_options=SOLVER_OPTIONS.get(self.solver))
+        except (ValueError, np.linalg.LinAlgError):  # no model this time: keep the last
+            fit = self.fit
         self.refits.append((data.n, time.perf_counter() - t0))
-        self.n_fitted = data.n
+        self.fit, self.n_fitted = fit, data.n
 
     @property
     def scale(self) -> float:
