@@ -161,8 +161,9 @@ class Dataset:
         )
 
     # ---- writing -----------------------------------------------------------
-    def to_csv(self, path: str | Path | None = None) -> str:
-        """Write the measurement CSV (deg, mm); returns the text, writes it when a path is given."""
+    def to_csv(self, path: str | Path | None = None, extra: dict | None = None) -> str:
+        """Write the measurement CSV (deg, mm); returns the text, writes it when a path is
+        given. ``extra``: more columns (name -> n values), written last."""
         N = self.n_joints
         cols: dict[str, np.ndarray | list] = {"pose_id": self.pose_id}
         for j in range(N):
@@ -180,6 +181,7 @@ class Dataset:
                 cols[f"dir{j + 1}"] = self.dirs[:, j].astype(int)
         if self.is_valid.any():
             cols["set"] = np.where(self.is_valid, "valid", "calib")
+        cols.update(extra or {})
         buf = io.StringIO()
         for k, v in self.meta.items():
             buf.write(f"# {k}: {v}\n")
@@ -289,6 +291,11 @@ class CsvTable:
         """An error about the header line."""
         return DataError(f"{self.source}: line {self.header_line}: {message}")
 
+    def keep(self, rows: np.ndarray) -> None:
+        """Keep only the data rows where ``rows`` (bool, one per row) is True."""
+        self.rows = [r for r, k in zip(self.rows, rows, strict=True) if k]
+        self.lines = self.lines[np.asarray(rows, bool)]
+
     def require(self, names: list[str], hint: str = "") -> None:
         """Refuse a file without these columns, or (then) without data rows."""
         missing = [c for c in names if c not in self.col]
@@ -360,7 +367,8 @@ class CsvTable:
 
 
 def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = True) -> Dataset:
-    """Read a measurement CSV (FORMATS.md §1).
+    """Read a measurement CSV (FORMATS.md §1). Rows whose ``reading`` is ``rejected``
+    (readings a capture did not accept) are left out.
 
     Parameters
     ----------
@@ -370,6 +378,13 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
     """
     t = CsvTable(path)
     source = t.source
+    if "reading" in t:  # every reading of a run (cellcal export --all-readings)
+        values = t.text("reading")
+        for r, v in enumerate(values):
+            if v not in ("accepted", "rejected", ""):
+                raise DataError(f"{source}: line {t.lines[r]}, column reading: {v!r} is "
+                                "neither 'accepted' nor 'rejected'")
+        t.keep(np.array([v != "rejected" for v in values]))
     N = model if isinstance(model, int) else model.n_joints
     t.require([f"q{j + 1}" for j in range(N)] + ["x", "y", "z"],
               f"the model has {N} joints: q1..q{N}, and x, y, z are required")

@@ -4,7 +4,9 @@ For each target not yet in the store: move (via the pre-position if any) →
 wait until settled (+ an optional dwell) → read the joints (and the
 controller's nominal TCP when the robot offers :class:`CommandedPosition`) →
 measure (averaged; a per-axis std above ``max_std_mm`` is remeasured) → read the
-joints again → write one sample in one SQLite transaction, with what the tracker says
+joints again → the re-measure policy when there is one (the reading judged against the
+model fitted so far, a suspect re-measured: :mod:`daq.remeasure`) → write one sample
+(with the readings not accepted) in one SQLite transaction, with what the tracker says
 of its measurement (std, covariance, air, reflector, face). That commit is the
 checkpoint.
 
@@ -19,7 +21,9 @@ Safe motion
     :class:`~daq.motion_guard.MotionMismatch` pauses the run — never a stored sample. A
     measurement that is not newer than the previous one (a tracker repeating its reply:
     same time, or the very same numbers) is refused (:class:`StaleMeasurement`,
-    transient: measured again).
+    transient: measured again). A re-measure policy's moves and readings
+    (:mod:`daq.remeasure`) go through the same checked moves, read-back and
+    measurement (:class:`PointContext`).
 
 Entry move
     A plan's linear targets carry the joints the controller reaches moving from the
@@ -127,6 +131,12 @@ def fault_kind(e: BaseException) -> str:
     return "rejected" if isinstance(e, DriverError) else "error"
 
 
+def approach_dirs(prev, cmd_q, deadband_rad: float) -> np.ndarray:
+    """The sign of each joint's motion from ``prev`` to ``cmd_q`` (0 within the deadband)."""
+    step = np.asarray(cmd_q, float) - np.asarray(prev, float)
+    return np.where(np.abs(step) > deadband_rad, np.sign(step), 0).astype(int)
+
+
 class Acquisition(Protocol):
     """A routine's adaptive acquisition of a point (see the module docstring)."""
 
@@ -156,18 +166,53 @@ class PointContext:
         """The run's motion guard (its limits bound an acquisition's own moves)."""
         return self._ex.guard
 
+    def at(self, target: Target) -> PointContext:
+        """The context of another point of the plan (a re-measure policy's revisit): its
+        moves are checked against that point's planned posture."""
+        return PointContext(self._ex, self._phase, target)
+
+    def _here(self) -> Executor:
+        self._ex._target = self.target  # the point the guard checks moves against
+        return self._ex
+
     def move_joints(self, q) -> JointReading:
         """Adaptive joint move to ``q`` (rad): checked by the motion guard (limits,
         floor, reach, deviation from the point's planned posture) before it is sent,
         then settled and read back; returns the joints read."""
-        return self._ex._move_joints(q, self._phase, adaptive=True)
+        return self._here()._move_joints(q, self._phase, adaptive=True)
+
+    def move_entry(self) -> JointReading | None:
+        """The executor's entry move to the point (a checked joint move to its planned
+        posture, where the plan's linear chain starts) when it is a linear one; None
+        (nothing moved) otherwise."""
+        return self._here()._entry_move(self.target, self._phase)
+
+    def move_via(self) -> np.ndarray | None:
+        """The plan's move to the point's pre-position, if it has one (checked, read
+        back); the joints the approach to the target starts from (None: no via)."""
+        return self._here()._via_move(self.target, self._phase)
+
+    def move_target(self) -> JointReading:
+        """The plan's move to the point's target (checked, settled, read back)."""
+        return self._here()._target_move(self.target, self._phase)
 
     def read_joints(self) -> JointReading:
         return self._ex._read_q(self._phase)
 
     def measure(self) -> Measurement:
-        """An averaged measurement whose per-axis std is within ``max_std_mm``."""
+        """An averaged measurement whose per-axis std is within ``max_std_mm``, newer
+        than the previous one."""
         return self._ex._measure(self._phase)
+
+    def measure_at(self, jr: JointReading) -> tuple[JointReading, Measurement]:
+        """The point's reading where the robot stands (``jr``: the joints read after the
+        move): the dwell (the joints read again must not have moved), a quality-checked
+        measurement, then the joints read back must still be ``jr``'s."""
+        ex = self._here()
+        jr = ex._dwell(jr, self._phase)
+        m = ex._measure(self._phase)
+        ex._held(jr, self._phase)
+        return jr, m
 
     def summary(self) -> dict:
         """The run's summary as stored (a copy)."""
@@ -198,6 +243,9 @@ class Executor:
         dicts for the run.
     guard : MotionGuard, optional
         Checks every move (default: read-back only, no model).
+    remeasure : daq.remeasure.Remeasure, optional
+        The re-measure policy: judges each point's sample before its commit (and may
+        re-measure it), see :mod:`daq.remeasure`.
     """
 
     def __init__(
@@ -213,6 +261,7 @@ class Executor:
         progress: Callable[[int, int, str | None], None] | None = None,
         finalize: Callable | None = None,
         guard: MotionGuard | None = None,
+        remeasure=None,
     ) -> None:
         run = store.run(run_id)
         if run.plan_hash != plan.hash:
@@ -225,6 +274,7 @@ class Executor:
         self.progress = progress
         self.finalize = finalize
         self.guard = guard or MotionGuard()
+        self.remeasure = remeasure
         self._stop = threading.Event()
         self._halting = False
         self._last_cmd_q: np.ndarray | None = None
@@ -373,10 +423,20 @@ class Executor:
             phase = ["robot"]
             try:
                 sample = self._acquire(t, attempt, phase)
+                rejected, revisited = (), ()
+                if self.remeasure is not None:
+                    at_target, self._last_cmd_q = self._last_cmd_q, None  # moved: read again
+                    settled = self.remeasure.settle(t, sample, PointContext(self, phase, t))
+                    sample, rejected, revisited = (settled.sample, settled.rejected,
+                                                   settled.revisited)
+                    if not revisited:  # a re-measurement ends at the target
+                        self._last_cmd_q = at_target
                 t0 = time.perf_counter()
-                self.store.add_sample(self.run_id, sample)
+                stored = self.store.add_sample(self.run_id, sample, rejected, revisited)
                 self.commit_s += time.perf_counter() - t0
                 self.n_committed += 1
+                if stored and self.remeasure is not None:
+                    self.remeasure.committed(settled)
                 return True
             except ProtectiveStop as e:
                 self._fault(t, e)
@@ -490,33 +550,58 @@ class Executor:
         raise QualityError(dev, "measure", f"std {worst:.4f} mm above {o.max_std_mm} mm after "
                            f"{o.max_remeasure} measurements")
 
+    def _entry_move(self, t: Target, phase) -> JointReading | None:
+        """A joint move to a linear target's planned posture (where the plan's linear
+        chain starts from); None for other targets."""
+        if t.move == "linear" and t.q is not None:
+            return self._move_joints(t.q, phase)
+        return None
+
+    def _via_move(self, t: Target, phase) -> np.ndarray | None:
+        """The plan's move to ``t``'s pre-position; the joints the approach to the target
+        starts from (commanded; read after a linear via), None without a via."""
+        if t.via is None:
+            return None
+        if t.move == "linear":
+            self._move_linear(t.via, phase)
+            return self._q_now
+        self._move_joints(t.via, phase)
+        return np.asarray(t.via, float)
+
+    def _target_move(self, t: Target, phase) -> JointReading:
+        if t.move == "linear":
+            return self._move_linear(t.base_p_tcp, phase, planned=t.q)
+        return self._move_joints(t.q, phase)
+
+    def _dwell(self, jr: JointReading, phase) -> JointReading:
+        """The optional dwell after a move; the joints read after it must not have moved."""
+        if self.o.dwell_s <= 0:
+            return jr
+        time.sleep(self.o.dwell_s)
+        after = self._read_q(phase)
+        self._mismatch(self.guard.check_arrival(after.q, q_cmd=jr.q), "during the dwell")
+        return after
+
+    def _held(self, jr: JointReading, phase) -> None:
+        """The joints read back after a measurement must still be ``jr``'s."""
+        after = self._read_q(phase)
+        self._mismatch(self.guard.check_arrival(after.q, q_cmd=jr.q),
+                       "the robot moved during the measurement")
+
     def _acquire(self, t: Target, attempt: int, phase) -> Sample:
         o = self.o
         self._target = t
         if self._q_now is None:
             self._read_q(phase)
-        if self._entry and t.move == "linear" and t.q is not None:
-            self._move_joints(t.q, phase)  # where the plan's linear chain starts from
+        if self._entry:
+            self._entry_move(t, phase)
         if self._last_cmd_q is None:
             self._last_cmd_q = self._q_now
         self._entry = False
         if t.via is not None:
-            if t.move == "linear":
-                self._move_linear(t.via, phase)
-                self._last_cmd_q = self._q_now
-            else:
-                self._move_joints(t.via, phase)
-                self._last_cmd_q = np.asarray(t.via, float)
+            self._last_cmd_q = self._via_move(t, phase)
         prev = self._last_cmd_q
-        if t.move == "linear":
-            jr = self._move_linear(t.base_p_tcp, phase, planned=t.q)
-        else:
-            jr = self._move_joints(t.q, phase)
-        if o.dwell_s > 0:
-            time.sleep(o.dwell_s)
-            moved = jr
-            jr = self._read_q(phase)
-            self._mismatch(self.guard.check_arrival(jr.q, q_cmd=moved.q), "during the dwell")
+        jr = self._dwell(self._target_move(t, phase), phase)
         m = None
         if self.acquisition is not None:
             jr, m = self.acquisition.acquire(t, PointContext(self, phase, t))
@@ -524,16 +609,13 @@ class Executor:
             raise ValueError(f"point {t.index}: a zero target needs its routine's acquisition "
                              "(zero20's closed loop)")
         cmd_q = np.asarray(t.q, float) if t.move == "joints" else jr.q
-        step = cmd_q - prev
-        dirs = np.where(np.abs(step) > o.dir_deadband_rad, np.sign(step), 0).astype(int)
+        dirs = approach_dirs(prev, cmd_q, o.dir_deadband_rad)
         cmd = None
         if isinstance(self.robot, CommandedPosition):
             cmd = np.asarray(self.robot.read_tcp(timeout=o.io_timeout_s), float)
         if m is None:
             m = self._measure(phase)
-        after = self._read_q(phase)
-        self._mismatch(self.guard.check_arrival(after.q, q_cmd=jr.q),
-                       "the robot moved during the measurement")
+        self._held(jr, phase)
         self._last_cmd_q = cmd_q
         env = m.env or {}
         return Sample(

@@ -62,6 +62,13 @@ class ExecutorOptions(BaseModel):
     backoff_max_s: float = Field(1.0, ge=0)
     #: a joint moved by less than this (rad) approached with direction 0
     dir_deadband_rad: float = Field(1e-6, ge=0)
+    #: re-measurements of a reading out of line with the running model (0: no model
+    #: check), :mod:`daq.remeasure`; ``max_remeasure`` is the tracker's own std check
+    remeasure: int = Field(2, ge=0)
+    #: the running model is refitted after this many new calibration rows (or 10 %)
+    remeasure_refit_every: int = Field(10, ge=1)
+    #: a suspect's move away and back: this retract per joint (rad)
+    remeasure_retract_rad: float = Field(0.01, gt=0)
 
 
 #: plausible air for ``--meteo``: (°C, hPa, %RH) ranges

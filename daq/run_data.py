@@ -8,7 +8,8 @@ import numpy as np
 from .store import RunStore, StoreError
 
 
-def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std"):
+def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
+                     all_readings: bool = False):
     """The run's samples as a :class:`calibration.Dataset` (for the measurement CSV).
 
     ``sigma_mm`` per point: with ``sigma_mode="std"`` (default) the RMS over the axes of
@@ -20,8 +21,16 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std"):
 
     ``cmd``, ``temp_c``, ``pressure_hpa``, ``humidity_pct``, ``reflector``, ``face`` and
     ``dirs`` are set only when every sample has them (a column is all or nothing).
+
+    A point whose readings the capture could not resolve (verdict ``unresolved``,
+    :mod:`daq.remeasure`) is left out. ``all_readings``: also those and the readings
+    the capture did not accept (the ``readings`` table), ordered by point, then by time
+    taken; returns ``(dataset, reading, reason)`` with ``reading`` ``accepted`` or
+    ``rejected`` per row and ``reason`` why (the verdict's note for an accepted one).
     """
     from calibration import Dataset
+
+    from .remeasure import VERDICTS
 
     if sigma_mode not in ("std", "mean"):
         raise ValueError(f"sigma_mode must be std or mean, got {sigma_mode!r}")
@@ -29,30 +38,57 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std"):
     s = store.samples(run_id)
     if len(s) == 0:
         raise StoreError(f"{store.path}: run {run_id} has no samples")
-    sigma = np.sqrt(np.mean(s.std_mm ** 2, axis=1))
-    if sigma_mode == "mean":
-        sigma = sigma / np.sqrt(np.maximum(s.n_averaged, 1))
     ids = list(s.pose_id)
     if len(set(ids)) != len(ids):
         ids = [f"{p}#{i}" for p, i in zip(ids, s.point_index, strict=True)]
+    rows = [s.sample(i) for i in range(len(s))]
+    reading = ["rejected" if v == "unresolved" else "accepted" for v in s.verdict]
+    reason = [VERDICTS.get(v or "", "") for v in s.verdict]
+    valid = [v == "valid" for v in s.set_name]
+    if not all_readings:
+        keep = [i for i, r in enumerate(reading) if r == "accepted"]
+        if not keep:
+            raise StoreError(f"{store.path}: run {run_id} has no accepted readings")
+        rows, ids, valid = ([a[i] for i in keep] for a in (rows, ids, valid))
+    else:
+        pid = {int(p): (ids[i], valid[i]) for i, p in enumerate(s.point_index)}
+        for r in store.readings(run_id):
+            rows.append(r.sample)
+            ids.append(pid[r.sample.point_index][0])
+            valid.append(pid[r.sample.point_index][1])
+            reading.append("rejected")
+            reason.append(r.reason)
+        order = sorted(range(len(rows)), key=lambda i: (rows[i].point_index, rows[i].t))
+        rows, ids, valid, reading, reason = ([a[i] for i in order]
+                                             for a in (rows, ids, valid, reading, reason))
+    std = np.array([r.std_mm for r in rows], float)
+    sigma = np.sqrt(np.mean(std ** 2, axis=1))
+    if sigma_mode == "mean":
+        sigma = sigma / np.sqrt(np.maximum([r.n for r in rows], 1))
 
-    def every(a):
-        return a if np.all(np.isfinite(a)) else None
+    def every(name: str, dtype=float):
+        v = [getattr(r, name) for r in rows]
+        return None if any(x is None for x in v) else np.array(v, dtype)
 
-    reflector = s.reflector if all(s.reflector) else None
-    face = s.face if np.all(s.face > 0) else None
+    reflector = [r.reflector for r in rows]
+    reflector = reflector if all(reflector) else None
     meta = {"run": str(run.id), "routine": run.routine, "plan_hash": run.plan_hash,
             "model": run.model or "", "robot": run.robot_url or "",
             "tracker": run.tracker_url or "", "software": run.software or "",
             "sigma_mm": ("tracker std, RMS over axes" if sigma_mode == "std"
                          else "tracker std / sqrt(n), RMS over axes")}
-    return Dataset(
-        q=s.joints_rad, tracker_p_smr=s.tracker_p_smr, pose_id=ids, cmd=every(s.base_p_tcp_cmd),
-        temp_c=every(s.temp_c), t_s=s.t, sigma_mm=sigma, pressure_hpa=every(s.pressure_hpa),
-        humidity_pct=every(s.humidity_pct), reflector=reflector, face=face, dirs=s.dirs,
-        is_valid=np.array([v == "valid" for v in s.set_name]), meta=meta,
-        source=f"{store.path} run {run_id}",
+    if all_readings:
+        meta["readings"] = "every reading: the column reading says accepted or rejected"
+    data = Dataset(
+        q=np.array([r.joints_rad for r in rows], float),
+        tracker_p_smr=np.array([r.tracker_p_smr for r in rows], float), pose_id=ids,
+        cmd=every("base_p_tcp_cmd"), temp_c=every("temp_c"),
+        t_s=np.array([r.t for r in rows], float), sigma_mm=sigma,
+        pressure_hpa=every("pressure_hpa"), humidity_pct=every("humidity_pct"),
+        reflector=reflector, face=every("face", int), dirs=every("dirs", int),
+        is_valid=np.array(valid, bool), meta=meta, source=f"{store.path} run {run_id}",
     )
+    return (data, reading, reason) if all_readings else data
 
 
 def postures_from_run(store: RunStore, run_id: int | None = None, *, to_base: bool = True):

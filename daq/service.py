@@ -68,6 +68,7 @@ from .executor import Executor
 from .leases import Leases, held_leases, run_key, take_robot
 from .motion_guard import MotionGuard, MotionLimits
 from .plans import Plan
+from .remeasure import Remeasure
 from .routines import get as get_routine
 from .run_context import ExecutorOptions, RunContext, TrackerSetup
 from .stop_signals import signal_name
@@ -534,13 +535,20 @@ def execute(store: RunStore, run_id: int, plan: Plan, robot, tracker, *, model,
     routine's finalize and acquisition; the outcome as stored afterwards."""
     mod = get_routine(plan.routine)
     make_acquisition = getattr(mod, "acquisition", None)
+    remeasure = None
+    if make_acquisition is None and model is not None:  # a closed loop judges its own
+        remeasure = Remeasure.for_run(store, run_id, plan, model, context.executor)
     ex = Executor(store, run_id, plan, robot, tracker, context.executor,
                   acquisition=None if make_acquisition is None
                   else make_acquisition(model, context),
                   progress=progress, finalize=getattr(mod, "finalize", None),
-                  guard=MotionGuard(model, context.motion))
+                  guard=MotionGuard(model, context.motion), remeasure=remeasure)
     t0 = time.monotonic()
-    status = ex.run()
+    try:
+        status = ex.run()
+    finally:
+        if remeasure is not None:
+            _remeasure_summary(store, run_id, remeasure)
     elapsed = time.monotonic() - t0
     run = store.run(run_id)
     check = run.context.tracker_check
@@ -548,3 +556,20 @@ def execute(store: RunStore, run_id: int, plan: Plan, robot, tracker, *, model,
                       store.n_samples(run_id), ex.n_faults, elapsed, plan.hash,
                       str(store.path), run.frame, run.summary, ex.stop_signal,
                       None if check is None else check.model_dump(mode="json"))
+
+
+def _remeasure_summary(store: RunStore, run_id: int, remeasure: Remeasure) -> None:
+    """The run summary's ``remeasure``: the counts of the store
+    (:meth:`RunStore.remeasure_counts`), the running model's warm-up and its refits over
+    every session."""
+    summary = dict(store.run(run_id).summary or {})
+    before = summary.get("remeasure") or {}
+    running = remeasure.running
+    sizes = [n for n, _ in running.refits]
+    summary["remeasure"] = {
+        **store.remeasure_counts(run_id), "max_remeasures": remeasure.n,
+        "warmup_points": running.min_points,
+        "refits": int(before.get("refits", 0)) + len(running.refits),
+        "refit_s": float(before.get("refit_s", 0.0)) + sum(s for _, s in running.refits),
+        "largest_refit_rows": max([int(before.get("largest_refit_rows", 0)), *sizes])}
+    store.update_run(run_id, summary=summary)

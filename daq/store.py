@@ -129,6 +129,22 @@ class Sample:
     reflector: str | None = None
     face: int | None = None
     cov_mm2: np.ndarray | None = None
+    #: how the reading was judged (:data:`daq.remeasure.VERDICTS`); None: not judged
+    verdict: str | None = None
+    #: re-measurements made at the point (the readings not accepted are :class:`Reading`)
+    remeasures: int = 0
+    #: 3-D distance from the running model's prediction and the threshold there (mm)
+    model_residual_mm: float | None = None
+    model_threshold_mm: float | None = None
+
+
+@dataclass
+class Reading:
+    """A reading of a point that was not accepted (the ``readings`` table): the sample it
+    would have been (its joints, measurement, distance from the model) and why not."""
+
+    sample: Sample
+    reason: str
 
 
 @dataclass(frozen=True)
@@ -151,6 +167,8 @@ class Samples:
     reflector : list of str or None (None where unknown)
     face : (n,) int, the tracker face (1 or 2), 0 where unknown
     cov_mm2 : (n, 3, 3) mm², the covariance of ``tracker_p_smr``, NaN where unknown
+    verdict : list of str or None, how each reading was judged (:data:`daq.remeasure.VERDICTS`)
+    remeasures : (n,) int, re-measurements made at each point
     """
 
     point_index: np.ndarray
@@ -170,9 +188,31 @@ class Samples:
     reflector: list[str | None]
     face: np.ndarray
     cov_mm2: np.ndarray
+    verdict: list[str | None]
+    remeasures: np.ndarray
 
     def __len__(self) -> int:
         return len(self.point_index)
+
+    def sample(self, i: int) -> Sample:
+        """Row ``i`` as a :class:`Sample` (NaN columns as None)."""
+        def opt(a):
+            v = float(a[i])
+            return None if np.isnan(v) else v
+
+        cmd = self.base_p_tcp_cmd[i]
+        return Sample(
+            point_index=int(self.point_index[i]), joints_rad=self.joints_rad[i].copy(),
+            tracker_p_smr=self.tracker_p_smr[i].copy(), std_mm=self.std_mm[i].copy(),
+            n=int(np.nan_to_num(self.n_averaged[i])), t=float(self.t[i]),
+            pose_id=self.pose_id[i],
+            set_name=self.set_name[i], target=self.targets[i], temp_c=opt(self.temp_c),
+            pressure_hpa=opt(self.pressure_hpa), humidity_pct=opt(self.humidity_pct),
+            base_p_tcp_cmd=None if np.isnan(cmd).any() else cmd.copy(),
+            dirs=None if self.dirs is None else self.dirs[i].copy(),
+            reflector=self.reflector[i], face=int(self.face[i]) or None,
+            cov_mm2=None if np.isnan(self.cov_mm2[i]).all() else self.cov_mm2[i].copy(),
+            verdict=self.verdict[i], remeasures=int(self.remeasures[i]))
 
 
 def _f(v) -> float | None:
@@ -398,31 +438,70 @@ class RunStore:
             self.con.execute(f"UPDATE runs SET {', '.join(cols)} WHERE id=?", (*vals, run_id))
 
     # --------------------------------------------------------------- samples
-    def add_sample(self, run_id: int, s: Sample) -> bool:
+    #: the measurement columns a sample and a reading share, and their values
+    _MEASURED = ("q_json, x, y, z, sx, sy, sz, n, t, temp_c, pressure_hpa, humidity_pct, "
+                 "cmd_x, cmd_y, cmd_z, dir_json, model_residual_mm, model_threshold_mm, "
+                 "reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz")
+
+    @staticmethod
+    def _measured(s: Sample) -> tuple:
+        cmd = s.base_p_tcp_cmd if s.base_p_tcp_cmd is not None else (None, None, None)
+        return (json.dumps([float(v) for v in np.asarray(s.joints_rad, float)]),
+                *(float(v) for v in s.tracker_p_smr), *(float(v) for v in s.std_mm),
+                int(s.n), float(s.t), _f(s.temp_c), _f(s.pressure_hpa), _f(s.humidity_pct),
+                *(_f(v) for v in cmd),
+                json.dumps([int(v) for v in s.dirs]) if s.dirs is not None else None,
+                _f(s.model_residual_mm), _f(s.model_threshold_mm), s.reflector or None,
+                int(s.face) if s.face else None, *_cov_cols(s.cov_mm2))
+
+    def add_sample(self, run_id: int, s: Sample, rejected=(), revisited=()) -> bool:
         """Write one sample in one transaction (the checkpoint).
 
+        ``rejected`` are the point's readings that were not accepted (:class:`Reading`),
+        written only with the sample. ``revisited`` are earlier points measured again
+        while this one was done, ``(sample, rejected readings)`` pairs: each replaces its
+        point's stored sample (whose reading becomes one of the rejected), in the same
+        transaction.
+
         Returns True when stored, False when the point was already there (idempotent:
-        the first sample of a point wins).
+        the first sample of a point wins; its rejected readings are then not written).
         """
-        cmd = s.base_p_tcp_cmd if s.base_p_tcp_cmd is not None else (None, None, None)
+        ins = self._MEASURED.count(",") + 1
         with self.con:
+            self.con.execute("BEGIN IMMEDIATE")
             cur = self.con.execute(
-                """INSERT OR IGNORE INTO samples (run_id, point_index, pose_id, set_name,
-                   target_json, q_json, x, y, z, sx, sy, sz, n, t, temp_c, pressure_hpa,
-                   humidity_pct, cmd_x, cmd_y, cmd_z, dir_json, attempts, joints_t,
-                   reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz)
-                   VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)""",
+                f"""INSERT OR IGNORE INTO samples (run_id, point_index, pose_id, set_name,
+                   target_json, attempts, joints_t, verdict, remeasures, {self._MEASURED})
+                   VALUES (?,?,?,?,?,?,?,?,?,{",".join("?" * ins)})""",
                 (run_id, int(s.point_index), s.pose_id, s.set_name,
-                 json.dumps(s.target) if s.target is not None else None,
-                 json.dumps([float(v) for v in np.asarray(s.joints_rad, float)]),
-                 *(float(v) for v in s.tracker_p_smr), *(float(v) for v in s.std_mm),
-                 int(s.n), float(s.t), _f(s.temp_c), _f(s.pressure_hpa), _f(s.humidity_pct),
-                 *(_f(v) for v in cmd),
-                 json.dumps([int(v) for v in s.dirs]) if s.dirs is not None else None,
-                 int(s.attempts), _f(s.joints_t), s.reflector or None,
-                 int(s.face) if s.face else None, *_cov_cols(s.cov_mm2)),
+                 json.dumps(s.target) if s.target is not None else None, int(s.attempts),
+                 _f(s.joints_t), s.verdict, int(s.remeasures), *self._measured(s)),
             )
-        return cur.rowcount == 1
+            stored = cur.rowcount == 1
+            for r in rejected if stored else ():
+                self._add_reading(run_id, r)
+            for new, old in revisited:
+                self._replace_sample(run_id, new, old)
+        return stored
+
+    def _add_reading(self, run_id: int, r: Reading) -> None:
+        n = self._MEASURED.count(",") + 1
+        self.con.execute(
+            f"INSERT INTO readings (run_id, point_index, reason, {self._MEASURED}) "
+            f"VALUES (?,?,?,{','.join('?' * n)})",
+            (run_id, int(r.sample.point_index), r.reason, *self._measured(r.sample)))
+
+    def _replace_sample(self, run_id: int, s: Sample, rejected) -> None:
+        cols = [c.strip() for c in self._MEASURED.split(",")]
+        cur = self.con.execute(
+            f"""UPDATE samples SET {", ".join(f"{c}=?" for c in cols)}, verdict=?,
+               remeasures=? WHERE run_id=? AND point_index=?""",
+            (*self._measured(s), s.verdict, int(s.remeasures), run_id, int(s.point_index)))
+        if cur.rowcount != 1:
+            raise StoreError(f"{self.path}: run {run_id} has no point {s.point_index} to "
+                             "replace")
+        for r in rejected:
+            self._add_reading(run_id, r)
 
     def done_indices(self, run_id: int) -> set[int]:
         """Point indices already stored for the run."""
@@ -438,7 +517,8 @@ class RunStore:
         rows = self.con.execute(
             """SELECT point_index, pose_id, set_name, q_json, x, y, z, sx, sy, sz, n, t,
                temp_c, pressure_hpa, humidity_pct, cmd_x, cmd_y, cmd_z, dir_json, target_json,
-               reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz
+               reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz,
+               verdict, remeasures
                FROM samples WHERE run_id=? ORDER BY point_index""", (run_id,)
         ).fetchall()
 
@@ -469,7 +549,55 @@ class RunStore:
             reflector=[r[20] or None for r in rows],
             face=np.array([r[21] or 0 for r in rows], int),
             cov_mm2=_cov_matrix(rows, 22),
+            verdict=[r[28] for r in rows],
+            remeasures=np.array([r[29] or 0 for r in rows], int),
         )
+
+    def readings(self, run_id: int) -> list[Reading]:
+        """The readings of a run that were not accepted, by point index, in order taken."""
+        rows = self.con.execute(
+            f"""SELECT r.point_index, r.reason, s.pose_id, s.set_name, {
+                ", ".join(f"r.{c.strip()}" for c in self._MEASURED.split(","))}
+               FROM readings r LEFT JOIN samples s
+               ON s.run_id = r.run_id AND s.point_index = r.point_index
+               WHERE r.run_id=? ORDER BY r.point_index, r.t, r.id""", (run_id,)).fetchall()
+        out = []
+        for r in rows:
+            (q, x, y, z, sx, sy, sz, n, t, temp, pres, hum, cx, cy, cz, dirs, res,
+             thr, reflector, face) = r[4:24]
+            out.append(Reading(Sample(
+                point_index=int(r[0]), joints_rad=np.array(json.loads(q), float),
+                tracker_p_smr=np.array([x, y, z], float), std_mm=np.array([sx, sy, sz], float),
+                n=int(n or 0), t=float(t), pose_id=r[2] or str(r[0] + 1),
+                set_name=r[3] or "calib", temp_c=temp, pressure_hpa=pres, humidity_pct=hum,
+                base_p_tcp_cmd=None if cx is None else np.array([cx, cy, cz], float),
+                dirs=None if dirs is None else np.array(json.loads(dirs), int),
+                model_residual_mm=res, model_threshold_mm=thr, reflector=reflector or None,
+                face=face or None, cov_mm2=None if r[24] is None else _cov_matrix([r], 24)[0]),
+                r[1]))
+        return out
+
+    def remeasure_counts(self, run_id: int) -> dict:
+        """What the re-measure policy did in a run (from the stored samples and readings).
+
+        ``judged`` samples judged against the running model at capture, ``warmup`` taken
+        before there was one, ``suspects`` points re-measured, ``remeasurements`` made,
+        ``rejected`` readings not accepted, ``model_disagrees`` points whose
+        re-measurements agreed with each other but not with the model, ``unresolved``
+        points whose readings agreed with neither.
+        """
+        rows = self.con.execute(
+            "SELECT verdict, count(*), sum(remeasures), sum(remeasures > 0) FROM samples "
+            "WHERE run_id=? GROUP BY verdict", (run_id,)).fetchall()
+        by = {v: int(c) for v, c, _, _ in rows}
+        n_rejected = int(self.con.execute("SELECT count(*) FROM readings WHERE run_id=?",
+                                          (run_id,)).fetchone()[0])
+        return {"judged": sum(c for v, c in by.items() if v not in (None, "warmup")),
+                "warmup": by.get("warmup", 0),
+                "suspects": sum(int(k or 0) for _, _, _, k in rows),
+                "remeasurements": sum(int(m or 0) for _, _, m, _ in rows),
+                "rejected": n_rejected, "model_disagrees": by.get("model", 0),
+                "unresolved": by.get("unresolved", 0)}
 
     # --------------------------------------------------------- interruptions
     def add_interruption(self, run_id: int, point_index: int | None, kind: str,

@@ -21,6 +21,11 @@ Versions
        :class:`drivers.protocols.DeviceIdentity`) and ``source_run`` (the run whose plan a
        run repeats on another cell); run contexts gain ``motion`` (no floor for the runs
        made before: none was recorded). Additive: new table, new nullable columns.
+    6. re-measured blunders (:mod:`daq.remeasure`): per sample the ``verdict`` on its
+       reading, the ``remeasures`` made at the point and the reading's distance from the
+       running model with its threshold; the ``readings`` table keeps every reading that
+       was not accepted, with its reason (and, as a sample, the tracker's reflector, face
+       and covariance). Additive: older rows read as never judged.
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ import sqlite3
 from collections.abc import Callable
 
 #: current schema version (PRAGMA user_version)
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 
 SCHEMA_V1 = """
 CREATE TABLE runs (
@@ -164,6 +169,31 @@ def _upgrade_4_to_5(con: sqlite3.Connection) -> None:
     )
 
 
+def _upgrade_5_to_6(con: sqlite3.Connection) -> None:
+    """v6 (additive): the verdict on each sample's reading and the readings not accepted."""
+    for col in ("verdict TEXT", "remeasures INTEGER DEFAULT 0", "model_residual_mm REAL",
+                "model_threshold_mm REAL"):
+        con.execute(f"ALTER TABLE samples ADD COLUMN {col}")
+    con.execute(
+        """CREATE TABLE readings (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            run_id INTEGER NOT NULL REFERENCES runs(id),
+            point_index INTEGER NOT NULL,
+            q_json TEXT NOT NULL,
+            x REAL NOT NULL, y REAL NOT NULL, z REAL NOT NULL,
+            sx REAL, sy REAL, sz REAL, n INTEGER,
+            t REAL, temp_c REAL, pressure_hpa REAL, humidity_pct REAL,
+            cmd_x REAL, cmd_y REAL, cmd_z REAL, dir_json TEXT,
+            model_residual_mm REAL, model_threshold_mm REAL,
+            reflector TEXT, face INTEGER, cov_xx REAL, cov_xy REAL, cov_xz REAL,
+            cov_yy REAL, cov_yz REAL, cov_zz REAL,
+            reason TEXT NOT NULL
+        )"""
+    )
+    con.execute("CREATE INDEX readings_run ON readings(run_id, point_index)")
+
+
 #: UPGRADES[k] takes a database from version k+1 to k+2
 UPGRADES: list[Callable[[sqlite3.Connection], None]] = [_upgrade_1_to_2, _upgrade_2_to_3,
-                                                        _upgrade_3_to_4, _upgrade_4_to_5]
+                                                        _upgrade_3_to_4, _upgrade_4_to_5,
+                                                        _upgrade_5_to_6]

@@ -35,6 +35,9 @@ EXEC_FLAGS = [
      "remeasure when the tracker's per-axis std exceeds this, mm (default 0.05)"),
     ("--max-retries", "max_retries", int, "retries per point after transient faults (default 8)"),
     ("--io-timeout", "io_timeout_s", float, "timeout of reads, s (default 1)"),
+    ("--remeasure", "remeasure", int,
+     "re-measure a reading out of line with the model fitted so far up to N times, moving "
+     "away and back (default 2; 0: no model check)"),
 ]
 
 
@@ -208,6 +211,12 @@ def report(out: dict, as_json: bool) -> int:
               f"{out['elapsed_s']:.1f} s  [{out['db']}]")
         if out.get("reason"):
             print(f"  reason: {out['reason']}")
+        rm = (out.get("summary") or {}).get("remeasure")
+        if rm:
+            print(f"  re-measured {rm['suspects']} points ({rm['remeasurements']} "
+                  f"re-measurements, {rm['rejected']} readings rejected, "
+                  f"{rm['model_disagrees']} where the model disagrees, {rm['unresolved']} "
+                  f"unresolved); the first {rm['warmup']} points before the model")
         if "frame" in out:
             f = out["frame"]
             print(f"  frame: circle rms {f['circle']['rms_mm']:.4f} mm, line rms "

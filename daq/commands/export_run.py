@@ -16,6 +16,14 @@ by ``cellcal calibrate`` and ``cellcal diagnose``.
 read), ``x y z`` (the measured tips, mm: in the robot base frame when the run
 knows its measurement frame, else in the tracker frame, said by a
 ``# xyz_frame: tracker`` comment), read by ``cellcal zero``.
+
+Only the accepted reading of each point is written. ``--all-readings`` adds the
+readings the capture did not accept (a suspect that was re-measured,
+:mod:`daq.remeasure`), each with its point's ``pose_id``, and two columns:
+``reading`` (``accepted`` or ``rejected``) and ``reason``. ``cellcal calibrate``
+leaves the rejected rows out. A point whose readings the capture could not
+resolve (none agreed with another or with the model) has no accepted reading:
+it is left out (rejected, with ``--all-readings``).
 """
 
 from __future__ import annotations
@@ -37,6 +45,9 @@ def register(sub) -> None:
                    "q1..qN, x, y, z) for `cellcal zero`")
     p.add_argument("--sigma-mode", choices=("std", "mean"), default="std",
                    help="sigma_mm from the tracker's std (default) or std/sqrt(n)")
+    p.add_argument("--all-readings", action="store_true",
+                   help="also the readings the capture rejected (re-measured suspects), with "
+                   "columns reading (accepted/rejected) and reason")
     p.set_defaults(func=run)
 
 
@@ -51,16 +62,29 @@ def run(args) -> int:
             return _postures(store, args)
         try:
             r = store.run(args.run_id)
-            data = dataset_from_run(store, r.id, sigma_mode=args.sigma_mode)
+            extra = None
+            if args.all_readings:
+                data, reading, reason = dataset_from_run(store, r.id, sigma_mode=args.sigma_mode,
+                                                         all_readings=True)
+                extra = {"reading": reading, "reason": reason}
+            else:
+                data = dataset_from_run(store, r.id, sigma_mode=args.sigma_mode)
         except StoreError as e:
             raise UsageError(str(e)) from None
-        text = data.to_csv(None if args.out == "-" else args.out)
+        text = data.to_csv(None if args.out == "-" else args.out, extra=extra)
         if args.out == "-":
             sys.stdout.write(text)
         else:
             note = "" if r.status == "completed" else f" (run is {r.status})"
-            print(f"run {r.id}: {data.n}/{r.n_points} points written to {args.out}{note}",
-                  file=sys.stderr)
+            what = f"{data.n}/{r.n_points} points"
+            if extra is not None:
+                n_rej = extra["reading"].count("rejected")
+                what = f"{data.n - n_rej}/{r.n_points} points and {n_rej} rejected readings"
+            unresolved = store.remeasure_counts(r.id)["unresolved"]
+            if unresolved:
+                note += (f" ({unresolved} unresolved point(s) left out: their readings agree "
+                         "neither with each other nor with the model)")
+            print(f"run {r.id}: {what} written to {args.out}{note}", file=sys.stderr)
         return 0
     finally:
         store.close()

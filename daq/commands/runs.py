@@ -1,6 +1,11 @@
-"""``cellcal runs``: list the runs in a run store (or show one with its context and
-interruptions). The list counts each run's interruptions, its beam breaks and the points
-skipped because the beam stayed broken (see :mod:`daq.executor`)."""
+"""``cellcal runs``: list the runs in a run store (or show one with its context,
+interruptions and the readings it did not accept).
+
+The list counts each run's interruptions, its beam breaks, the points skipped because
+the beam stayed broken (see :mod:`daq.executor`) and ``remeasured``: the points whose
+reading was out of line with the running model and re-measured (:mod:`daq.remeasure`);
+``--json`` gives every re-measure count under ``remeasure``.
+"""
 
 from __future__ import annotations
 
@@ -28,7 +33,7 @@ def _run_dict(store, r) -> dict:
             "robot": r.robot_url, "tracker": r.tracker_url, "robot_desc": r.robot_desc,
             "tracker_desc": r.tracker_desc, "software": r.software, "seed": r.seed,
             "started": r.started, "stopped": r.stopped, "plan_hash": r.plan_hash,
-            "frame": r.frame, "summary": r.summary}
+            "frame": r.frame, "summary": r.summary, "remeasure": store.remeasure_counts(r.id)}
 
 
 def run(args) -> int:
@@ -50,11 +55,16 @@ def run(args) -> int:
                 {"point": p, "t": t, "kind": k, "message": m}
                 for p, t, k, m in store.interruptions(r.id)
             ]
+            d["rejected_readings"] = [
+                {"point": x.sample.point_index, "pose_id": x.sample.pose_id, "t": x.sample.t,
+                 "xyz": [float(v) for v in x.sample.tracker_p_smr], "reason": x.reason}
+                for x in store.readings(r.id)
+            ]
             if args.json:
                 print_json(d)
                 return 0
             for k, v in d.items():
-                if k not in ("interruptions", "frame", "context"):
+                if k not in ("interruptions", "frame", "context", "rejected_readings"):
                     print(f"{k:13s} {v}")
             print(f"{'context':13s} {r.context.to_json()}")
             if r.frame:
@@ -62,6 +72,9 @@ def run(args) -> int:
             print(f"interruptions ({len(d['interruptions'])}):")
             for i in d["interruptions"]:
                 print(f"  {_time(i['t'])}  point {i['point']}  {i['kind']}: {i['message']}")
+            print(f"rejected readings ({len(d['rejected_readings'])}):")
+            for x in d["rejected_readings"]:
+                print(f"  {_time(x['t'])}  point {x['point']} ({x['pose_id']}): {x['reason']}")
             return 0
         runs = store.runs()
         if args.json:
@@ -72,9 +85,10 @@ def run(args) -> int:
             kinds = [k for _, _, k, _ in store.interruptions(r.id)]
             rows.append([str(r.id), r.routine, r.status, f"{store.n_samples(r.id)}/{r.n_points}",
                          r.model or "-", _time(r.started), len(kinds), kinds.count("beam"),
-                         kinds.count("skipped"), (r.reason or "")[:60]])
+                         kinds.count("skipped"), store.remeasure_counts(r.id)["suspects"],
+                         (r.reason or "")[:60]])
         print(table(rows, ["run", "routine", "status", "points", "model", "started",
-                           "interruptions", "beam breaks", "skipped", "reason"]))
+                           "interruptions", "beam breaks", "skipped", "remeasured", "reason"]))
         return 0
     finally:
         store.close()

@@ -112,8 +112,6 @@ def _read_lines(proc, n, timeout):
     return lines
 
 
-
-
 @pytest.mark.slow
 def test_sigkill_three_times_then_resume(tmp_path):
     db = tmp_path / "cell.db"

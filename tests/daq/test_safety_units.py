@@ -21,6 +21,7 @@ from daq.executor import Executor, StaleMeasurement
 from daq.leases import LeaseBusy, Leases, robot_key, run_key
 from daq.motion_guard import MotionGuard, MotionLimits
 from daq.plans import Plan, Target
+from daq.remeasure import Judgement, Remeasure
 from daq.routines import make_plan
 from daq.run_context import ExecutorOptions, RunContext
 from daq.store import RunStore
@@ -169,9 +170,9 @@ def test_upgrade_from_a_schema_3_store(tmp_path):
                 (ctx.model_dump_json(exclude={"motion"}),))
     con.execute("PRAGMA user_version=3")
     con.close()
-    assert SCHEMA_VERSION == 5
+    assert SCHEMA_VERSION == 6
     with RunStore(path) as st:
-        assert st.version == 5
+        assert st.version == SCHEMA_VERSION
         r = st.run(1)
         assert r.robot_identity is None and r.tracker_identity is None and r.source_run is None
         # the limits it ran under: no floor (none was recorded), the rest the defaults
@@ -290,6 +291,82 @@ def test_adaptive_moves_are_bounded_by_the_guard(tmp_path):
         reason = st.run(rid).reason
     assert robot.cell.n_moves == moves + 1  # the planned move only
     assert "move_refused at point 0" in reason and "joint 3 57.296 deg from the planned" in reason
+
+
+# ------------------------------------------- re-measurements: the same checks
+class _Suspicious:
+    """A running model that finds every reading suspect and no two readings agreeing (a
+    re-measure policy that always moves away and back)."""
+
+    samples: dict = {}
+
+    def judge(self, s):
+        return Judgement(True, 1.0, 0.1, 10.0)
+
+    def agree(self, a, b):
+        return False
+
+    def add(self, s):
+        return False
+
+    def warmup_suspects(self):
+        return []
+
+
+def _remeasuring_run(st, robot, tracker, retract_rad=0.01, count=2):
+    plan = make_plan("poses", TOYM, count=count, seed=4)
+    opts = ExecutorOptions(measure_s=0.01, backoff_s=0.0)
+    rid = st.create_run(plan, RunContext(routine="poses", executor=opts))
+    policy = Remeasure(_Suspicious(), plan, n=1, retract_rad=retract_rad,
+                       limits=TOYM.limits_rad())
+    ex = Executor(st, rid, plan, robot, tracker, opts, guard=MotionGuard(TOYM),
+                  remeasure=policy)
+    return rid, ex.run()
+
+
+def test_a_re_measurements_moves_are_checked_by_the_guard(tmp_path):
+    robot, tracker = _toy("remeasure-guard")
+    with RunStore(tmp_path / "c.db") as st:
+        moves = robot.cell.n_moves
+        rid, status = _remeasuring_run(st, robot, tracker, retract_rad=0.5)
+        reason, n = st.run(rid).reason, st.n_samples(rid)
+    assert status == "paused" and n == 0
+    assert robot.cell.n_moves == moves + 1  # the planned move only: the retract refused
+    assert "move_refused at point 0" in reason and "from the planned posture" in reason
+
+
+class _MeddlingOnce(_Meddling):
+    """Nudges the robot during its second measurement only (a point's re-measurement)."""
+
+    n = 0
+
+    def measure(self, duration_s=0.5, timeout=10.0):
+        self.n += 1
+        self.armed = self.n == 2
+        return super().measure(duration_s, timeout)
+
+
+def test_a_robot_moved_during_a_re_measurement_pauses_the_run(tmp_path):
+    robot, inner = _toy("remeasure-meddle")
+    with RunStore(tmp_path / "c.db") as st:
+        rid, status = _remeasuring_run(st, robot, _MeddlingOnce(inner, robot.cell))
+        reason, n, readings = st.run(rid).reason, st.n_samples(rid), st.readings(rid)
+    assert status == "paused" and n == 0 and readings == []
+    assert "motion_mismatch at point 0" in reason and "moved during the measurement" in reason
+
+
+def test_a_repeated_re_measurement_is_never_stored(tmp_path):
+    robot, inner = _toy("remeasure-repeat")
+    tracker = _Repeating(inner)
+    tracker.repeat = True  # the second reply repeats the first: the re-measurement's
+    with RunStore(tmp_path / "c.db") as st:
+        rid, status = _remeasuring_run(st, robot, tracker)
+        s, readings = st.samples(rid), st.readings(rid)
+        kinds = [k for _, _, k, _ in st.interruptions(rid)]
+    assert status == "completed" and kinds == ["stale_measurement"]
+    assert s.verdict == ["unresolved"] * 2 and len(readings) == 2
+    t = sorted([*s.t, *(r.sample.t for r in readings)])
+    assert np.all(np.diff(t) > 0)  # four distinct readings, none a repeat
 
 
 # ------------------------------------------------------- stops on signals

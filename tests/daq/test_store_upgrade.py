@@ -19,7 +19,7 @@ from daq.plans import Plan
 from daq.routines.zero20 import ZeroLoopOptions
 from daq.run_context import CONTEXT_VERSION, ExecutorOptions
 from daq.store import RunStore, Sample
-from daq.store_schema import SCHEMA_VERSION, UPGRADES
+from daq.store_schema import _V2_EXECUTOR_KEYS, SCHEMA_VERSION, UPGRADES
 from sim_drivers.model_truth import model_truth_factory
 
 from .capture_helpers import DATA, served_cell
@@ -61,8 +61,10 @@ def test_upgrade_turns_the_options_into_typed_contexts(v2_db):
         assert c.model == "ur10e" and c.tool_mm == (0.0, 0.0, 60.0)
         assert c.robot_url == r.robot_url and c.robot_url.startswith("socket://127.0.0.1:")
         assert c.tracker_url.startswith("tracker+tcp://127.0.0.1:")
-        # every executor option as it was stored, none lost
-        assert c.executor.model_dump() == {k: old[r.id][k] for k in ExecutorOptions.model_fields}
+        # every executor option as it was stored, none lost; options added since at their
+        # defaults
+        assert c.executor.model_dump() == {**ExecutorOptions().model_dump(),
+                                           **{k: old[r.id][k] for k in _V2_EXECUTOR_KEYS}}
     assert frame.context.frame_run is None and frame.context.tracker_T_base is None
     for r in (steps, zero, poses):
         assert r.context.frame_run == 1
@@ -101,7 +103,12 @@ def test_upgraded_store_exports_as_schema_2_did(v2_db, tmp_path, capsys):
     assert out.read_text() == (V2 / "postures3.csv").read_text()
     capsys.readouterr()
     assert main(["runs", "--db", str(v2_db), "--json"]) == 0
-    assert json.loads(capsys.readouterr().out) == json.loads((V2 / "runs.json").read_text())
+    runs = json.loads(capsys.readouterr().out)
+    # schema 4 added the re-measure counts (nothing judged, nothing re-measured)
+    assert all(r.pop("remeasure") == {"judged": 0, "warmup": 0, "suspects": 0,
+                                      "remeasurements": 0, "rejected": 0,
+                                      "model_disagrees": 0, "unresolved": 0} for r in runs)
+    assert runs == json.loads((V2 / "runs.json").read_text())
 
 
 def test_paused_schema_2_run_resumes_with_its_context(v2_db, capsys):
@@ -145,7 +152,7 @@ def test_schema_3_gains_reflector_face_and_covariance(v3_db, tmp_path):
     n_cols = len(before[0])
     con.close()
     with RunStore(v3_db) as st:
-        assert st.version == SCHEMA_VERSION == 5
+        assert st.version == SCHEMA_VERSION == 6
         s = st.samples(2)
         assert s.reflector == [None] * len(s) and np.all(s.face == 0)
         assert np.all(np.isnan(s.cov_mm2))
@@ -161,8 +168,8 @@ def test_schema_3_gains_reflector_face_and_covariance(v3_db, tmp_path):
     cols = [c[1] for c in con.execute("PRAGMA table_info(samples)")]
     after = con.execute("SELECT * FROM samples ORDER BY id").fetchall()
     con.close()
-    assert cols[n_cols:] == ["reflector", "face", "cov_xx", "cov_xy", "cov_xz", "cov_yy",
-                             "cov_yz", "cov_zz"]
-    # the old rows are untouched, their new columns NULL
+    v4 = ["reflector", "face", "cov_xx", "cov_xy", "cov_xz", "cov_yy", "cov_yz", "cov_zz"]
+    assert cols[n_cols:n_cols + len(v4)] == v4
+    # the old rows are untouched, their new columns NULL (6's remeasures: 0)
     assert [r[:n_cols] for r in after[:len(before)]] == before
-    assert all(v is None for r in after[:len(before)] for v in r[n_cols:])
+    assert all(v is None for r in after[:len(before)] for v in r[n_cols:n_cols + len(v4)])
