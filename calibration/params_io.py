@@ -15,7 +15,11 @@ The file embeds the nominal model, so it is self-contained::
      "solver_info": {"xi": 2e-05, "condition_class": "strong", "rejected": ["17"], ...}}
 
 ``correlation``, ``strongest_correlations`` and ``solver_info`` (only for solvers with
-extras: ridge, besa, sa) were added after version 1 and are ignored when reading.
+extras: ridge, besa, sa) were added after version 1 and are ignored when reading, and so
+is ``capture``: what the measurement file said about its capture
+(:class:`~calibration.capture_meta.CaptureMeta`: run and store, model, the controller's
+tool, SMR radius, measurement frame, tracker sigma; :func:`capture_of` reads it back).
+The capture's tool is also the nominal tool of ``model_definition``.
 
 Angles are in degrees (``unit: "deg"``). Geometric parameters are deltas to the
 nominal table; base and tool parameters are absolute.
@@ -28,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .capture_meta import CaptureMeta
 from .effects import display_unit, load_effect_file
 from .error_model import ErrorModel
 from .identify import Fit
@@ -41,7 +46,8 @@ class ParamsError(ValueError):
     """A params.json that cannot be used."""
 
 
-def fit_to_dict(fit: Fit, effect_files: list[str] | None = None) -> dict:
+def fit_to_dict(fit: Fit, effect_files: list[str] | None = None,
+                capture: CaptureMeta | None = None) -> dict:
     em = fit.error_model
     out = {
         "format": FORMAT,
@@ -67,7 +73,17 @@ def fit_to_dict(fit: Fit, effect_files: list[str] | None = None) -> dict:
     info = solver_summary(fit)
     if info:
         out["solver_info"] = info
+    if capture is not None and capture.known:
+        out["capture"] = capture.to_json()
     return out
+
+
+def capture_of(path: str | Path) -> CaptureMeta:
+    """The ``capture`` metadata of a params.json (empty when it has none)."""
+    try:
+        return CaptureMeta.from_json(json.loads(Path(path).read_text()).get("capture"))
+    except (OSError, ValueError, TypeError, AttributeError):
+        return CaptureMeta()
 
 
 def solver_summary(fit: Fit) -> dict:
@@ -84,8 +100,9 @@ def solver_summary(fit: Fit) -> dict:
     return out
 
 
-def save_params(fit: Fit, path: str | Path, effect_files: list[str] | None = None) -> None:
-    Path(path).write_text(json.dumps(fit_to_dict(fit, effect_files), indent=1) + "\n")
+def save_params(fit: Fit, path: str | Path, effect_files: list[str] | None = None,
+                capture: CaptureMeta | None = None) -> None:
+    Path(path).write_text(json.dumps(fit_to_dict(fit, effect_files, capture), indent=1) + "\n")
 
 
 def params_from_dict(

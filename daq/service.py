@@ -58,6 +58,7 @@ class CaptureRequest:
     model: str
     params: dict = field(default_factory=dict)
     tool_mm: tuple[float, float, float] | None = None
+    smr_radius_mm: float | None = None
     seed: int | None = None
     floor_z_mm: float | None = 0.0
     max_reach_mm: float | None = None
@@ -190,6 +191,25 @@ def _devices(robot_url, tracker_url, devices, timeout, on_fail=None) -> Iterator
         tracker.close()
 
 
+def reflector_context(tracker, smr_radius_mm: float | None = None) -> dict:
+    """``smr_radius_mm`` and ``reflector`` for the run context: the given radius, else the
+    surface offset of the reflector the tracker reports (trackers with the
+    :class:`~drivers.protocols.ReflectorSelect` capability); None where unknown."""
+    from drivers.errors import DriverError
+    from drivers.protocols import ReflectorSelect
+
+    out = {"smr_radius_mm": smr_radius_mm, "reflector": None}
+    if isinstance(tracker, ReflectorSelect):
+        try:
+            r = tracker.reflector()
+        except DriverError:
+            return out
+        out["reflector"] = r.name or None
+        if smr_radius_mm is None and r.surface_offset_mm > 0:
+            out["smr_radius_mm"] = float(r.surface_offset_mm)
+    return out
+
+
 # -------------------------------------------------------------------- start
 def _open_existing(db) -> RunStore:
     if db is None:
@@ -301,6 +321,7 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
         executor=req.executor, acquire=planned.acquire)
     with _devices(robot_url, tracker_url, devices, req.executor.connect_timeout_s) as (
             robot, tracker):
+        context = context.model_copy(update=reflector_context(tracker, req.smr_radius_mm))
         run_id = store.create_run(planned.plan, context, robot_desc=describe(robot),
                                   tracker_desc=describe(tracker))
         if on_started is not None:

@@ -8,11 +8,12 @@ resumable with ``cellcal resume``).
 
 from __future__ import annotations
 
+import argparse
 import ipaddress
 import sys
 from urllib.parse import urlsplit
 
-from ..cli import UsageError
+from ..cli import UsageError, add_subcommands, command_parser
 from .routine_args import ROUTINE_ARGS, floats
 
 #: executor options settable on the command line: (flag, attribute, type, help)
@@ -29,45 +30,53 @@ EXEC_FLAGS = [
 
 
 def add_common(p, *, resume: bool = False) -> None:
-    p.add_argument("--db", required=True, metavar="cell.db", help="run store (SQLite)")
-    p.add_argument("--robot", required=not resume, metavar="URL", help="robot driver URL")
-    p.add_argument("--tracker", required=not resume, metavar="URL", help="tracker driver URL")
+    p.add_argument("--db", required=True, metavar="cell.db",
+                   help="the run store (SQLite file; created when missing)" if not resume
+                   else "the run store (SQLite file)")
+    p.add_argument("--robot", required=not resume, metavar="URL",
+                   help="robot driver URL, e.g. modbus+tcp://127.0.0.1:15020?unit=1 (README: "
+                   "At the cell)" + (" (default: the run's)" if resume else ""))
+    p.add_argument("--tracker", required=not resume, metavar="URL",
+                   help="tracker driver URL, e.g. tracker+tcp://127.0.0.1:15700"
+                   + (" (default: the run's)" if resume else ""))
     p.add_argument("--yes", action="store_true",
                    help="do not ask before moving a robot that is not a simulator")
     p.add_argument("--json", action="store_true", help="print one JSON object, no progress")
     p.add_argument("--synchronous", choices=("FULL", "NORMAL"), default="FULL",
-                   help=argparse_hidden())
-
-
-def argparse_hidden():
-    import argparse
-
-    return argparse.SUPPRESS
+                   help=argparse.SUPPRESS)
 
 
 def register(sub) -> None:
-    from ..routines import ROUTINES, get
-
-    p = sub.add_parser(
-        "capture",
+    p = command_parser(
+        sub, "capture",
         help="run a capture routine into the run store",
-        description="Make a routine's plan, dry-run it against the model (joint limits, reach, "
-        "floor), then move and measure point by point; every sample is committed to the "
-        "SQLite run store at once. Resume an interrupted run with `cellcal resume`.",
+        description="Make a routine's plan, dry-run it against the model (joint limits, "
+        "reach, floor), then move and measure point by point; every sample is committed to "
+        "the SQLite run store at once. Resume an interrupted run with `cellcal resume`. "
+        "`cellcal capture ROUTINE --help` describes a routine and its options.\n\n"
+        "Exit codes: 0 completed; 1 paused (protective stop, rejected command, retries "
+        "exhausted) or failed; 2 bad input or a plan refused by the dry run (the offending "
+        "points are named); 130 stopped with Ctrl-C (resumable).",
     )
-    rsub = p.add_subparsers(dest="routine", metavar="ROUTINE")
-    rsub.required = True
-    for name in ROUTINES:
-        mod = get(name)
-        first = (mod.__doc__ or "").strip().splitlines()[0]
-        r = rsub.add_parser(name, help=first.split(": ", 1)[-1])
-        r.add_argument("--model", required=True, metavar="NAME|PATH", help="robot model")
+    rsub = add_subcommands(p, "routine", "ROUTINE")
+    for name, spec in ROUTINE_ARGS.items():
+        r = command_parser(rsub, name, help=spec.summary,
+                           description=spec.summary[0].upper() + spec.summary[1:] + "\n\n"
+                           + spec.description)
+        r.add_argument("--model", required=True, metavar="NAME|PATH",
+                       help="the robot model: a built-in name (see `cellcal models`) or a "
+                       "model YAML file (recorded with the run)")
         add_common(r)
         r.add_argument("--tool-mm", metavar="X,Y,Z", default=None,
                        help="the controller's TCP in the flange frame, mm (overrides the "
-                       "model's tool; recorded with the run)")
-        r.add_argument("--seed", type=int, default=None, help="random seed (recorded)")
-        r.add_argument("--floor-z-mm", type=float, default=0.0,
+                       "model's tool; recorded with the run, exported as `# tool_mm:` and "
+                       "the nominal tool of every later fit)")
+        r.add_argument("--smr-radius-mm", type=float, default=None, metavar="MM",
+                       help="radius of the SMR (recorded; default: the reflector's, when the "
+                       "tracker reports it)")
+        r.add_argument("--seed", type=int, default=None,
+                       help="random seed of the plan (recorded; default 0)")
+        r.add_argument("--floor-z-mm", type=float, default=0.0, metavar="MM",
                        help="dry run: lowest z of link origins and tool, mm (default 0)")
         r.add_argument("--no-floor", action="store_true", help="dry run: no floor check")
         r.add_argument("--frame-run", type=int, default=None, metavar="RUN",
@@ -75,9 +84,9 @@ def register(sub) -> None:
                        "completed one in the store, if any)")
         r.add_argument("--dry-run", action="store_true",
                        help="check and print the plan, do not move")
-        for flag, _, typ, hlp in EXEC_FLAGS + ROUTINE_ARGS[name].acquire_flags:
+        for flag, _, typ, hlp in EXEC_FLAGS + spec.acquire_flags:
             r.add_argument(flag, type=typ, default=None, help=hlp)
-        ROUTINE_ARGS[name].add(r)
+        spec.add(r)
         r.set_defaults(func=run)
 
 
@@ -148,6 +157,7 @@ def report(out: dict, as_json: bool) -> int:
             print(f"  frame: circle rms {f['circle']['rms_mm']:.4f} mm, line rms "
                   f"{f['line']['rms_mm']:.4f} mm, non-orthogonality "
                   f"{f['orthogonality_deg']:.4f} deg")
+            print("  tracker_T_base (robot base in the tracker frame, mm; rows of [R | t]):")
             for row in f["tracker_T_base"][:3]:
                 print("   " + "  ".join(f"{v:12.6f}" for v in row))
         if out["status"] in ("paused", "stopped"):
@@ -179,9 +189,12 @@ def request_from_args(args):
 
     spec = ROUTINE_ARGS[args.routine]
     tool = floats(args.tool_mm, 3, "--tool-mm")
+    radius = args.smr_radius_mm
+    if radius is not None and not 0 < radius < 1000:
+        raise ValueError(f"--smr-radius-mm: {radius:g} is not a radius in mm (0 < r < 1000)")
     return CaptureRequest(
         routine=args.routine, model=args.model, params=spec.params(args),
-        tool_mm=None if tool is None else tuple(tool), seed=args.seed,
+        tool_mm=None if tool is None else tuple(tool), smr_radius_mm=radius, seed=args.seed,
         floor_z_mm=None if args.no_floor else args.floor_z_mm,
         max_reach_mm=getattr(args, "max_reach_mm", None), frame_run=args.frame_run,
         executor=ExecutorOptions(**flag_values(args, EXEC_FLAGS)),
