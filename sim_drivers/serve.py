@@ -107,9 +107,9 @@ class SimStack:
                 raise
             if not self.config.any_port:
                 raise PortInUse(f"port {port} ({PORT_NAMES[service]}) on "
-                                f"{self.config.host} is in use ({e.strerror or e}): another "
-                                "`cellcal sim serve`? Choose other ports (--port-base N) or "
-                                "allow any free port (--any-port)") from None
+                                f"{self.config.host} is in use: another `cellcal sim serve`? "
+                                "Choose other ports (--port-base N) or allow any free port "
+                                "(--any-port)") from e
             return make(0).start()
 
     def start(self) -> SimStack:

@@ -130,6 +130,9 @@ _ZERO20_ACQUIRE = [
      "the loop also stops within 1.5x the measurement's 3-D std)"),
     ("--zero-average", "average", int,
      "zero20: tracker measurements averaged per step of the closed loop (default 1)"),
+    ("--zero-approach-rad", "approach_rad", float,
+     "zero20: each correction first moves every joint this far below its new position, so "
+     "it approaches from the same side (backlash), rad (default 0.002; 0: straight)"),
 ]
 
 

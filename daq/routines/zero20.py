@@ -23,7 +23,7 @@ moves to each recorded posture and closes the loop again from there.
 from __future__ import annotations
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel, ConfigDict, Field
 
 from calibration.transforms import fit_rigid
 
@@ -176,6 +176,11 @@ class ZeroLoopOptions(BaseModel):
     #: large correction leaves a residual along its own direction (model Jacobian, tracker
     #: rotation: ~1 %) that is systematic, not noise, and would bias the offsets
     confirm_step_mm: float = 0.5
+    #: every correction (and probe move) first moves each joint this far below its new
+    #: position, then to it (rad): each joint approaches from the same side, so backlash
+    #: stays on one side instead of flipping with the sign of the correction (a loop that
+    #: alternates sides never converges); 0 moves straight there
+    approach_rad: float = Field(default=0.002, ge=0.0, le=0.05)
 
 
 #: the routine's acquisition options (stored in the run context's ``acquire``)
@@ -236,6 +241,13 @@ class ZeroLoop:
         self.o = options or ZeroLoopOptions()
         self.tracker_R_base = tracker_R_base
 
+    def move(self, ctx, q: np.ndarray) -> None:
+        """Move to ``q`` (rad), every joint approaching from below (``approach_rad``)."""
+        q = np.asarray(q, float)
+        if self.o.approach_rad > 0:
+            ctx.move_joints(q - self.o.approach_rad)
+        ctx.move_joints(q)
+
     def measure(self, ctx):
         """The mean of ``average`` measurements."""
         from dataclasses import replace
@@ -281,6 +293,11 @@ class ZeroLoop:
 
         fk = ChainFK.from_model(self.model)
         q0 = np.asarray(jr.q, float)
+        if self.o.approach_rad > 0:  # the reference measured like the probes: from below
+            self.move(ctx, q0)
+            jr = ctx.read_joints()
+            m = self.measure(ctx)
+            q0 = np.asarray(jr.q, float)
         p0 = fk.point(q0[None])[0]
         m0 = np.asarray(m.xyz, float)
         A, B = [], []
@@ -288,7 +305,7 @@ class ZeroLoop:
             dp = np.zeros(3)
             dp[k] = self.o.probe_mm
             dq = np.linalg.lstsq(tool_jacobian(self.model, q0), dp, rcond=None)[0]
-            ctx.move_joints(q0 + dq)
+            self.move(ctx, q0 + dq)
             jr = ctx.read_joints()
             m = self.measure(ctx)
             A.append(fk.point(np.asarray(jr.q, float)[None])[0] - p0)
@@ -315,9 +332,12 @@ class ZeroLoop:
             J = R @ tool_jacobian(self.model, jr.q)
             dq = J.T @ np.linalg.solve(J @ J.T + lam2 * np.eye(3), e)
             last_step = float(np.linalg.norm(J @ dq))
-            ctx.move_joints(jr.q + dq)
+            self.move(ctx, jr.q + dq)
             jr = ctx.read_joints()
             m = self.measure(ctx)
         raise ZeroNotReached(f"robot {ctx.robot_url}", "zero",
                              f"tip {np.linalg.norm(target - m.xyz):.4f} mm from the target "
-                             f"after {o.max_iter} corrections")
+                             f"after {o.max_iter} corrections: the robot does not follow the "
+                             "loop's corrections (backlash beyond --zero-approach-rad "
+                             f"{o.approach_rad:g}? the tracker noisier than --zero-tol-mm "
+                             f"{o.tol_mm:g}? then --zero-average N or a larger --zero-tol-mm)")
