@@ -1,4 +1,4 @@
-"""Measured poses: :class:`Dataset` and the measurement CSV of FORMATS.md §1.
+"""Measured poses: :class:`Dataset` and the measurement CSV of docs/formats.md §1.
 
 The reader is strict: a missing required column, a non-numeric value, a NaN, a
 duplicated ``pose_id``, a bad ``set``/``dirJ`` value or a joint outside the
@@ -262,7 +262,7 @@ def _float(source, line_no, col, text) -> float:
 
 
 class CsvTable:
-    """A CSV file read strictly, for every table format of FORMATS.md §1.
+    """A CSV file read strictly, for every table format of docs/formats.md §1.
 
     Reading refuses a file with no header, duplicated columns or a row whose field
     count differs from the header's; :meth:`require` refuses missing columns and a
@@ -367,7 +367,7 @@ class CsvTable:
 
 
 def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = True) -> Dataset:
-    """Read a measurement CSV (FORMATS.md §1).
+    """Read a measurement CSV (docs/formats.md §1).
 
     Parameters
     ----------

@@ -170,7 +170,7 @@ class Diagnosis:
                 + (f" (noise floor {floor:.3f} mm)." if floor else "."))
 
     def to_json(self) -> dict:
-        """The ``diagnose --json`` object (FORMATS.md §4), extended."""
+        """The ``diagnose --json`` object (docs/formats.md §4), extended."""
         em = self.fit.error_model
         return {
             "model": em.model.name,

@@ -1,4 +1,4 @@
-"""``cellcal export [RUN]``: write a run's samples as a measurement CSV (FORMATS.md §1).
+"""``cellcal export [RUN]``: write a run's samples as a measurement CSV (docs/formats.md §1).
 
 Columns: ``pose_id``, ``q1..qN`` (deg, as read from the controller), ``x y z``
 (mm, tracker frame), ``cmd_x/y/z`` (the controller's nominal TCP, when the robot
@@ -10,7 +10,7 @@ that divided by sqrt(n) (``--sigma-mode mean``). The result is read directly
 by ``cellcal calibrate`` and ``cellcal diagnose``.
 
 ``--postures`` (a ``zero20`` run) writes the zero-point postures CSV instead
-(FORMATS.md §1): ``pose_id``, ``plane`` (from the plan), ``q1..qN`` (deg, as
+(docs/formats.md §1): ``pose_id``, ``plane`` (from the plan), ``q1..qN`` (deg, as
 read), ``x y z`` (the measured tips, mm: in the robot base frame when the run
 knows its measurement frame, else in the tracker frame, said by a
 ``# xyz_frame: tracker`` comment), read by ``cellcal zero``.
@@ -74,7 +74,7 @@ def run(args) -> int:
 
 
 def _postures(store, args) -> int:
-    """Write a zero20 run's postures CSV (FORMATS.md §1)."""
+    """Write a zero20 run's postures CSV (docs/formats.md §1)."""
     from ..run_data import postures_from_run
     from ..store import StoreError
 

@@ -1,6 +1,6 @@
 """``cellcal zero``: zero-point recalibration from 20 postures on one fixed point.
 
-The postures come from a postures CSV (FORMATS.md §1) or straight from the run
+The postures come from a postures CSV (docs/formats.md §1) or straight from the run
 store (``--db cell.db [--run N]``: a ``zero20`` capture, default the latest
 completed one; planes from the plan, joints as read, tips as measured).
 
@@ -114,6 +114,32 @@ def _chain(model, params_path):
     return ChainFK(model.convention, c.table, tool), c.tracker_T_base
 
 
+def _joints_as_calibrated(params_path, postures, notes: list[str]):
+    """The postures with the joints the calibration's joint effects (backlash, compliance,
+    ...) make of the readings, so the offsets found are changes of the zeros alone (not
+    the backlash of the side the postures were approached from, say). Needs the run's
+    approach directions (``--db``); a CSV's postures are used as read, with a note."""
+    from calibration.params_io import load_params
+
+    em, x, _ = wrap_errors(lambda: load_params(params_path))
+    joint = [e.label for e in em.effects if e.stage == "joint"]
+    if not joint:
+        return postures
+    data = getattr(postures, "data", None)
+    if data is None:
+        notes.append(f"{params_path} has {', '.join(joint)}: the postures CSV has no approach "
+                     "directions, so the offsets include what those effects do at the postures")
+        return postures
+    q = em.perturb(x, em.bind(data)).q
+    out = type(postures)(q, postures.plane, postures.pose_id, base_p_tip=postures.base_p_tip,
+                         tracker_p_tip=postures.tracker_p_tip, source=postures.source,
+                         lines=postures.lines)
+    out.run_id = postures.run_id
+    notes.append(f"joints corrected by {', '.join(joint)} of {params_path} (the run's approach "
+                 "directions): the offsets are changes of the zeros alone")
+    return out
+
+
 def _replay_start(path, n_joints):
     import numpy as np
 
@@ -181,6 +207,8 @@ def run(args) -> int:
         if out.suffix == ".json" and not args.params:
             raise UsageError("--out *.json updates a params file: give --params")
     fk, base = _chain(model, args.params)
+    if args.params:
+        postures = _joints_as_calibrated(args.params, postures, notes)
     offsets0 = _replay_start(args.replay, model.n_joints) if args.replay else None
     measured = postures.base_p_tip
     if postures.tracker_p_tip is not None:
@@ -235,18 +263,26 @@ def _with_capture_tool(model, meta: dict, source: str):
 
 def _from_store(args):
     """(model, postures) of a zero20 run in the store (the model with the run's tool);
-    ``postures.run_id`` set."""
+    ``postures.run_id`` and ``postures.data`` (the run as a data set) set."""
+    import numpy as np
+
     from calibration import load_model
 
-    from ..run_data import postures_from_run
+    from ..run_data import dataset_from_run, postures_from_run
     from ..store import StoreError
 
     try:
         with open_store(args.db) as store:
             # tips stay in the tracker frame when --params gives the base pose
             postures, r = postures_from_run(store, args.run, to_base=not args.params)
+            data = dataset_from_run(store, r.id)  # approach directions, temperature
     except StoreError as e:
         raise UsageError(str(e)) from None
+    if r.context.acquire.get("approach_rad", 0) > 0:
+        # the closed loop approached every posture from below on every joint: the
+        # executor's recorded directions are those of its move into the posture
+        data.dirs = np.ones_like(data.q, dtype=int)
+    postures.data = data
     name = args.model or r.model
     if not name:
         raise UsageError(f"run {r.id} records no model: give --model")

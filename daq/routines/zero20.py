@@ -176,10 +176,12 @@ class ZeroLoopOptions(BaseModel):
     #: large correction leaves a residual along its own direction (model Jacobian, tracker
     #: rotation: ~1 %) that is systematic, not noise, and would bias the offsets
     confirm_step_mm: float = 0.5
-    #: every correction (and probe move) first moves each joint this far below its new
-    #: position, then to it (rad): each joint approaches from the same side, so backlash
-    #: stays on one side instead of flipping with the sign of the correction (a loop that
-    #: alternates sides never converges); 0 moves straight there
+    #: every correction (and probe move, and the posture itself before the first
+    #: measurement) first moves each joint this far below its new position, then to it
+    #: (rad): each joint approaches from the same side, so backlash stays on one side
+    #: instead of flipping with the sign of the correction (a loop that alternates sides
+    #: never converges), and every recorded posture was approached from below (+1) on
+    #: every joint; 0 moves straight there
     approach_rad: float = Field(default=0.002, ge=0.0, le=0.05)
 
 
@@ -319,6 +321,9 @@ class ZeroLoop:
         """Close the loop at the posture the robot stands in; (joints read, measurement)."""
         o = self.o
         jr = ctx.read_joints()
+        if o.approach_rad > 0:  # the posture itself approached from below, like every step
+            self.move(ctx, jr.q)
+            jr = ctx.read_joints()
         m = self.measure(ctx)
         target = self.target(ctx, m.xyz)
         R, jr, m = self.rotation(ctx, jr, m)
