@@ -52,7 +52,7 @@ def register(sub) -> None:
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (default loopback)")
     s.add_argument("--port-base", type=int, default=None, metavar="N",
                    help="serve on ports N (Modbus robot), N+1 (line robot), N+2 (tracker), "
-                   "N+3 (emScon)")
+                   "N+3 (emScon); 0: any free ports")
     for name, flag in _PORT_FLAGS.items():
         s.add_argument(flag, type=int, default=None, metavar="PORT",
                        help=f"port of the {name.replace('_', ' ')} server (default "
@@ -70,7 +70,8 @@ def ports(args) -> dict[str, int]:
     """The ports asked for: the defaults, or from --port-base, then the port flags."""
     out = dict(DEFAULT_PORTS)
     if args.port_base is not None:
-        out = {name: args.port_base + k for k, name in enumerate(DEFAULT_PORTS)}
+        out = {name: args.port_base + k if args.port_base else 0
+               for k, name in enumerate(DEFAULT_PORTS)}
     for name in DEFAULT_PORTS:
         v = getattr(args, _PORT_FLAGS[name].lstrip("-").replace("-", "_"))
         if v is not None:
