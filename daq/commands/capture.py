@@ -29,6 +29,11 @@ EXEC_FLAGS = [
 ]
 
 
+def metavar(typ) -> str:
+    """``N`` for a count, ``X`` for a quantity (the help says its unit)."""
+    return "N" if typ is int else "X"
+
+
 def add_common(p, *, resume: bool = False) -> None:
     p.add_argument("--db", required=True, metavar="cell.db",
                    help="the run store (SQLite file; created when missing)" if not resume
@@ -85,7 +90,7 @@ def register(sub) -> None:
         r.add_argument("--dry-run", action="store_true",
                        help="check and print the plan, do not move")
         for flag, _, typ, hlp in EXEC_FLAGS + spec.acquire_flags:
-            r.add_argument(flag, type=typ, default=None, help=hlp)
+            r.add_argument(flag, type=typ, default=None, help=hlp, metavar=metavar(typ))
         spec.add(r)
         r.set_defaults(func=run)
 

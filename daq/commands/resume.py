@@ -12,7 +12,7 @@ from __future__ import annotations
 import sys
 
 from ..cli import command_parser
-from .capture import EXEC_FLAGS, add_common, confirm_motion, flag_values, run_and_report
+from .capture import EXEC_FLAGS, add_common, confirm_motion, flag_values, metavar, run_and_report
 from .routine_args import ROUTINE_ARGS
 
 #: every routine's acquisition flags (given, they apply to a run of that routine)
@@ -32,7 +32,7 @@ def register(sub) -> None:
                    help="the run to continue (default: the latest run of the store)")
     add_common(p, resume=True)
     for flag, _, typ, hlp in EXEC_FLAGS + ACQUIRE_FLAGS:
-        p.add_argument(flag, type=typ, default=None, help=hlp)
+        p.add_argument(flag, type=typ, default=None, help=hlp, metavar=metavar(typ))
     p.set_defaults(func=run)
 
 
