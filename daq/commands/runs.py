@@ -4,6 +4,7 @@ interruptions)."""
 from __future__ import annotations
 
 import datetime as dt
+import math
 
 from ..cli import UsageError, command_parser
 
@@ -45,7 +46,7 @@ def _value(v) -> str:
     if isinstance(v, bool) or v is None:
         return "-" if v is None else ("yes" if v else "no")
     if isinstance(v, float):
-        return f"{v:.4f}"
+        return f"{v:.4f}".rstrip("0").rstrip(".") if math.isfinite(v) else str(v)
     if isinstance(v, (list, tuple)):
         sep = "; " if v and isinstance(v[0], (list, tuple)) else ", "
         return sep.join(_value(x) for x in v)

@@ -43,6 +43,13 @@ def test_match_output_ellipsis_and_tolerance():
     assert not match_output(doc, ["head 1", "rms 0.9 mm in 3 s", "tail"], 0.1, "^rms")
 
 
+def test_inline_ellipsis_matches_any_text():
+    doc = ["solver    lm: converged ([...]) after 4 iterations, 45.7 ms"]
+    assert match_output(doc, ["solver    lm: converged (step below tolerance) after 7 "
+                              "iterations, 3.1 ms"])
+    assert not match_output(doc, ["solver    lm: NOT converged (x) after 7 iterations, 3 ms"])
+
+
 def test_cellcal_argv_splits_shell_syntax():
     assert cellcal_argv("cellcal zero --db c.db --json > out.json") == [
         ["zero", "--db", "c.db", "--json"]]
