@@ -7,10 +7,10 @@ completed one; planes from the plan, joints as read, tips as measured).
 Two-pass flow of the seed method (a second, fine pass after a manual adjustment)::
 
     cellcal capture zero20 --target-xyz X,Y,Z ... --db cell.db      # run 1
-    cellcal zero --db cell.db --json > first_pass.json              # first pass
+    cellcal zero --db cell.db --params params.json --json > first_pass.json   # first pass
     # apply first_pass.json's offsets at the controller (its joint zeros)
     cellcal capture zero20 --replay 1 ... --db cell.db              # the same 20 postures
-    cellcal zero --db cell.db --replay first_pass.json              # fine pass
+    cellcal zero --db cell.db --params params.json --replay first_pass.json   # fine pass
 
 The fine pass starts from the first pass's offsets and reports what remains to
 correct relative to the adjusted controller's readings: about 0 when the
