@@ -38,7 +38,7 @@ def _read_lines(proc: subprocess.Popen, n: int, timeout: float) -> list[str]:
 def test_cellcal_sim_serve_subprocess():
     proc = subprocess.Popen(
         [sys.executable, "-m", "daq", "sim", "serve", "--model", "toy", "--seed", "3",
-         "--faults", "beam=0", "--port-base", "0"],
+         "--faults", "beam=0", "--port-base", "0", "--no-rtde"],  # 30004 may be free or not
         cwd=ROOT,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
