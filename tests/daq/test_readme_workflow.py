@@ -21,12 +21,14 @@ import time
 import numpy as np
 import pytest
 
+from calibration.cell import CellSpec, Smr, TrackerPlacement
 from calibration.inverse import ChainFK
 from calibration.params_io import load_params
 from calibration.simulate import random_joints
+from calibration.visibility import assess
 from daq.cli import main
 from drivers.urls import open_robot, open_tracker
-from sim_drivers.model_truth import ModelTruth
+from sim_drivers.model_truth import DEFAULT_TRACKER_AT_MM, ModelTruth
 
 from .capture_helpers import sim_serve, ur10e_controller_model
 
@@ -54,15 +56,18 @@ def _cellcal(*args: str) -> str:
     return out.getvalue()
 
 
-def _targets(n: int, rng) -> np.ndarray:
-    """Reachable tool points in front of the robot (base frame, mm), plus the point the
-    README's zero20 uses."""
+def _targets(n: int, rng) -> tuple[np.ndarray, np.ndarray]:
+    """Reachable tool points in front of the robot (base frame, mm) and their nominal
+    joints (rad): postures whose beam to the tracker at its default place passes the
+    links (the simulated tracker is honest about them)."""
     model = ur10e_controller_model()
     q = random_joints(model, 20 * n, rng)
     p = ChainFK.from_model(model).point(q)
     r = np.linalg.norm(p[:, :2], axis=1)
-    keep = (p[:, 2] > 200) & (r > 400) & (r < 1000)
-    return np.vstack([[600.0, 200.0, 500.0], p[keep][: n - 1]])
+    cell = CellSpec(tracker=TrackerPlacement(position=DEFAULT_TRACKER_AT_MM),
+                    smr=Smr(reflector="360"))
+    keep = (p[:, 2] > 200) & (r > 400) & (r < 1000) & assess(model, q, cell).visible
+    return p[keep][:n], q[keep][:n]
 
 
 def _measure_at(robot, tracker, q: np.ndarray) -> np.ndarray:
@@ -80,14 +85,17 @@ def _measure_at(robot, tracker, q: np.ndarray) -> np.ndarray:
 def test_readme_workflow_compensates_to_the_validation_rms(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     truth = ModelTruth.from_spec("ur10e", HIDDEN, SEED)  # what sim serve --seed 4 serves
+    # a 360-degree reflector: the compensated targets below are measured whichever way
+    # the SMR faces (the captures plan for the tracker at its default place anyway)
+    (tmp_path / "cell.yaml").write_text("smr:\n  reflector: '360'\n")
     with sim_serve("--seed", str(SEED), "--hidden", HIDDEN, "--port-base", "0", "--no-pty",
-                   "--no-rtde") as serve:
+                   "--no-rtde", "--cell", str(tmp_path / "cell.yaml")) as serve:
         urls = _urls(serve)
         R = next(u for u in urls if u.startswith("modbus+tcp://"))
         T = next(u for u in urls if u.startswith("tracker+tcp://"))
         common = ["--model", "ur10e", "--tool-mm", "0,0,60", "--robot", R, "--tracker", T,
                   "--db", "cell.db"]
-        _cellcal("capture", "frame", "--start-deg", "0,-60,90,-120,-90,0", *common)
+        _cellcal("capture", "frame", "--tracker-at", "2500,0,500", *common)
         _cellcal("capture", "poses", "--count", "400", "--valid-fraction", "0.25", "--seed",
                  str(SEED), *common)
         _cellcal("export", "--db", "cell.db", "--out", "capture.csv")
@@ -105,9 +113,12 @@ def test_readme_workflow_compensates_to_the_validation_rms(tmp_path, monkeypatch
                                        "--json"))
         assert at_floor["at_noise_floor"]
 
-        targets = _targets(12, np.random.default_rng(1))
-        rows = ["pose_id,x,y,z," + ",".join(f"dir{j}" for j in range(1, 7))]
-        rows += [f"t{i},{x:.6f},{y:.6f},{z:.6f},1,1,1,1,1,1" for i, (x, y, z) in enumerate(targets)]
+        targets, q_targets = _targets(12, np.random.default_rng(1))
+        rows = ["pose_id,x,y,z," + ",".join(f"q{j}" for j in range(1, 7)) + ","
+                + ",".join(f"dir{j}" for j in range(1, 7))]
+        rows += [f"t{i},{x:.6f},{y:.6f},{z:.6f}," + ",".join(f"{v:.9f}" for v in np.degrees(q))
+                 + ",1,1,1,1,1,1" for i, ((x, y, z), q) in enumerate(zip(targets, q_targets,
+                                                                         strict=True))]
         (tmp_path / "targets.csv").write_text("\n".join(rows) + "\n")
         comp = json.loads(_cellcal("compensate", "targets.csv", "--params", "params.json",
                                    "--out", "compensated.csv", "--json"))
