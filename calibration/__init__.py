@@ -6,16 +6,18 @@ Lengths mm, angles rad inside.
 
 Modules
 -------
-robot_model     RobotModel: the nominal robot from the model YAML (FORMATS.md §2), built-ins
+robot_model     RobotModel: the nominal robot from the model YAML (docs/formats.md §2), built-ins
 kinematics      run_chain: forward kinematics vectorised over poses, exact Jacobians
 transforms      rotations and rigid transforms on arrays; fit_rigid / fit_rotation (Kabsch)
 inverse         batched damped-Newton inverse kinematics (ChainFK, solve_ik)
 gravity         gravity torques at every joint from the mass model
-dataset         Dataset and the measurement CSV (FORMATS.md §1), CsvTable for every table
+dataset         Dataset and the measurement CSV (docs/formats.md §1), CsvTable for every table
+capture_meta    CaptureMeta: the capture context a measurement file carries (tool, frame, run)
 effects/        the physical causes of error (geometric, base, tool, compliance, ...)
 error_model     ErrorModel: a model plus effects; perturb (the one apply chain), evaluate
 identifiability which parameters a data set determines (QR with column pivoting)
 solvers/        lm, ridge, besa, sa: the least-squares solvers identify uses
+blas            one BLAS thread for small problems (timings independent of the neighbours)
 identify        identify -> Fit (values, uncertainties, residuals, statistics), fit_at
 uncertainty     correlations, Monte-Carlo re-identification, position uncertainty
 diagnosis       diagnose: where a fit fails and which missing effect explains it

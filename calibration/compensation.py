@@ -27,7 +27,7 @@ import numpy as np
 
 from .dataset import Dataset
 from .error_model import ErrorModel
-from .inverse import ChainFK, IKResult, solve_ik
+from .inverse import ChainFK, IKResult, solve_ik, solve_ik_multistart
 from .kinematics import run_chain
 
 
@@ -112,18 +112,49 @@ class Compensation:
     reason: str
 
 
-def nominal_solution(model, target: np.ndarray, q_start: np.ndarray, *,
-                     limits: np.ndarray | None = None) -> IKResult:
+def nominal_solution(model, target: np.ndarray, q_start: np.ndarray | None = None, *,
+                     limits: np.ndarray | None = None, n_seeds: int = 24) -> IKResult:
     """Nominal joints for target points: minimum-norm position IK on the nominal model.
+
+    Every target is tried from ``q_start`` first; a target not reached from there is
+    tried again from ``n_seeds`` fixed starts spread over the joint ranges (seeded: the
+    same answer every time), keeping the reached solution nearest ``q_start``.
 
     Parameters
     ----------
     model : the nominal RobotModel (its tool is the controller's TCP)
     target : (n, 3) mm, base frame
-    q_start : (N,) or (n, N) starting joints (the configuration to stay in), rad
+    q_start : (N,) starting joints (the configuration to stay in), rad; default all zeros
+    limits : (N, 2) joint limits, rad
+    n_seeds : further starts for the targets not reached from ``q_start``
     """
-    return solve_ik(ChainFK.from_model(model), q_start, target, None, limits=limits,
-                    max_iter=200)
+    fk = ChainFK.from_model(model)
+    target = np.atleast_2d(np.asarray(target, float))
+    N = model.n_joints
+    start = np.zeros(N) if q_start is None else np.asarray(q_start, float).reshape(N)
+    res = solve_ik(fk, start, target, None, limits=limits, max_iter=200)
+    miss = np.flatnonzero(~res.success)
+    if miss.size and n_seeds:
+        lim = limits if limits is not None else np.tile([-np.pi, np.pi], (N, 1))
+        lo, hi = np.maximum(lim[:, 0], -np.pi), np.minimum(lim[:, 1], np.pi)
+        seeds = np.random.default_rng(0).uniform(lo, hi, size=(n_seeds, N))
+        more = solve_ik_multistart(fk, target[miss], None, np.vstack([start, seeds]),
+                                   reference=start, limits=limits, max_iter=200)
+        res.q[miss] = more.q
+        res.success[miss] = more.success
+        res.position_error_mm[miss] = more.position_error_mm
+        res.iterations = max(res.iterations, more.iterations)
+    return res
+
+
+def _reason(success: np.ndarray, residual_mm: np.ndarray, n_position_only: int) -> str:
+    """What the compensation achieved, in one phrase (consistent with ``success``)."""
+    n, bad = len(success), int((~success).sum())
+    text = (f"all {n} targets reached" if not bad else
+            f"{bad} of {n} targets not reached (worst {residual_mm[~success].max():.3g} mm)")
+    if n_position_only:
+        text += f"; {n_position_only} solved for position only (orientation not held)"
+    return text
 
 
 def compensate(
@@ -145,7 +176,8 @@ def compensate(
     target : (n, 3) desired tool points, robot base frame, mm
     q_nominal : (n, N) nominal joints (rad), e.g. the joints the program uses today; when
         None they are found by :func:`nominal_solution` from ``q_start``
-    q_start : (N,) starting configuration for the nominal IK (default all zeros), rad
+    q_start : (N,) starting configuration for the nominal IK (default all zeros, then
+        fixed starts over the joint ranges, :func:`nominal_solution`), rad
     keep_orientation : hold the nominal flange orientation (6 joints); else minimum-norm
     columns : per-target data for effects that need it (``temp_c``...), arrays (n,)
     """
@@ -155,8 +187,7 @@ def compensate(
     limits = model.limits_rad()
     nominal = ChainFK.from_model(model)
     if q_nominal is None:
-        start = np.zeros(N) if q_start is None else np.asarray(q_start, float)
-        q_nominal = nominal_solution(model, target, start, limits=limits).q
+        q_nominal = nominal_solution(model, target, q_start, limits=limits).q
     q_nominal = np.atleast_2d(np.asarray(q_nominal, float))
     if q_nominal.shape != (n, N):
         raise ValueError(f"q_nominal has shape {q_nominal.shape}, expected ({n}, {N})")
@@ -168,6 +199,7 @@ def compensate(
                    max_iter=max_iter, success_mm=1e-6, success_rad=1e-7)
     q = res.q
     kept = res.success & orient
+    n_position_only = 0
     if orient and not res.success.all():
         # near a singularity the orientation cannot be held exactly: fall back to the
         # minimum-norm position correction from the nominal joints for those targets
@@ -178,13 +210,13 @@ def compensate(
                       max_iter=max_iter, success_mm=1e-6)
         q[bad] = fb.q
         res.success[bad] = fb.success
-        res.reason += f"; {len(bad)} solved for position only (orientation not held)"
+        n_position_only = len(bad)
     P_cmd, R_cmd, _, _ = nominal(q)
     P_nom = nominal.point(q_nominal)
     residual = np.linalg.norm(fk.chain(q).base_p_tcp - target, axis=1)
     return Compensation(target, q_nominal, q, P_cmd, R_cmd, residual,
                         np.linalg.norm(P_cmd - P_nom, axis=1), res.success, kept,
-                        res.iterations, res.reason)
+                        res.iterations, _reason(res.success, residual, n_position_only))
 
 
 @dataclass
@@ -196,7 +228,8 @@ class Targets:
     base_p_tcp : (n, 3) desired tool points in the robot base frame, mm
     q : (n, N) nominal joints, rad, or None
     pose_id : n labels
-    columns : optional per-target data (``temp_c``, ``payload_kg``), arrays (n,)
+    columns : optional per-target data: ``temp_c``, ``payload_kg`` (n,), ``dirs`` (n, N)
+        approach directions (for backlash)
     """
 
     base_p_tcp: np.ndarray
@@ -207,9 +240,11 @@ class Targets:
 
 def load_targets(path, model) -> Targets:
     """Read a targets CSV: ``x, y, z`` (mm, robot base frame) required; optional
-    ``pose_id``, ``q1..qN`` (deg, nominal/seed joints, all or none), ``temp_c``,
-    ``payload_kg``. Strict like the measurement CSV: errors name file, line and column."""
-    from .dataset import CsvTable
+    ``pose_id``, ``q1..qN`` (deg, nominal/seed joints, all or none), ``dir1..dirN`` (the
+    direction each joint will approach the target from, -1/0/+1, all or none: for a model
+    with backlash), ``temp_c``, ``payload_kg``. Strict like the measurement CSV: errors
+    name file, line and column."""
+    from .dataset import CsvTable, DataError
 
     t = CsvTable(path)
     N = model.n_joints
@@ -219,4 +254,12 @@ def load_targets(path, model) -> Targets:
     q = np.radians(t.joints_deg(model)) if has_q else None
     pose_id = t.ids("pose_id")
     columns = {c: t.numeric(c) for c in ("temp_c", "payload_kg") if c in t}
+    dir_cols = [f"dir{j + 1}" for j in range(N)]
+    if t.all_or_none(dir_cols, "direction columns"):
+        dirs = np.column_stack([t.numeric(c) for c in dir_cols])
+        if not np.isin(dirs, (-1.0, 0.0, 1.0)).all():
+            r, j = map(int, np.argwhere(~np.isin(dirs, (-1.0, 0.0, 1.0)))[0])
+            raise DataError(f"{t.source}: line {t.lines[r]}, column dir{j + 1}: "
+                            f"{dirs[r, j]:g} is not -1, 0 or +1")
+        columns["dirs"] = dirs.astype(int)
     return Targets(xyz, q, pose_id, columns)

@@ -1,4 +1,4 @@
-"""Measured poses: :class:`Dataset` and the measurement CSV of FORMATS.md §1.
+"""Measured poses: :class:`Dataset` and the measurement CSV of docs/formats.md §1.
 
 The reader is strict: a missing required column, a non-numeric value, a NaN, a
 duplicated ``pose_id``, a bad ``set``/``dirJ``/``face`` value, an empty
@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .capture_meta import CaptureMeta
 from .robot_model import RobotModel
 
 
@@ -129,6 +130,11 @@ class Dataset:
         v = self.meta.get("tracker_sigma_mm")
         return float(v) if v is not None else None
 
+    @property
+    def capture(self) -> CaptureMeta:
+        """What the file's metadata says about its capture (tool, frame, run...)."""
+        return CaptureMeta.from_meta(self.meta, self.source)
+
     def noise_floor_mm(self) -> float | None:
         """RMS of the 3-D measurement error the instrument alone causes: sqrt(3) sigma."""
         s = self.sigma()
@@ -211,6 +217,28 @@ _OPTIONAL_FLOAT = ("temp_c", "t_s", "payload_kg", "sigma_mm", "pressure_hpa", "h
 _TRACKER_COLUMNS = ("pressure_hpa", "humidity_pct", "reflector", "face")
 
 
+def read_meta(path: str | Path) -> dict[str, str]:
+    """The ``# key: value`` metadata at the top of a CSV file (before the header), without
+    reading the rows: e.g. to find the model a measurement file was captured with.
+    An unreadable file gives ``{}`` (reading it for real says why)."""
+    meta: dict[str, str] = {}
+    try:
+        with open(path, encoding="utf-8") as fh:
+            for line in fh:
+                stripped = line.strip()
+                if not stripped:
+                    continue
+                if not stripped.startswith("#"):
+                    break
+                body = stripped[1:].strip()
+                if ":" in body:
+                    k, v = body.split(":", 1)
+                    meta[k.strip()] = v.strip()
+    except (OSError, UnicodeDecodeError):
+        return {}
+    return meta
+
+
 def _read_rows(path: Path, source: str):
     """Metadata, header, its line number and the data rows as (line_no, fields)."""
     try:
@@ -257,7 +285,7 @@ def _float(source, line_no, col, text) -> float:
 
 
 class CsvTable:
-    """A CSV file read strictly, for every table format of FORMATS.md §1.
+    """A CSV file read strictly, for every table format of docs/formats.md §1.
 
     Reading refuses a file with no header, duplicated columns or a row whose field
     count differs from the header's; :meth:`require` refuses missing columns and a
@@ -367,7 +395,7 @@ class CsvTable:
 
 
 def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = True) -> Dataset:
-    """Read a measurement CSV (FORMATS.md §1). Rows whose ``reading`` is ``rejected``
+    """Read a measurement CSV (docs/formats.md §1). Rows whose ``reading`` is ``rejected``
     (readings a capture did not accept) are left out.
 
     Parameters
@@ -439,16 +467,7 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
             is_valid[r] = v == "valid"
 
     meta = t.meta
-    if "tracker_sigma_mm" in meta:
-        try:
-            s = float(meta["tracker_sigma_mm"])
-            if not (s > 0 and math.isfinite(s)):
-                raise ValueError
-        except ValueError:
-            raise DataError(
-                f"{source}: metadata tracker_sigma_mm: {meta['tracker_sigma_mm']!r} is not a "
-                "positive number"
-            ) from None
+    CaptureMeta.from_meta(meta, source)  # refuses malformed capture metadata now
 
     return Dataset(q=np.radians(q), tracker_p_smr=xyz, pose_id=pose_id, cmd=cmd, dirs=dirs,
                    is_valid=is_valid, meta=meta, source=source, lines=t.lines,

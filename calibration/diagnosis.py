@@ -178,11 +178,12 @@ class Diagnosis:
                     "candidate families (e.g. a wrong nominal model or non-repeatable motion).")
         after = b.refit_rms_mm or b.rms_after_mm
         return (f"{describe_effect(b)} explains {100 * b.explained_fraction:.0f} % of the "
-                f"remaining error; adding it should bring the RMS from {self.rms_mm:.3f} to "
-                f"{after:.3f} mm" + (f" (noise floor {floor:.3f} mm)." if floor else "."))
+                f"remaining error; adding it should bring the RMS on the calibration poses "
+                f"from {self.rms_mm:.3f} to {after:.3f} mm"
+                + (f" (noise floor {floor:.3f} mm)." if floor else "."))
 
     def to_json(self) -> dict:
-        """The ``diagnose --json`` object (FORMATS.md §4), extended."""
+        """The ``diagnose --json`` object (docs/formats.md §4), extended."""
         em = self.fit.error_model
         return {
             "model": em.model.name,

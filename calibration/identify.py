@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
+from .blas import blas_threads
 from .dataset import Dataset
 from .effects import display_unit
 from .error_model import Bound, ErrorModel
@@ -173,6 +174,9 @@ def identify(
 ) -> Fit:
     """Identify the parameters of ``error_model`` from ``data``.
 
+    A small problem runs on one BLAS thread (:func:`calibration.blas.blas_threads`), so
+    ``solve_s`` does not depend on what else the machine runs.
+
     Parameters
     ----------
     data : measured poses; rows with ``set=valid`` are held out for validation
@@ -194,6 +198,14 @@ def identify(
         raise ValueError(f"unknown solver {solver!r}; available: {', '.join(SOLVERS)}")
     if outliers not in OUTLIER_MODES:
         raise ValueError(f"outliers must be one of {', '.join(OUTLIER_MODES)}, not {outliers!r}")
+    with blas_threads(3 * data.n * error_model.n_params):
+        return _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
+                         outliers)
+
+
+def _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
+              outliers) -> Fit:
+    """:func:`identify` (its arguments, positionally)."""
     t0 = time.perf_counter()
     data = error_model.prepare(data)
     if any(getattr(e, "smoothing", 0.0) is None for e in error_model.effects):

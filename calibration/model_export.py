@@ -1,5 +1,5 @@
 """Model export (not the run export of ``cellcal export``): a calibrated model as the model
-YAML (FORMATS.md §2) with the geometric deltas folded into the table and the identified
+YAML (docs/formats.md §2) with the geometric deltas folded into the table and the identified
 tool as ``tool``, and UR ``calibration.conf`` deltas (exact conversion to pure DH, see
 :mod:`calibration.ur_conf`). The effects are applied by
 :meth:`~calibration.error_model.ErrorModel.perturb`.

@@ -33,6 +33,10 @@ steps the automatic diagnosis took to reach these parameters (:func:`read_auto_s
 ``smoothing`` (effect name -> the penalty weight of a correction
 table) is read back. A table's knots are its parameter names (``table5.j2.kp010``: +10°),
 so a table whose knots span only the data's angles reads back as it was fitted.
+``capture`` (also ignored when reading the parameters) is what the measurement file said
+about its capture (:class:`~calibration.capture_meta.CaptureMeta`: run and store, model,
+the controller's tool, SMR radius, measurement frame, tracker sigma; :func:`capture_of`
+reads it back). The capture's tool is also the nominal tool of ``model_definition``.
 
 Angles are in degrees (``unit: "deg"``). Geometric parameters are deltas to the
 nominal table; base and tool parameters are absolute.
@@ -45,6 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .capture_meta import CaptureMeta
 from .effects import EffectError, display_unit, load_effect_file, parse_effects
 from .error_model import ErrorModel
 from .identify import Fit
@@ -58,10 +63,11 @@ class ParamsError(ValueError):
     """A params.json that cannot be used."""
 
 
-def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto=None) -> dict:
+def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto=None,
+                capture: CaptureMeta | None = None) -> dict:
     """The params.json mapping of ``fit``; ``auto`` (an
     :class:`~calibration.auto_diagnosis.AutoDiagnosis` whose final fit ``fit`` is) adds
-    its steps as ``auto_steps``."""
+    its steps as ``auto_steps``; ``capture`` the capture's context as ``capture``."""
     em = fit.error_model
     out = {
         "format": FORMAT,
@@ -95,6 +101,8 @@ def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto=None) -> d
         out["outlier_check"] = fit.outliers.check_json()
     if auto is not None:
         out["auto_steps"] = auto_steps_json(auto)
+    if capture is not None and capture.known:
+        out["capture"] = capture.to_json()
     return out
 
 
@@ -138,6 +146,14 @@ def read_outliers(source: str | Path | dict) -> list[dict]:
     return list(data.get("outliers", []))
 
 
+def capture_of(path: str | Path) -> CaptureMeta:
+    """The ``capture`` metadata of a params.json (empty when it has none)."""
+    try:
+        return CaptureMeta.from_json(json.loads(Path(path).read_text()).get("capture"))
+    except (OSError, ValueError, TypeError, AttributeError):
+        return CaptureMeta()
+
+
 def solver_summary(fit: Fit) -> dict:
     """JSON-ready solver extras: ridge (xi, condition class, rejected and down-weighted
     pose ids) and annealing (evaluations, seed); empty for other solvers."""
@@ -153,9 +169,10 @@ def solver_summary(fit: Fit) -> dict:
 
 
 def save_params(fit: Fit, path: str | Path, effect_files: list[str] | None = None,
-                auto=None) -> None:
-    """Write :func:`fit_to_dict` (with ``auto``'s steps when given) as JSON."""
-    Path(path).write_text(json.dumps(fit_to_dict(fit, effect_files, auto), indent=1) + "\n")
+                auto=None, capture: CaptureMeta | None = None) -> None:
+    """Write :func:`fit_to_dict` (with ``auto``'s steps, ``capture``'s context) as JSON."""
+    Path(path).write_text(json.dumps(fit_to_dict(fit, effect_files, auto, capture),
+                                     indent=1) + "\n")
 
 
 def params_from_dict(

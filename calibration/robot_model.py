@@ -1,4 +1,4 @@
-"""The nominal robot: :class:`RobotModel`, loaded from the model YAML (FORMATS.md §2).
+"""The nominal robot: :class:`RobotModel`, loaded from the model YAML (docs/formats.md §2).
 
 Files hold millimetres and degrees; the model keeps them as written and offers
 radian views (``dh_table()``, ``limits_rad()``) for the numerical code. A prismatic joint

@@ -136,9 +136,10 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     result.noise_floor_mm = floor
     sf = staged_fit(data, model, refit=False)
     fit, diag = sf.current, sf.diagnosis
-    say(f"[4/7] calibrated {','.join(fit.error_model.labels)}: validation RMS "
-        f"{fit.valid['rms_mm']:.4f} mm (uncalibrated {sf.uncalibrated.valid['rms_mm']:.3f} "
-        f"mm, noise floor {floor:.4f} mm)")
+    say(f"[4/7] calibrated {','.join(fit.error_model.labels)}: RMS {fit.calib['rms_mm']:.4f} "
+        f"mm on the {fit.calib['n']} calibration poses, {fit.valid['rms_mm']:.4f} mm on the "
+        f"{fit.valid['n']} validation poses (uncalibrated {sf.uncalibrated.valid['rms_mm']:.3f}"
+        f" mm, noise floor {floor:.4f} mm)")
     say(f"[5/7] diagnosis ({diag.n_screened} candidates): {diag.recommendation()}")
     auto = auto_diagnose(fit, data)
     story = AutoStory.from_auto(auto, sf.uncalibrated)
@@ -148,15 +149,17 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     added = [s.effect for s in story.added]
     if added:
         result.found = hidden if hidden in added else added[0]
-        say(f"[6/7] calibrated --effects {','.join(final.error_model.labels)}: validation "
-            f"RMS {final.valid['rms_mm']:.4f} mm")
+        say(f"[6/7] calibrated --effects {','.join(final.error_model.labels)}: RMS "
+            f"{final.calib['rms_mm']:.4f} mm calibration, {final.valid['rms_mm']:.4f} mm "
+            "validation")
         diag = diagnose(final, data)
     else:
         say("[6/7] nothing to add")
-    save_params(final, params_path, auto=auto)
+    save_params(final, params_path, auto=auto, capture=data.capture)
     render_report(diag, stages, title=f"cellcal demo, seed {seed}", story=story, data=data,
                   provenance=Provenance.of(model.name, csv_path, data)).write(report_path)
-    say(f"[7/7] wrote {params_path} and {report_path}")
+    say(f"[7/7] wrote {params_path}, {report_path} and {out / 'demo.json'} (what was hidden "
+        "and found, the RMS of each stage)")
 
     result.rms = {s.label: s.fit.valid["rms_mm"] for s in stages}
     result.seconds = time.perf_counter() - t_start
@@ -172,7 +175,7 @@ def before_after(r: DemoResult) -> str:
     """The closing table: validation RMS stage by stage against the noise floor."""
     labels = list(r.rms)
     width = max(len(s) for s in labels)
-    lines = [f"{'model':<{width}}  validation RMS"]
+    lines = [f"{'model':<{width}}  RMS on the validation poses"]
     for label in labels:
         lines.append(f"{label:<{width}}  {r.rms[label]:8.4f} mm  "
                      f"({r.rms[label] / r.noise_floor_mm:5.2f} x noise floor)")

@@ -1,8 +1,8 @@
 """Progress of a capture on a terminal: points done/total, rate, ETA, last error.
 
-Written to stderr: refreshed in place (``\\r``) when the stream is a TTY, plain
-lines otherwise (at most one every ``interval_s``, plus every fault and the
-end). Disabled (quiet) under ``--json``.
+Written to stderr: refreshed in place (``\\r``) when the stream is a TTY and erased at
+the end (the command's own summary line follows), plain lines otherwise (at most one
+every ``interval_s``, plus every fault and the end). Disabled (quiet) under ``--json``.
 """
 
 from __future__ import annotations
@@ -86,8 +86,8 @@ class Progress:
         self.stream.flush()
 
     def close(self) -> None:
-        """End the in-place line (TTY)."""
+        """Erase the in-place line (TTY): the summary that follows says how it ended."""
         if self.enabled and self.tty and self._width:
-            self.stream.write("\n")
+            self.stream.write("\r" + " " * self._width + "\r")
             self.stream.flush()
             self._width = 0

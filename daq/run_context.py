@@ -164,7 +164,13 @@ class RunContext(BaseModel):
     model : str or None
         The robot model as given: a built-in name or a YAML path.
     tool_mm : (3,) mm or None
-        The controller's TCP in the flange frame when it overrides the model's tool.
+        The controller's TCP in the flange frame (the model's tool unless ``--tool-mm``
+        overrode it; None only in contexts upgraded from schema 2 without one).
+    smr_radius_mm : float or None
+        Radius of the SMR measured (``--smr-radius-mm``, else the surface offset of the
+        reflector the tracker reports, when it reports one).
+    reflector : str or None
+        The reflector's name, when the tracker reports it.
     robot_url, tracker_url : str or None
         Where the devices were reached (a resume may move them: the store updates them).
     seed : int or None
@@ -193,6 +199,8 @@ class RunContext(BaseModel):
     routine: str
     model: str | None = None
     tool_mm: tuple[float, float, float] | None = None
+    smr_radius_mm: float | None = Field(default=None, gt=0)
+    reflector: str | None = None
     robot_url: str | None = None
     tracker_url: str | None = None
     seed: int | None = None

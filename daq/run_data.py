@@ -72,8 +72,8 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
 
     reflector = [r.reflector for r in rows]
     reflector = reflector if all(reflector) else None
-    meta = {"run": str(run.id), "routine": run.routine, "plan_hash": run.plan_hash,
-            "model": run.model or "", "robot": run.robot_url or "",
+    meta = {"run": str(run.id), "routine": run.routine, **run_meta(store, run, sigma),
+            "plan_hash": run.plan_hash, "robot": run.robot_url or "",
             "tracker": run.tracker_url or "", "software": run.software or "",
             "sigma_mm": ("tracker std, RMS over axes" if sigma_mode == "std"
                          else "tracker std / sqrt(n), RMS over axes")}
@@ -89,6 +89,25 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
         is_valid=np.array(valid, bool), meta=meta, source=f"{store.path} run {run_id}",
     )
     return (data, reading, reason) if all_readings else data
+
+
+def run_meta(store: RunStore, run, sigma_mm: np.ndarray | None = None) -> dict[str, str]:
+    """The run's capture context as measurement-file metadata
+    (:class:`calibration.capture_meta.CaptureMeta`): run id and store, model, the
+    controller's tool, the SMR, the measurement frame and the tracker's sigma (RMS of the
+    points' ``sigma_mm``), for ``# key: value`` header lines."""
+    from calibration.capture_meta import CaptureMeta
+
+    ctx = run.context
+    T = ctx.tracker_T_base_matrix
+    sigma = None
+    if sigma_mm is not None and len(sigma_mm) and np.all(sigma_mm > 0):
+        sigma = float(np.sqrt(np.mean(np.asarray(sigma_mm) ** 2)))
+    return CaptureMeta(
+        run=run.id, store=str(store.path), model=run.model or ctx.model,
+        tool_mm=None if ctx.tool_mm is None else np.asarray(ctx.tool_mm, float),
+        smr_radius_mm=ctx.smr_radius_mm, reflector=ctx.reflector, frame_run=ctx.frame_run,
+        tracker_T_base=T, tracker_sigma_mm=sigma).to_meta()
 
 
 def postures_from_run(store: RunStore, run_id: int | None = None, *, to_base: bool = True):

@@ -104,6 +104,7 @@ class CaptureRequest:
     model: str
     params: dict = field(default_factory=dict)
     tool_mm: tuple[float, float, float] | None = None
+    smr_radius_mm: float | None = None
     seed: int | None = None
     floor_z_mm: float | None = 0.0
     max_reach_mm: float | None = None
@@ -204,6 +205,25 @@ class RunOutcome:
         if self.tracker_check is not None:
             out["tracker_check"] = self.tracker_check
         return out
+
+
+def reflector_context(tracker, smr_radius_mm: float | None = None) -> dict:
+    """``smr_radius_mm`` and ``reflector`` for the run context: the given radius, else the
+    surface offset of the reflector the tracker reports (trackers with the
+    :class:`~drivers.protocols.ReflectorSelect` capability); None where unknown."""
+    from drivers.errors import DriverError
+    from drivers.protocols import ReflectorSelect
+
+    out = {"smr_radius_mm": smr_radius_mm, "reflector": None}
+    if isinstance(tracker, ReflectorSelect):
+        try:
+            r = tracker.reflector()
+        except DriverError:
+            return out
+        out["reflector"] = r.name or None
+        if smr_radius_mm is None and r.surface_offset_mm > 0:
+            out["smr_radius_mm"] = float(r.surface_offset_mm)
+    return out
 
 
 # -------------------------------------------------------------------- start
@@ -367,7 +387,8 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
                 frame_run=None if frame is None else frame.id,
                 tracker_T_base=None if frame is None else frame.frame["tracker_T_base"],
                 executor=req.executor, acquire=planned.acquire, motion=req.motion,
-                tracker=req.tracker, tracker_check=found)
+                tracker=req.tracker, tracker_check=found,
+                **reflector_context(tracker, req.smr_radius_mm))
             run_id = store.create_run(planned.plan, context, robot_desc=describe(robot),
                                       tracker_desc=describe(tracker),
                                       robot_identity=cell.robot.to_dict(),

@@ -1,5 +1,5 @@
 """The JSON objects the command line prints for a result of the calibration core
-(FORMATS.md §4): :func:`fit_summary` (``calibrate --json``) and :func:`zero_summary`
+(docs/formats.md §4): :func:`fit_summary` (``calibrate --json``) and :func:`zero_summary`
 (``zero --json``). Numbers rounded and units in degrees where a person reads them."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from calibration.zero_point import ZeroResult, assess
 
 
 def fit_summary(fit: Fit) -> dict:
-    """The ``calibrate --json`` object (FORMATS.md §4), without file names."""
+    """The ``calibrate --json`` object (docs/formats.md §4), without file names."""
     out = {
         "model": fit.error_model.model.name,
         "effects": fit.error_model.labels,
@@ -43,7 +43,7 @@ def fit_summary(fit: Fit) -> dict:
 
 def zero_summary(result: ZeroResult, model_name: str, n_poses: int, *, tolerance_deg: float,
             sigma_mm: float, measured: bool = False) -> dict:
-    """The ``zero --json`` object (FORMATS.md §4) plus extra keys."""
+    """The ``zero --json`` object (docs/formats.md §4) plus extra keys."""
     status, reasons = assess(result, tolerance_deg=tolerance_deg, sigma_mm=sigma_mm,
                              measured=measured)
     det = result.determined

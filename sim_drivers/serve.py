@@ -3,8 +3,10 @@
 :class:`SimStack` builds one :class:`~sim_drivers.cell.SimCell` and serves it as
 a Modbus TCP robot, a line-protocol robot over TCP, the line-protocol
 tracker over TCP and over a pty, and an emScon (Leica TPI) tracker over TCP,
-all on loopback. Preferred ports are tried
-first (:data:`DEFAULT_PORTS`); a busy one falls back to a free port.
+all on loopback, on the configured ports (:data:`DEFAULT_PORTS`, or
+:func:`ports_from_base`): a port in use is an error (:class:`PortInUse`) unless the
+configuration allows any port (``any_port``: a free one instead); port 0 is any free
+port.
 
 The truth is one parameter: ``truth_factory(seed, hidden) -> TrueRobot``
 (default :func:`sim_drivers.inprocess.default_truth`, a ``ToyArm``).
@@ -29,13 +31,27 @@ from sim_drivers.truth import TrueRobot
 #: emScon server listens on 700, a privileged port)
 DEFAULT_PORTS = {"modbus": 15020, "line_robot": 15021, "tracker": 15700, "emscon": 15701}
 
+#: what each port serves, for messages
+PORT_NAMES = {"modbus": "Modbus robot", "line_robot": "line-protocol robot",
+              "tracker": "line-protocol tracker", "emscon": "emScon tracker"}
+
+
+class PortInUse(ValueError):
+    """A configured port is taken (another ``cellcal sim serve``, another program)."""
+
+
+def ports_from_base(base: int) -> dict[str, int]:
+    """Ports ``base`` .. ``base + 3``: Modbus robot, line robot, line tracker, emScon."""
+    return {name: base + k for k, name in enumerate(DEFAULT_PORTS)}
+
 
 @dataclass
 class ServeConfig:
     """What ``cellcal sim serve`` runs.
 
     ``hidden`` is passed to the truth factory unchanged; ``faults`` is a fault
-    spec (:mod:`sim_drivers.faults`); ports of 0 mean "any free port".
+    spec (:mod:`sim_drivers.faults`); ports of 0 mean "any free port"; ``any_port``: a
+    port in use is replaced by a free one (else :class:`PortInUse`).
     """
 
     seed: int = 0
@@ -45,6 +61,7 @@ class ServeConfig:
     host: str = "127.0.0.1"
     ports: dict[str, int] = field(default_factory=lambda: dict(DEFAULT_PORTS))
     pty: bool = True
+    any_port: bool = False
     #: also serve RTDE (receive side) on the fixed port 30004 of ``host``, when it is free
     rtde: bool = False
 
@@ -81,34 +98,41 @@ class SimStack:
         #: what could not be served (said by ``cellcal sim serve`` on stderr)
         self.notes: list[str] = []
 
-    def _start_one(self, make, port: int):
+    def _start_one(self, make, service: str):
+        port = self.config.ports.get(service, 0)
         try:
             return make(port).start()
-        except OSError:
+        except OSError as e:
             if port == 0:
                 raise
+            if not self.config.any_port:
+                raise PortInUse(f"port {port} ({PORT_NAMES[service]}) on "
+                                f"{self.config.host} is in use: another `cellcal sim serve`? "
+                                "Choose other ports (--port-base N) or allow any free port "
+                                "(--any-port)") from e
             return make(0).start()
 
     def start(self) -> SimStack:
-        """Start every server (fixed ports first, free ones as fallback)."""
+        """Start every server on its configured port (:class:`PortInUse` when one is taken,
+        unless ``any_port``)."""
         c, cell, f = self.config, self.cell, self.faults
         try:
             self.servers.append(
                 self._start_one(
                     lambda p: ModbusRobotServer(cell, faults=f, host=c.host, port=p),
-                    c.ports.get("modbus", 0),
+                    "modbus",
                 )
             )
             self.servers.append(
                 self._start_one(
                     lambda p: RobotLineServer(cell, faults=f, host=c.host, port=p),
-                    c.ports.get("line_robot", 0),
+                    "line_robot",
                 )
             )
             self.servers.append(
                 self._start_one(
                     lambda p: TrackerServer(cell, faults=f, host=c.host, port=p),
-                    c.ports.get("tracker", 0),
+                    "tracker",
                 )
             )
             if c.pty:
@@ -116,7 +140,7 @@ class SimStack:
             self.servers.append(
                 self._start_one(
                     lambda p: EmsconServer(cell, faults=f, host=c.host, port=p),
-                    c.ports.get("emscon", 0),
+                    "emscon",
                 )
             )
             if c.rtde:

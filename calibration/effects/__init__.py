@@ -1,4 +1,4 @@
-"""Effects: the physical causes of error a model can include (FORMATS.md §3).
+"""Effects: the physical causes of error a model can include (docs/formats.md §3).
 
 ``parse_effects("geometric,base,tool,compliance:2", model)`` builds effect
 objects from their names. Families register in :data:`REGISTRY`; a user's file

@@ -49,7 +49,7 @@ class Compliance(JointEffect):
         if not has_mass_model(model):
             raise EffectError(
                 f"effect {self.label} needs a mass model: model {model.name} has no "
-                "`links:` or `payload:` (see FORMATS.md §2)"
+                "`links:` or `payload:` (see docs/formats.md §2)"
             )
         self.param_names = ["c"]
         self.units = ["rad/(N*m)"]

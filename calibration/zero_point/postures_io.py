@@ -1,4 +1,4 @@
-"""Zero-point postures as data: :class:`Postures`, the postures CSV (FORMATS.md §1) read
+"""Zero-point postures as data: :class:`Postures`, the postures CSV (docs/formats.md §1) read
 strictly by :func:`load_postures`, and :func:`postures_from_dataset` for a
 :class:`~calibration.dataset.Dataset` (e.g. a ``zero20`` run from the store).
 
@@ -109,7 +109,7 @@ class Postures:
 
 
 def load_postures(path: str | Path, model: RobotModel, *, check_limits: bool = True) -> Postures:
-    """Read a zero-point postures CSV (FORMATS.md §1): ``pose_id, plane, q1..qN`` (deg),
+    """Read a zero-point postures CSV (docs/formats.md §1): ``pose_id, plane, q1..qN`` (deg),
     optional ``x, y, z`` (mm). Errors name the file, line and column; nothing is guessed.
 
     The tips are in the robot base frame unless a ``# xyz_frame: tracker`` comment says

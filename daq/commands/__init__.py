@@ -3,6 +3,7 @@ inputs and prints; none passes the argparse namespace on.
 
 Modules (sub-command in brackets)
     ``common``            shared helpers: loading inputs with user-facing errors, printing
+    ``choices``           the parser's defaults and choices (equal to the core's, import-free)
     ``demo``              [demo] the whole workflow on the simulated cell
     ``capture``           [capture ROUTINE] plan, dry-run and run a routine into the store
     ``routine_args``      the command-line options of each capture routine

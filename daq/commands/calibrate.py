@@ -5,34 +5,42 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
-
-from calibration import DEFAULT_EFFECTS, ErrorModel, identify, load_csv
-from calibration.outliers import MODES as OUTLIER_MODES
-from calibration.params_io import fit_to_dict, load_params, params_by_name, solver_summary
-from calibration.solvers import SOLVERS
-from calibration.uncertainty import correlations, monte_carlo
-from calibration.workflow import UNCALIBRATED_LABEL, fit_uncalibrated
-from presentation.ridge_plot import plot_ridge
-from presentation.summaries import fit_summary
-
-from ..cli import UsageError
-from .common import add_model_args, fmt, load_inputs, print_json, print_outliers, table, wrap_errors
+from ..cli import UsageError, command_parser
+from .choices import DEFAULT_EFFECTS, OUTLIER_MODES, SOLVERS, solver_help
+from .common import (
+    add_model_args,
+    fmt,
+    load_inputs,
+    print_json,
+    print_outliers,
+    table,
+    tool_text,
+    wrap_errors,
+)
 
 
 def register(sub) -> None:
-    p = sub.add_parser(
-        "calibrate",
+    p = command_parser(
+        sub, "calibrate",
         help="identify error parameters from measured poses",
         description="Fit the robot's error model to a measurement CSV and report the "
-        "parameters, their uncertainties and the remaining error.",
+        "parameters, their uncertainties and the remaining error, on the calibration rows "
+        "and on the validation rows (set=valid, or --valid FILE).\n\n"
+        "The nominal tool is the capture's (the CSV's `# tool_mm:` line, written by "
+        "`cellcal export` from the capture's --tool-mm), so params.json describes the "
+        "robot as its controller knows it; --out keeps the capture's metadata with the "
+        "parameters (params.json `capture`). Exit 0 converged, 1 not converged, 2 bad "
+        "input.",
     )
     add_model_args(p)
     p.add_argument("--effects", default=DEFAULT_EFFECTS, metavar="LIST",
-                   help=f"comma-separated effects (default {DEFAULT_EFFECTS})")
-    p.add_argument("--solver", default="lm", help="identification method (default lm)")
+                   help=f"comma-separated effects (default {DEFAULT_EFFECTS}; names in "
+                   "docs/formats.md §3, e.g. geometric,base,tool,compliance:2)")
+    p.add_argument("--solver", default="lm", choices=list(SOLVERS), metavar="SOLVER",
+                   help=solver_help())
     p.add_argument("--valid", metavar="FILE", help="validation CSV (besides set=valid rows)")
-    p.add_argument("--params", metavar="params.json", help="start from these parameters")
+    p.add_argument("--params", metavar="params.json",
+                   help="start from these parameters (those of the same name)")
     p.add_argument("--out", metavar="params.json", help="write the parameters here")
     p.add_argument("--seed", type=int, default=None,
                    help="random seed of the besa/sa solvers and of --monte-carlo (default 0)")
@@ -51,9 +59,13 @@ def register(sub) -> None:
 
 def calibrate(args):
     """Run a calibration from parsed arguments; returns (fit, baseline fit)."""
+    import numpy as np
+
+    from calibration import ErrorModel, identify, load_csv
+    from calibration.params_io import load_params
+    from calibration.workflow import fit_uncalibrated
+
     model, data = load_inputs(args)
-    if args.solver not in SOLVERS:
-        raise UsageError(f"unknown solver {args.solver!r}; available: {', '.join(SOLVERS)}")
     em = wrap_errors(lambda: ErrorModel(model, args.effects))
     valid = wrap_errors(lambda: load_csv(args.valid, model)) if args.valid else None
     x0 = None
@@ -77,6 +89,10 @@ def calibrate(args):
 
 
 def run(args) -> int:
+    from calibration.params_io import fit_to_dict, params_by_name, solver_summary
+    from calibration.uncertainty import correlations, monte_carlo
+    from presentation.summaries import fit_summary
+
     ridge_plot = getattr(args, "ridge_plot", None)
     if ridge_plot and args.solver != "ridge":
         raise UsageError("--ridge-plot needs --solver ridge")
@@ -85,6 +101,8 @@ def run(args) -> int:
         raise UsageError("--monte-carlo needs N >= 2")
     fit, baseline = calibrate(args)
     if ridge_plot:
+        from presentation.ridge_plot import plot_ridge
+
         plot_ridge(fit.info, ridge_plot, f"{fit.data.source}: ridge solver")
     mc = None
     if n_mc:
@@ -92,7 +110,8 @@ def run(args) -> int:
         mc = monte_carlo(fit, n_mc, seed=seed)
     if args.out:
         Path(args.out).write_text(
-            json.dumps(fit_to_dict(fit, args.effect_file), indent=1) + "\n"
+            json.dumps(fit_to_dict(fit, args.effect_file, capture=fit.data.capture),
+                       indent=1) + "\n"
         )
     if args.json:
         out = fit_summary(fit)
@@ -127,13 +146,17 @@ def mc_summary(mc, fit) -> dict:
 
 
 def print_report(fit, baseline, out_path=None, mc=None, ridge_plot=None) -> None:
+    from calibration.uncertainty import correlations
+    from calibration.workflow import UNCALIBRATED_LABEL
+
     em = fit.error_model
     d = fit.data
     left_out = len(fit.outliers.blunders) if fit.outliers and fit.outliers.excluded else 0
     print(f"data      {d.source}: {d.n + left_out} calibration poses"
           + (f" ({left_out} left out as blunders)" if left_out else "")
           + (f", {fit.valid['n']} validation poses" if fit.valid else ""))
-    print(f"model     {em.model.name} ({em.model.convention}), effects {','.join(em.labels)}")
+    print(f"model     {em.model.name} ({em.model.convention}), {tool_text(em.model, d)}, "
+          f"effects {','.join(em.labels)}")
     ident = fit.identifiability
     print(f"params    {em.n_params}, identifiable {ident.n_identifiable}; "
           f"condition number {ident.condition_number:.3g}, "

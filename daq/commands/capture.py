@@ -20,9 +20,10 @@ SIGHUP 129: the controller's stop was sent and the run is ``paused``).
 
 from __future__ import annotations
 
+import argparse
 import sys
 
-from ..cli import UsageError
+from ..cli import UsageError, add_subcommands, command_parser
 from .routine_args import ROUTINE_ARGS, floats
 
 #: executor options settable on the command line: (flag, attribute, type, help)
@@ -41,16 +42,27 @@ EXEC_FLAGS = [
 ]
 
 
+def metavar(typ) -> str:
+    """``N`` for a count, ``X`` for a quantity (the help says its unit)."""
+    return "N" if typ is int else "X"
+
+
 def add_common(p, *, resume: bool = False) -> None:
-    p.add_argument("--db", required=True, metavar="cell.db", help="run store (SQLite)")
-    p.add_argument("--robot", required=not resume, metavar="URL", help="robot driver URL")
-    p.add_argument("--tracker", required=not resume, metavar="URL", help="tracker driver URL")
+    p.add_argument("--db", required=True, metavar="cell.db",
+                   help="the run store (SQLite file; created when missing)" if not resume
+                   else "the run store (SQLite file)")
+    p.add_argument("--robot", required=not resume, metavar="URL",
+                   help="robot driver URL, e.g. modbus+tcp://127.0.0.1:15020?unit=1 (README: "
+                   "At the cell)" + (" (default: the run's)" if resume else ""))
+    p.add_argument("--tracker", required=not resume, metavar="URL",
+                   help="tracker driver URL, e.g. tracker+tcp://127.0.0.1:15700"
+                   + (" (default: the run's)" if resume else ""))
     p.add_argument("--yes", action="store_true",
                    help="do not ask before moving devices that did not identify themselves "
                    "as simulators (any real controller, whatever its address)")
     p.add_argument("--json", action="store_true", help="print one JSON object, no progress")
     p.add_argument("--synchronous", choices=("FULL", "NORMAL"), default="FULL",
-                   help=argparse_hidden())
+                   help=argparse.SUPPRESS)
 
 
 def add_tracker_flags(p, *, resume: bool = False) -> None:
@@ -96,35 +108,37 @@ def tracker_setup(args, stored: dict | None = None) -> dict:
     return given
 
 
-def argparse_hidden():
-    import argparse
-
-    return argparse.SUPPRESS
-
-
 def register(sub) -> None:
-    from ..routines import ROUTINES, get
-
-    p = sub.add_parser(
-        "capture",
+    p = command_parser(
+        sub, "capture",
         help="run a capture routine into the run store",
-        description="Make a routine's plan, dry-run it against the model (joint limits, reach, "
-        "floor), then move and measure point by point; every sample is committed to the "
-        "SQLite run store at once. Resume an interrupted run with `cellcal resume`.",
+        description="Make a routine's plan, dry-run it against the model (joint limits, "
+        "reach, floor), then move and measure point by point; every sample is committed to "
+        "the SQLite run store at once. Resume an interrupted run with `cellcal resume`. "
+        "`cellcal capture ROUTINE --help` describes a routine and its options.\n\n"
+        "Exit codes: 0 completed; 1 paused (protective stop, rejected command, retries "
+        "exhausted) or failed; 2 bad input or a plan refused by the dry run (the offending "
+        "points are named); 130 stopped with Ctrl-C (resumable).",
     )
-    rsub = p.add_subparsers(dest="routine", metavar="ROUTINE")
-    rsub.required = True
-    for name in ROUTINES:
-        mod = get(name)
-        first = (mod.__doc__ or "").strip().splitlines()[0]
-        r = rsub.add_parser(name, help=first.split(": ", 1)[-1])
-        r.add_argument("--model", required=True, metavar="NAME|PATH", help="robot model")
+    rsub = add_subcommands(p, "routine", "ROUTINE")
+    for name, spec in ROUTINE_ARGS.items():
+        r = command_parser(rsub, name, help=spec.summary,
+                           description=spec.summary[0].upper() + spec.summary[1:] + "\n\n"
+                           + spec.description)
+        r.add_argument("--model", required=True, metavar="NAME|PATH",
+                       help="the robot model: a built-in name (see `cellcal models`) or a "
+                       "model YAML file (recorded with the run)")
         add_common(r)
         r.add_argument("--tool-mm", metavar="X,Y,Z", default=None,
                        help="the controller's TCP in the flange frame, mm (overrides the "
-                       "model's tool; recorded with the run)")
-        r.add_argument("--seed", type=int, default=None, help="random seed (recorded)")
-        r.add_argument("--floor-z-mm", type=float, default=0.0,
+                       "model's tool; recorded with the run, exported as `# tool_mm:` and "
+                       "the nominal tool of every later fit)")
+        r.add_argument("--smr-radius-mm", type=float, default=None, metavar="MM",
+                       help="radius of the SMR (recorded; default: the reflector's, when the "
+                       "tracker reports it)")
+        r.add_argument("--seed", type=int, default=None,
+                       help="random seed of the plan (recorded; default 0)")
+        r.add_argument("--floor-z-mm", type=float, default=0.0, metavar="MM",
                        help="dry run: lowest z of link origins and tool, mm (default 0)")
         r.add_argument("--no-floor", action="store_true", help="dry run: no floor check")
         r.add_argument("--keepout-mm", action="append", default=[],
@@ -152,9 +166,9 @@ def register(sub) -> None:
         r.add_argument("--plot", metavar="PNG", default=None,
                        help="draw the plan: robot, SMR positions, tracker and beams")
         for flag, _, typ, hlp in EXEC_FLAGS + ROUTINE_ARGS[name].acquire_flags:
-            r.add_argument(flag, type=typ, default=None, help=hlp)
+            r.add_argument(flag, type=typ, default=None, help=hlp, metavar=metavar(typ))
         add_tracker_flags(r)
-        ROUTINE_ARGS[name].add(r)
+        spec.add(r)
         r.set_defaults(func=run)
 
 
@@ -222,6 +236,7 @@ def report(out: dict, as_json: bool) -> int:
             print(f"  frame: circle rms {f['circle']['rms_mm']:.4f} mm, line rms "
                   f"{f['line']['rms_mm']:.4f} mm, non-orthogonality "
                   f"{f['orthogonality_deg']:.4f} deg")
+            print("  tracker_T_base (robot base in the tracker frame, mm; rows of [R | t]):")
             for row in f["tracker_T_base"][:3]:
                 print("   " + "  ".join(f"{v:12.6f}" for v in row))
         if out.get("tracker_check"):
@@ -325,12 +340,15 @@ def request_from_args(args):
         raise UsageError(f"--tool-mm: expected 3 finite numbers, got {args.tool_mm!r}")
     limits = motion_limits(args)
     tracker_at = floats(args.tracker_at, 3, "--tracker-at")
+    radius = args.smr_radius_mm
+    if radius is not None and not 0 < radius < 1000:
+        raise ValueError(f"--smr-radius-mm: {radius:g} is not a radius in mm (0 < r < 1000)")
     return CaptureRequest(
         cell=None if args.cell is None else load_cell(args.cell),
         tracker_at=None if tracker_at is None else tuple(tracker_at),
         visibility=not args.no_visibility,
         routine=args.routine, model=args.model, params=spec.params(args),
-        tool_mm=None if tool is None else tuple(tool), seed=args.seed,
+        tool_mm=None if tool is None else tuple(tool), smr_radius_mm=radius, seed=args.seed,
         floor_z_mm=limits.floor_z_mm, max_reach_mm=limits.max_reach_mm,
         frame_run=args.frame_run, executor=executor_options(flag_values(args, EXEC_FLAGS)),
         acquire=flag_values(args, spec.acquire_flags), motion=limits,

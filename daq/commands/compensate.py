@@ -9,32 +9,32 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
-
-from calibration.compensation import compensate, load_targets
-from calibration.model_export import calibrated_model, write_model_yaml, write_ur_conf
-from calibration.params_io import load_params
-from calibration.transforms import matrix_to_rotvec
-
-from ..cli import UsageError
+from ..cli import UsageError, command_parser
 from .common import fmt, print_json, wrap_errors
 from .compensate_exports import add_export_args, output_paths, run_exports
 
 
 def register(sub) -> None:
-    p = sub.add_parser(
-        "compensate",
+    p = command_parser(
+        sub, "compensate",
         help="compensate target points with a calibrated model",
         description="For target points of the tool in the robot base frame (CSV: x, y, z "
-        "in mm required; optional pose_id, q1..qN nominal joints in deg, temp_c, "
-        "payload_kg) compute the joints that reach them on the real robot and the corrected "
-        "Cartesian targets (nominal FK of those joints) for a controller that only knows "
-        "its nominal model. Optionally export the calibrated model (YAML) or UR deltas.",
+        "in mm required; optional pose_id, q1..qN nominal joints in deg, dir1..dirN "
+        "approach directions, temp_c, payload_kg) compute the joints that reach them on "
+        "the real robot and the corrected Cartesian targets (nominal FK of those joints) "
+        "for a controller that only knows its nominal model. The nominal model is the "
+        "calibration's, with the capture's tool (the controller's TCP). Optionally export "
+        "the calibrated model (YAML) or UR deltas.\n\n"
+        "Targets without nominal joints get them by inverse kinematics on the nominal "
+        "model, from --start (default: a few standard postures, the first that reaches "
+        "wins). Exit 0 when every target is reached, 1 otherwise, 2 for bad input.",
     )
     p.add_argument("targets", metavar="TARGETS.csv", nargs="?",
                    help="target points (omit to only export)")
-    p.add_argument("--params", required=True, metavar="params.json", help="the calibration")
-    p.add_argument("--out", metavar="compensated.csv", help="write the compensated targets")
+    p.add_argument("--params", required=True, metavar="params.json",
+                   help="the calibration (`cellcal calibrate --out`)")
+    p.add_argument("--out", metavar="compensated.csv",
+                   help="write the compensated targets (default: print them)")
     p.add_argument("--start", metavar="Q1,..,QN",
                    help="start configuration (deg) for targets without nominal joints")
     p.add_argument("--position-only", action="store_true",
@@ -49,7 +49,28 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def _tool_notes(em, x, capture) -> list[str]:
+    """A warning when the calibrated tool is far from the nominal one: a params.json from a
+    CSV without the capture's tool (its corrections would include the tool offset)."""
+    import numpy as np
+
+    if "tool.x" not in em.names:
+        return []
+    k = em.index("tool.x")
+    tool, nominal = np.asarray(x[k:k + 3]), em.model.tool_mm()
+    if np.linalg.norm(tool - nominal) <= 5.0:
+        return []
+    return [f"the calibrated tool ({', '.join(f'{v:.1f}' for v in tool)} mm) is "
+            f"{np.linalg.norm(tool - nominal):.0f} mm from the nominal tool "
+            f"({', '.join(f'{v:g}' for v in nominal)} mm) the controller is assumed to use: "
+            "the corrections include that difference. Calibrate from a CSV that `cellcal "
+            "export` wrote (its `# tool_mm:` line), or with --model set to the controller's "
+            "tool"]
+
+
 def _parse_start(text, n):
+    import numpy as np
+
     try:
         v = [float(s) for s in text.split(",")]
     except ValueError:
@@ -60,6 +81,10 @@ def _parse_start(text, n):
 
 
 def run(args) -> int:
+    from calibration.compensation import compensate, load_targets
+    from calibration.model_export import calibrated_model, write_model_yaml, write_ur_conf
+    from calibration.params_io import capture_of, load_params
+
     em, x, _ = wrap_errors(lambda: load_params(args.params))
     model = em.model
     inputs = {Path(p).resolve() for p in (args.params, args.targets) if p}
@@ -69,7 +94,10 @@ def run(args) -> int:
     if not args.targets and not (args.export_model or args.export_ur or output_paths(args)):
         raise UsageError("give TARGETS.csv, --export-model, --export-ur, --export-urdf, "
                          "--export-ur-yaml or --export-dh")
-    doc = {"params_file": args.params, "model": model.name, "notes": []}
+    capture = capture_of(args.params)
+    doc = {"params_file": args.params, "model": model.name, "tool_mm": list(model.tool),
+           "capture": capture.to_json() if capture.known else None,
+           "notes": _tool_notes(em, x, capture)}
     if args.export_model:
         m, notes = calibrated_model(em, x)
         write_model_yaml(m, args.export_model, notes)
@@ -86,6 +114,11 @@ def run(args) -> int:
     rc = 0
     if args.targets:
         t = wrap_errors(lambda: load_targets(args.targets, model))
+        if "dirs" not in t.columns and any(e.family == "backlash" for e in em.effects):
+            doc["notes"].append(
+                "the calibration has backlash: give dir1..dirN in the targets (the direction "
+                "each joint will approach from); without them they are derived from the "
+                "targets' order")
         start = _parse_start(args.start, model.n_joints) if args.start else None
         c = compensate(em, x, t.base_p_tcp, t.q, q_start=start,
                        keep_orientation=not args.position_only, columns=t.columns)
@@ -106,11 +139,18 @@ def run(args) -> int:
         })
         rc = 0 if c.success.all() else 1
         if not args.json:
+            where = (f" (capture run {capture.run}"
+                     + (f" of {capture.store})" if capture.store else ")")
+                     if capture.run is not None else "")
+            print(f"model     {model.name}, tool {', '.join(f'{v:g}' for v in model.tool)} "
+                  f"mm{where}")
             print(f"targets   {args.targets}: {len(t.base_p_tcp)}, reached "
                   f"{int(c.success.sum())}, orientation held {int(c.orientation_kept.sum())}")
             print(f"solver    {c.reason}; {c.iterations} iterations")
             print(f"correction of the Cartesian targets: mean {fmt(c.correction_mm.mean())} mm, "
                   f"max {fmt(c.correction_mm.max())} mm")
+            for note in doc["notes"]:
+                print(f"note      {note}")
             if args.out:
                 print(f"written   {args.out}")
             else:
@@ -125,6 +165,10 @@ def run(args) -> int:
 
 
 def _csv(t, c) -> str:
+    import numpy as np
+
+    from calibration.transforms import matrix_to_rotvec
+
     N = c.q.shape[1]
     head = (["pose_id", "x", "y", "z"] + [f"q{j + 1}" for j in range(N)]
             + ["cmd_x", "cmd_y", "cmd_z", "cmd_rx", "cmd_ry", "cmd_rz"]

@@ -7,16 +7,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from calibration.controller_export import (
-    ExportError,
-    ur_conf_parity,
-    write_table_csv,
-    write_ur_kinematics_yaml,
-)
-from calibration.model_export import calibrated_model
-from calibration.parity import model_file_parity
-from calibration.urdf_export import mount_note, write_urdf
-
 from ..cli import UsageError
 
 #: (option dest, JSON key) of the outputs this module writes
@@ -44,6 +34,16 @@ def run_exports(args, em, x, doc: dict) -> list[str]:
     ``doc`` (``*_file`` keys, ``parity`` list, ``not_exported``)."""
     if not (output_paths(args) or args.export_ur or args.export_model):
         return []
+    from calibration.controller_export import (
+        ExportError,
+        ur_conf_parity,
+        write_table_csv,
+        write_ur_kinematics_yaml,
+    )
+    from calibration.model_export import calibrated_model
+    from calibration.parity import model_file_parity
+    from calibration.urdf_export import mount_note, write_urdf
+
     model, notes = calibrated_model(em, x)
     file_notes = notes + mount_note(model)
     checks = []

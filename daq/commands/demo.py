@@ -2,24 +2,31 @@
 
 from __future__ import annotations
 
-from ..cli import UsageError
+from ..cli import UsageError, command_parser
 
 
 def register(sub) -> None:
-    p = sub.add_parser(
-        "demo",
+    p = command_parser(
+        sub, "demo",
         help="run the whole workflow on the simulated cell (no robot needed)",
         description="Start a simulated UR10e with hidden errors and one hidden physical effect "
         "behind real wire protocols, capture through the real drivers, calibrate, diagnose, "
-        "add the missing effect, calibrate again and write an HTML report.",
+        "add the missing effect, calibrate again and write an HTML report.\n\n"
+        "Writes into --out: cell.db (the run store), capture.csv, params.json, report.html "
+        "and demo.json (what was hidden and found, the validation RMS of each stage, the "
+        "files). Exit 0 when the diagnosis found the hidden effect, 1 otherwise.",
     )
-    p.add_argument("--seed", type=int, default=1, help="chooses the cell and its hidden effect")
+    p.add_argument("--seed", type=int, default=1,
+                   help="chooses the cell and its hidden effect (default 1)")
     p.add_argument("--hidden", default=None, metavar="EFFECT",
                    help="the hidden physical effect (default: chosen by the seed)")
     p.add_argument("--out", default="cellcal-demo", metavar="DIR",
-                   help="where the run store, CSV, params.json and report.html go")
-    p.add_argument("--poses", type=int, default=300, help="calibration poses (default 300)")
-    p.add_argument("--valid", type=int, default=150, help="validation poses (default 150)")
+                   help="where the run store, CSV, params.json, report.html and demo.json go "
+                   "(default cellcal-demo)")
+    p.add_argument("--poses", type=int, default=300, metavar="N",
+                   help="calibration poses (default 300, at least 50)")
+    p.add_argument("--valid", type=int, default=150, metavar="N",
+                   help="validation poses (default 150, at least 20)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-from calibration.diagnosis import Diagnosis, diagnose
-from calibration.workflow import current_fit
-
+from ..cli import command_parser
 from .common import (
     add_current_model_args,
     add_model_args,
@@ -13,14 +11,15 @@ from .common import (
     print_json,
     print_outliers,
     table,
+    tool_text,
     wrap_errors,
 )
 from .diagnose_auto import add_auto_args, check_auto_args, run_auto
 
 
 def register(sub) -> None:
-    p = sub.add_parser(
-        "diagnose",
+    p = command_parser(
+        sub, "diagnose",
         help="rank the physical effects missing from the model",
         description="Fit the current model (or read --params), then rank every candidate "
         "effect not in it by how much of the remaining error it explains, with a "
@@ -29,12 +28,16 @@ def register(sub) -> None:
     )
     add_model_args(p)
     add_current_model_args(p, "use these parameters (and their model) instead of fitting")
-    p.add_argument("--top", type=int, default=12, help="rows of the ranking to print")
+    p.add_argument("--top", type=int, default=12, metavar="N",
+                   help="rows of the ranking to print (default 12)")
     add_auto_args(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from calibration.diagnosis import diagnose
+    from calibration.workflow import current_fit
+
     check_auto_args(args)
     model, data = load_inputs(args)
     fit = wrap_errors(lambda: current_fit(model, data, args.effects, args.params, args.solver))
@@ -44,14 +47,17 @@ def run(args) -> int:
     if args.json:
         print_json(diag.to_json())
         return 0
-    print_diagnosis(diag, args.top)
+    print_diagnosis(diag, args.top, tool_text(fit.error_model.model, data, args.params))
     return 0
 
 
-def print_diagnosis(diag: Diagnosis, top: int = 12) -> None:
+def print_diagnosis(diag, top: int = 12, tool: str | None = None) -> None:
+    """The ranking as tables (``diag``: a :class:`calibration.diagnosis.Diagnosis`;
+    ``tool``: what :func:`~daq.commands.common.tool_text` says)."""
     fit = diag.fit
     floor = diag.noise_floor_mm
-    print(f"model     {fit.error_model.model.name}, effects {','.join(fit.error_model.labels)}")
+    print(f"model     {fit.error_model.model.name}, " + (f"{tool}, " if tool else "")
+          + f"effects {','.join(fit.error_model.labels)}")
     print(f"error     RMS {diag.rms_mm:.4f} mm over {fit.data.n} calibration poses"
           + (f"; noise floor {floor:.4f} mm" if floor else "; noise floor unknown (--sigma)"))
     print(f"screened  {diag.n_screened} candidate effects in {diag.screen_s:.2f} s; "

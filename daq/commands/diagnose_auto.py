@@ -8,12 +8,13 @@ import math
 import os
 import tempfile
 from pathlib import Path
-
-from calibration.auto_diagnosis import AutoDiagnosis, AutoStep, auto_diagnose
-from calibration.params_io import fit_to_dict
+from typing import TYPE_CHECKING
 
 from ..cli import UsageError
 from .common import fmt, print_json, print_outliers, table
+
+if TYPE_CHECKING:  # the calibration core is imported when a run needs it (fast --help)
+    from calibration.auto_diagnosis import AutoDiagnosis, AutoStep
 
 
 def add_auto_args(p) -> None:
@@ -65,6 +66,9 @@ def write_atomic(path: str | Path, text: str) -> None:
 
 
 def run_auto(args, fit, data) -> int:
+    from calibration.auto_diagnosis import auto_diagnose
+    from calibration.params_io import fit_to_dict
+
     quiet = args.json
     if not quiet:
         print_header(fit, data)

@@ -1,4 +1,4 @@
-"""``cellcal export [RUN]``: write a run's samples as a measurement CSV (FORMATS.md §1).
+"""``cellcal export [RUN]``: write a run's samples as a measurement CSV (docs/formats.md §1).
 
 Columns: ``pose_id``, ``q1..qN`` (deg, as read from the controller), ``x y z``
 (mm, tracker frame), ``cmd_x/y/z`` (the controller's nominal TCP, when the robot
@@ -12,7 +12,7 @@ that divided by sqrt(n) (``--sigma-mode mean``). The result is read directly
 by ``cellcal calibrate`` and ``cellcal diagnose``.
 
 ``--postures`` (a ``zero20`` run) writes the zero-point postures CSV instead
-(FORMATS.md §1): ``pose_id``, ``plane`` (from the plan), ``q1..qN`` (deg, as
+(docs/formats.md §1): ``pose_id``, ``plane`` (from the plan), ``q1..qN`` (deg, as
 read), ``x y z`` (the measured tips, mm: in the robot base frame when the run
 knows its measurement frame, else in the tracker frame, said by a
 ``# xyz_frame: tracker`` comment), read by ``cellcal zero``.
@@ -30,15 +30,24 @@ from __future__ import annotations
 
 import sys
 
-from ..cli import UsageError
+from ..cli import UsageError, command_parser
 
 
 def register(sub) -> None:
-    p = sub.add_parser("export", help="write a run's samples as a measurement CSV",
-                       description=__doc__.splitlines()[0])
+    p = command_parser(
+        sub, "export", help="write a run's samples as a measurement CSV",
+        description="Write a run's samples as a measurement CSV (docs/formats.md §1), read "
+        "directly by `cellcal calibrate`, `diagnose` and `report`. Columns: pose_id, q1..qN "
+        "(deg, as read), x y z (mm, tracker frame), cmd_x/y/z (the controller's TCP, when "
+        "known for every point), temp_c, t_s, sigma_mm, dir1..dirN (approach directions), "
+        "set (when some rows are validation rows).\n\n"
+        "The `# key: value` header carries the run's context: run, store, model, tool_mm "
+        "(the controller's TCP: the nominal tool of later fits), smr_radius_mm, "
+        "frame_run and tracker_T_base (the measurement frame), tracker_sigma_mm, URLs, "
+        "software.")
     p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN",
                    help="run id (default: the latest)")
-    p.add_argument("--db", required=True, metavar="cell.db")
+    p.add_argument("--db", required=True, metavar="cell.db", help="the run store (SQLite file)")
     p.add_argument("--out", required=True, metavar="data.csv", help="CSV to write ('-': stdout)")
     p.add_argument("--postures", action="store_true",
                    help="a zero20 run: write the zero-point postures CSV (pose_id, plane, "
@@ -91,7 +100,7 @@ def run(args) -> int:
 
 
 def _postures(store, args) -> int:
-    """Write a zero20 run's postures CSV (FORMATS.md §1)."""
+    """Write a zero20 run's postures CSV (docs/formats.md §1)."""
     from ..run_data import postures_from_run
     from ..store import StoreError
 
@@ -99,7 +108,9 @@ def _postures(store, args) -> int:
         post, r = postures_from_run(store, args.run_id)  # default: the latest zero20
     except StoreError as e:
         raise UsageError(str(e)) from None
-    meta = {"run": r.id, "routine": r.routine, "plan_hash": r.plan_hash, "model": r.model or "",
+    from ..run_data import run_meta
+
+    meta = {"run": r.id, "routine": r.routine, **run_meta(store, r), "plan_hash": r.plan_hash,
             "robot": r.robot_url or "", "tracker": r.tracker_url or ""}
     text = post.to_csv(None if args.out == "-" else args.out, meta=meta)
     if args.out == "-":

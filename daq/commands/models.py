@@ -2,18 +2,23 @@
 
 from __future__ import annotations
 
-from calibration import builtin_models, load_model
-
+from ..cli import command_parser
 from .common import print_json, table
 
 
 def register(sub) -> None:
-    p = sub.add_parser("models", help="list the built-in robot models")
-    p.add_argument("--json", action="store_true", help="print JSON")
+    p = command_parser(
+        sub, "models", help="list the built-in robot models",
+        description="List the built-in robot models: name, DH convention, joints, whether "
+        "a mass model (for compliance) is included, and the sum of |a| + |d| (a reach "
+        "scale). A model YAML file (docs/formats.md §2) works wherever a name does.")
+    p.add_argument("--json", action="store_true", help="print a JSON list")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from calibration import builtin_models, load_model
+
     rows = []
     for name in builtin_models():
         m = load_model(name)

@@ -8,30 +8,26 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from calibration.solvers import SOLVERS
-from presentation.html_report import ReportError, build_report
-from presentation.provenance import Provenance
-
-from ..cli import UsageError
+from ..cli import UsageError, command_parser
 from .common import add_current_model_args, add_model_args, load_inputs, print_json, wrap_errors
 
 
 def register(sub) -> None:
-    p = sub.add_parser(
-        "report",
+    p = command_parser(
+        sub, "report",
         help="write an HTML report with plots: where the model fails, what fixed it",
         description="Fit the uncalibrated robot (nominal kinematics, best-fit base and tool), "
-        "the current model and, when the "
-        "diagnosis finds a significant missing effect, the current model plus that effect; "
-        "write one self-contained HTML page (plots embedded) with the before/after error "
-        "statistics, residual plots, the blunders left out, the candidate ranking and the "
-        "parameters. With --auto, the automatic diagnosis (as `diagnose --auto`) adds "
-        "effects one at a time and the page shows the error falling step by step; a "
-        "--params file written by `diagnose --auto --out` shows its recorded steps.",
+        "the current model and, when the diagnosis finds a significant missing effect, the "
+        "current model plus that effect; write one self-contained HTML page (plots "
+        "embedded) with the before/after error statistics, residual plots, the blunders "
+        "left out, the candidate ranking and the parameters. Prints one line per model "
+        "(RMS on the calibration and validation rows), the recommendation and the file "
+        "written. With --auto, the automatic diagnosis (as `diagnose --auto`) adds effects "
+        "one at a time and the page shows the error falling step by step; a --params file "
+        "written by `diagnose --auto --out` shows its recorded steps.",
     )
     add_model_args(p)
-    add_current_model_args(p, "use these parameters (and their model) as the current model",
-                           "identification method (default lm)")
+    add_current_model_args(p, "use these parameters (and their model) as the current model")
     p.add_argument("--auto", action="store_true",
                    help="run the automatic diagnosis from the current model and show every "
                    "step (as `cellcal diagnose --auto`)")
@@ -46,8 +42,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    if args.solver not in SOLVERS:
-        raise UsageError(f"unknown solver {args.solver!r}; available: {', '.join(SOLVERS)}")
+    from presentation.html_report import ReportError, build_report
+    from presentation.provenance import Provenance
+
     if not args.auto and (args.max_steps != 12 or args.budget_s is not None):
         raise UsageError("--max-steps and --budget-s need --auto")
     if args.max_steps < 1:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import sys
 
+from ..cli import command_parser
 from .capture import (
     EXEC_FLAGS,
     add_common,
@@ -23,6 +24,7 @@ from .capture import (
     confirm_motion,
     executor_options,
     flag_values,
+    metavar,
     run_and_report,
     tracker_setup,
 )
@@ -33,13 +35,20 @@ ACQUIRE_FLAGS = [f for spec in ROUTINE_ARGS.values() for f in spec.acquire_flags
 
 
 def register(sub) -> None:
-    p = sub.add_parser("resume", help="continue an interrupted run (default: the latest)",
-                       description=__doc__.splitlines()[0])
-    p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN")
+    p = command_parser(
+        sub, "resume", help="continue an interrupted run (default: the latest)",
+        description="Continue a paused, stopped or killed run where it left off: the points "
+        "already stored are skipped, the rest are done; the plan comes from the store (its "
+        "hash is checked). The devices are reached with the URLs stored in the run, or "
+        "with --robot/--tracker when given. A run found still running (its process was "
+        "killed) gets a `killed` interruption first. Flags given override the stored "
+        "settings for this session. Exit codes as `cellcal capture`.")
+    p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN",
+                   help="the run to continue (default: the latest run of the store)")
     add_common(p, resume=True)
     add_tracker_flags(p, resume=True)
     for flag, _, typ, hlp in EXEC_FLAGS + ACQUIRE_FLAGS:
-        p.add_argument(flag, type=typ, default=None, help=hlp)
+        p.add_argument(flag, type=typ, default=None, help=hlp, metavar=metavar(typ))
     p.add_argument("--other-cell", action="store_true",
                    help="the robot or tracker given is not the run's (another model or "
                    "serial number): start a new run of the same plan with them instead of "

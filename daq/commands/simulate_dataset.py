@@ -4,42 +4,46 @@ from __future__ import annotations
 
 import json
 
-import numpy as np
-
-from calibration import DEFAULT_EFFECTS, ErrorModel
-from calibration.effects import display_unit
-from calibration.simulate import add_blunders, random_joints, realistic_truth, simulate
-
-from ..cli import UsageError
+from ..cli import UsageError, command_parser
+from .choices import DEFAULT_EFFECTS
 from .common import load_inputs, wrap_errors
 
 
 def register(sub) -> None:
-    p = sub.add_parser(
-        "simulate",
+    p = command_parser(
+        sub, "simulate",
         help="write a measurement CSV of a simulated robot with hidden errors",
         description="Draw realistic hidden errors (geometric, base 2-3 m from the tracker, "
         "tool, plus any --hidden effects), measure random poses with a noisy tracker and "
         "write the measurement CSV. The truth goes to --truth for checking.",
     )
-    p.add_argument("--model", required=True, metavar="NAME|PATH")
-    p.add_argument("--effect-file", action="append", default=[], metavar="FILE.py")
+    p.add_argument("--model", required=True, metavar="NAME|PATH",
+                   help="built-in model name (see `cellcal models`) or a model YAML file")
+    p.add_argument("--effect-file", action="append", default=[], metavar="FILE.py",
+                   help="load user-defined effects from a Python file (repeatable)")
     p.add_argument("--hidden", default="", metavar="EFFECTS",
                    help="extra hidden effects besides geometric,base,tool (e.g. compliance:2)")
     p.add_argument("--poses", type=int, default=300, help="calibration poses (default 300)")
     p.add_argument("--valid", type=int, default=300, help="validation poses (default 300)")
-    p.add_argument("--sigma", type=float, default=0.015, help="tracker noise per axis, mm")
+    p.add_argument("--sigma", type=float, default=0.015, metavar="MM",
+                   help="tracker noise per axis, mm (default 0.015)")
     p.add_argument("--blunders", type=float, default=0.0, metavar="RATE",
                    help="probability that a calibration reading is a blunder: displaced by "
                    "0.5-5 mm along the line of sight or in a random direction (default 0; "
                    "validation rows stay clean; which ones goes to --truth)")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--out", required=True, metavar="FILE.csv")
+    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--out", required=True, metavar="FILE.csv", help="the CSV to write")
     p.add_argument("--truth", metavar="FILE.json", help="write the hidden parameters here")
     p.set_defaults(func=run, data=None, json=False)
 
 
 def run(args) -> int:
+    import numpy as np
+
+    from calibration import ErrorModel
+    from calibration.effects import display_unit
+    from calibration.simulate import add_blunders, random_joints, realistic_truth, simulate
+
     model, _ = load_inputs(args)
     if args.poses < 1 or args.valid < 0:
         raise UsageError("--poses must be >= 1 and --valid >= 0")

@@ -1,16 +1,16 @@
 """``cellcal zero``: zero-point recalibration from 20 postures on one fixed point.
 
-The postures come from a postures CSV (FORMATS.md §1) or straight from the run
+The postures come from a postures CSV (docs/formats.md §1) or straight from the run
 store (``--db cell.db [--run N]``: a ``zero20`` capture, default the latest
 completed one; planes from the plan, joints as read, tips as measured).
 
 Two-pass flow of the seed method (a second, fine pass after a manual adjustment)::
 
     cellcal capture zero20 --target-xyz X,Y,Z ... --db cell.db      # run 1
-    cellcal zero --db cell.db --json > first_pass.json              # first pass
+    cellcal zero --db cell.db --params params.json --json > first_pass.json   # first pass
     # apply first_pass.json's offsets at the controller (its joint zeros)
     cellcal capture zero20 --replay 1 ... --db cell.db              # the same 20 postures
-    cellcal zero --db cell.db --replay first_pass.json              # fine pass
+    cellcal zero --db cell.db --params params.json --replay first_pass.json   # fine pass
 
 The fine pass starts from the first pass's offsets and reports what remains to
 correct relative to the adjusted controller's readings: about 0 when the
@@ -23,50 +23,41 @@ tolerance, the residual is far above the tip scatter, or no convergence), 2 bad 
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
-import textwrap
 from pathlib import Path
 
-import numpy as np
-
-from calibration import load_model
-from calibration.inverse import ChainFK
-from calibration.params_io import load_params
-from calibration.zero_point import (
-    DEFAULT_SIGMA_MM,
-    load_postures,
-    rigorous_method,
-    seed_method,
-)
-from presentation.summaries import zero_summary
-
-from ..cli import UsageError
+from ..cli import UsageError, command_parser
 from .common import fmt, open_store, print_json, table, wrap_errors
 
+#: tip scatter per axis of taught postures, mm (:data:`calibration.zero_point.DEFAULT_SIGMA_MM`,
+#: kept equal by tests/daq/test_cli_help.py)
+DEFAULT_SIGMA_MM = 0.02
+
 _EPILOG = """two-pass flow (seed method: a second, fine pass after a manual adjustment):
+
   cellcal capture zero20 --target-xyz X,Y,Z ... --db cell.db    # run 1
-  cellcal zero --db cell.db --json > first_pass.json            # first pass
+  cellcal zero --db cell.db --params params.json --json > first_pass.json
   (apply first_pass.json's offsets to the controller's joint zeros)
   cellcal capture zero20 --replay 1 ... --db cell.db            # same postures, loop again
-  cellcal zero --db cell.db --replay first_pass.json            # fine pass: remaining ~0
+  cellcal zero --db cell.db --params params.json --replay first_pass.json   # remaining ~0
 """
 
 
 def register(sub) -> None:
-    p = sub.add_parser(
-        "zero",
+    p = command_parser(
+        sub, "zero",
         help="recalibrate joint zero offsets from 20 postures on one point",
-        description=textwrap.fill("Estimate joint zero corrections (true = reported + offset) from "
-        "postures that all put the tool tip on one fixed point (FORMATS.md §1, zero-point "
-        "postures CSV, or a zero20 run in the store with --db): the published seed method "
-        "and a rigorous least-squares method. Fine pass after a manual adjustment: apply "
-        "the first pass's offsets at the controller, recapture the same postures with "
-        "`cellcal capture zero20 --replay RUN`, then `cellcal zero --db cell.db --replay "
-        "first_pass.json`: the remaining offsets should be about 0. "
-        "Exit 0 when decided, 3 when the data are too poor to decide, 2 for bad input.", 79),
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Estimate joint zero corrections (true = reported + offset) from "
+        "postures that all put the tool tip on one fixed point (a zero-point postures CSV, "
+        "docs/formats.md §1, or a zero20 run in the store with --db): the published seed "
+        "method and a rigorous least-squares method.\n\n"
+        "The measured tips make joint 1 and the last joint determinable only in the robot "
+        "base frame: give --params from a calibration of the same cell (its base pose); "
+        "without it they stay undetermined and, when they matter, the status is poor (exit "
+        "3). The nominal tool is the capture's (the run's --tool-mm, or the CSV's `# "
+        "tool_mm:` line).\n\n"
+        "Exit 0 when decided, 3 when the data are too poor to decide, 2 for bad input.",
         epilog=_EPILOG,
     )
     p.add_argument("postures", metavar="POSTURES.csv", nargs="?", default=None,
@@ -76,10 +67,11 @@ def register(sub) -> None:
     p.add_argument("--run", type=int, default=None, metavar="N",
                    help="with --db: the zero20 run (default: the latest completed one)")
     p.add_argument("--model", default=None, metavar="NAME|PATH",
-                   help="built-in model name or a model YAML file (default with --db: the "
-                   "run's model)")
+                   help="built-in model name or a model YAML file (default: the run's model, "
+                   "or the CSV's `# model:` line)")
     p.add_argument("--params", metavar="params.json",
-                   help="a calibrated model (geometric deltas, base for measured x,y,z)")
+                   help="a calibration of the cell (geometric deltas; its base pose puts the "
+                   "measured tips in the robot base frame)")
     p.add_argument("--method", choices=("seed", "rigorous", "both"), default="both",
                    help="seed (published), rigorous, or both compared (default; the "
                    "rigorous result is reported)")
@@ -96,7 +88,9 @@ def register(sub) -> None:
                    "correction, about 0)")
     p.add_argument("--keep-outliers", action="store_true",
                    help="do not leave out postures with improbable residuals")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the resampling")
+    p.add_argument("--seed", type=int, default=0,
+                   help="random seed of the seed method's resampling (default 0: the same "
+                   "result every time)")
     p.add_argument("--out", metavar="FILE",
                    help="write the updated model (.yaml) or params (.json, needs --params); "
                    "never the input file")
@@ -109,6 +103,9 @@ def _chain(model, params_path):
     if model.prismatic_mask() is not None:
         raise UsageError(f"model {model.name} has a prismatic joint: the zero-point "
                          "recalibration handles revolute joints only")
+    from calibration.inverse import ChainFK
+    from calibration.params_io import load_params
+
     if not params_path:
         return ChainFK.from_model(model), None
     em, x, _ = wrap_errors(lambda: load_params(params_path))
@@ -120,7 +117,35 @@ def _chain(model, params_path):
     return ChainFK(model.convention, c.table, tool), c.tracker_T_base
 
 
+def _joints_as_calibrated(params_path, postures, notes: list[str]):
+    """The postures with the joints the calibration's joint effects (backlash, compliance,
+    ...) make of the readings, so the offsets found are changes of the zeros alone (not
+    the backlash of the side the postures were approached from, say). Needs the run's
+    approach directions (``--db``); a CSV's postures are used as read, with a note."""
+    from calibration.params_io import load_params
+
+    em, x, _ = wrap_errors(lambda: load_params(params_path))
+    joint = [e.label for e in em.effects if e.stage == "joint"]
+    if not joint:
+        return postures
+    data = getattr(postures, "data", None)
+    if data is None:
+        notes.append(f"{params_path} has {', '.join(joint)}: the postures CSV has no approach "
+                     "directions, so the offsets include what those effects do at the postures")
+        return postures
+    q = em.perturb(x, em.bind(data)).q
+    out = type(postures)(q, postures.plane, postures.pose_id, base_p_tip=postures.base_p_tip,
+                         tracker_p_tip=postures.tracker_p_tip, source=postures.source,
+                         lines=postures.lines)
+    out.run_id = postures.run_id
+    notes.append(f"joints corrected by {', '.join(joint)} of {params_path} (the run's approach "
+                 "directions): the offsets are changes of the zeros alone")
+    return out
+
+
 def _replay_start(path, n_joints):
+    import numpy as np
+
     try:
         doc = json.loads(Path(path).read_text())
     except FileNotFoundError:
@@ -149,6 +174,13 @@ def _check_out(out: str, *inputs) -> Path:
 
 
 def run(args) -> int:
+    import numpy as np
+
+    from calibration import load_model
+    from calibration.dataset import read_meta
+    from calibration.zero_point import load_postures, rigorous_method, seed_method
+    from presentation.summaries import zero_summary
+
     if not (args.sigma > 0 and math.isfinite(args.sigma)):
         raise UsageError("--sigma must be a positive number of mm")
     if not (args.tolerance_deg > 0 and math.isfinite(args.tolerance_deg)):
@@ -162,10 +194,14 @@ def run(args) -> int:
         model, postures = _from_store(args)
         source = f"{args.db} run {postures.run_id}"
     else:
-        if args.model is None:
-            raise UsageError("--model is required with a postures CSV")
-        model = wrap_errors(lambda: load_model(args.model))
+        meta = read_meta(args.postures)
+        name = args.model or meta.get("model")
+        if not name:
+            raise UsageError(f"give --model: {args.postures} names no model (no `# model:` "
+                             "line)")
+        model = wrap_errors(lambda: load_model(name))
         postures = wrap_errors(lambda: load_postures(args.postures, model))
+        model = _with_capture_tool(model, meta, args.postures)
         source = args.postures
     out = None
     if args.out:
@@ -174,6 +210,8 @@ def run(args) -> int:
         if out.suffix == ".json" and not args.params:
             raise UsageError("--out *.json updates a params file: give --params")
     fk, base = _chain(model, args.params)
+    if args.params:
+        postures = _joints_as_calibrated(args.params, postures, notes)
     offsets0 = _replay_start(args.replay, model.n_joints) if args.replay else None
     measured = postures.base_p_tip
     if postures.tracker_p_tip is not None:
@@ -219,21 +257,41 @@ def run(args) -> int:
     return 0 if doc["status"] == "ok" else 3
 
 
+def _with_capture_tool(model, meta: dict, source: str):
+    """``model`` with the tool the capture recorded (``# tool_mm:``), if any."""
+    from calibration.capture_meta import CaptureMeta
+
+    return wrap_errors(lambda: CaptureMeta.from_meta(meta, source)).with_tool(model)
+
+
 def _from_store(args):
-    """(model, postures) of a zero20 run in the store; ``postures.run_id`` set."""
-    from ..run_data import postures_from_run
+    """(model, postures) of a zero20 run in the store (the model with the run's tool);
+    ``postures.run_id`` and ``postures.data`` (the run as a data set) set."""
+    import numpy as np
+
+    from calibration import load_model
+
+    from ..run_data import dataset_from_run, postures_from_run
     from ..store import StoreError
 
     try:
         with open_store(args.db) as store:
             # tips stay in the tracker frame when --params gives the base pose
             postures, r = postures_from_run(store, args.run, to_base=not args.params)
+            data = dataset_from_run(store, r.id)  # approach directions, temperature
     except StoreError as e:
         raise UsageError(str(e)) from None
+    if r.context.acquire.get("approach_rad", 0) > 0:
+        # the closed loop approached every posture from below on every joint: the
+        # executor's recorded directions are those of its move into the posture
+        data.dirs = np.ones_like(data.q, dtype=int)
+    postures.data = data
     name = args.model or r.model
     if not name:
         raise UsageError(f"run {r.id} records no model: give --model")
     model = wrap_errors(lambda: load_model(name))
+    if r.context.tool_mm is not None:
+        model = model.with_changes(tool=tuple(float(v) for v in r.context.tool_mm))
     if postures.q.shape[1] != model.n_joints:
         raise UsageError(f"run {r.id} has {postures.q.shape[1]} joints, model {model.name} "
                          f"has {model.n_joints}")
@@ -242,6 +300,8 @@ def _from_store(args):
 
 
 def _write_out(out: Path, model, params_path, result) -> None:
+    import numpy as np
+
     off = np.where(result.determined, result.offsets, 0.0)
     if out.suffix == ".json":
         doc = json.loads(Path(params_path).read_text())

@@ -238,6 +238,13 @@ class ZeroLoopOptions(BaseModel):
     #: it, plus ``agree_abs_mm`` and 4 times the two measurements' combined 3-D std
     agree_rel: float = Field(0.3, gt=0)
     agree_abs_mm: float = Field(0.05, ge=0)
+    #: every correction (and probe move, and the posture itself before the first
+    #: measurement) first moves each joint this far below its new position, then to it
+    #: (rad): each joint approaches from the same side, so backlash stays on one side
+    #: instead of flipping with the sign of the correction (a loop that alternates sides
+    #: never converges), and every recorded posture was approached from below (+1) on
+    #: every joint; 0 moves straight there
+    approach_rad: float = Field(default=0.002, ge=0.0, le=0.05)
 
 
 #: the routine's acquisition options (stored in the run context's ``acquire``)
@@ -298,6 +305,14 @@ class ZeroLoop:
         self.o = options or ZeroLoopOptions()
         self.tracker_R_base = tracker_R_base
 
+    def move(self, ctx, q: np.ndarray):
+        """Move to ``q`` (rad), every joint approaching from below (``approach_rad``);
+        the joints read back there."""
+        q = np.asarray(q, float)
+        if self.o.approach_rad > 0:
+            ctx.move_joints(q - self.o.approach_rad)
+        return ctx.move_joints(q)
+
     def measure(self, ctx):
         """The mean of ``average`` measurements."""
         from dataclasses import replace
@@ -353,6 +368,10 @@ class ZeroLoop:
 
         fk = ChainFK.from_model(self.model)
         q0 = np.asarray(jr.q, float)
+        if self.o.approach_rad > 0:  # the reference measured like the probes: from below
+            jr = self.move(ctx, q0)
+            m = self.measure(ctx)
+            q0 = np.asarray(jr.q, float)
         p0 = fk.point(q0[None])[0]
         m0 = np.asarray(m.xyz, float)
         A, B, ms = [], [], []
@@ -360,7 +379,7 @@ class ZeroLoop:
             dp = np.zeros(3)
             dp[k] = self.o.probe_mm
             dq = np.linalg.lstsq(tool_jacobian(self.model, q0), dp, rcond=None)[0]
-            jr = ctx.move_joints(q0 + dq)
+            jr = self.move(ctx, q0 + dq)
             m = self.measure(ctx)
             A.append(fk.point(np.asarray(jr.q, float)[None])[0] - p0)
             B.append(np.asarray(m.xyz, float) - m0)
@@ -388,6 +407,8 @@ class ZeroLoop:
         o = self.o
         dev = f"robot {ctx.robot_url}"
         jr = ctx.read_joints()
+        if o.approach_rad > 0:  # the posture itself approached from below, like every step
+            jr = self.move(ctx, jr.q)
         m = self.measure(ctx)
         target = self.target(ctx, m.xyz)
         e0 = float(np.linalg.norm(target - m.xyz))
@@ -411,7 +432,7 @@ class ZeroLoop:
             if step > o.max_step_mm:  # a bounded correction
                 dq *= o.max_step_mm / step
             p_before, m_before = fk.point(np.asarray(jr.q, float)[None])[0], m
-            jr = ctx.move_joints(jr.q + dq)
+            jr = self.move(ctx, jr.q + dq)
             m = self.measure(ctx)
             predicted = R @ (fk.point(np.asarray(jr.q, float)[None])[0] - p_before)
             measured = np.asarray(m.xyz, float) - np.asarray(m_before.xyz, float)
@@ -426,4 +447,7 @@ class ZeroLoop:
                     "or the measurement frame is not this cell's; the loop stopped"))
         raise ZeroNotReached(dev, self._where(ctx),
                              f"tip {np.linalg.norm(target - m.xyz):.4f} mm from the target "
-                             f"after {o.max_iter} corrections")
+                             f"after {o.max_iter} corrections: the robot does not follow the "
+                             "loop's corrections (backlash beyond --zero-approach-rad "
+                             f"{o.approach_rad:g}? the tracker noisier than --zero-tol-mm "
+                             f"{o.tol_mm:g}? then --zero-average N or a larger --zero-tol-mm)")

@@ -99,7 +99,11 @@ def run_plan(store: RunStore, plan, robot, tracker, model=None, options=None, ru
 
 @contextlib.contextmanager
 def sim_serve(*args: str):
-    """``cellcal sim serve ARGS`` as a subprocess (stdout piped); SIGTERM on exit."""
+    """``cellcal sim serve ARGS`` as a subprocess (stdout piped; on free ports unless ARGS
+    give ports); SIGTERM on exit."""
+    if not any(a.startswith("--") and a.endswith(("-port", "-port-base", "--any-port"))
+               for a in args):
+        args = (*args, "--port-base", "0")
     serve = subprocess.Popen([sys.executable, "-m", "daq", "sim", "serve", *args], cwd=ROOT,
                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     try:

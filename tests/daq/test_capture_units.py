@@ -323,7 +323,9 @@ def test_progress_lines():
     p(1, 3)
     p(3, 3)
     p.close()
-    assert tty.getvalue().startswith("\r1/3") and tty.getvalue().endswith("\n")
+    # refreshed in place, then erased: the summary line that follows starts at column 0
+    assert tty.getvalue().startswith("\r1/3") and tty.getvalue().endswith(" \r")
+    assert "\n" not in tty.getvalue()
     quiet = io.StringIO()
     Progress(quiet, enabled=False)(1, 2)
     assert quiet.getvalue() == ""

@@ -61,7 +61,10 @@ def test_bad_input_exits_2_with_a_message(sim_csv, tmp_path, capsys):
     assert "no such file" in capsys.readouterr().err
     assert main(["calibrate", str(sim_csv), "--model", "ur5", "--effects", "geometric,wobble"]) == 2
     assert "unknown effect family 'wobble'" in capsys.readouterr().err
-    assert main(["calibrate", str(sim_csv), "--model", "ur10e", "--solver", "magic"]) == 2
+    with pytest.raises(SystemExit) as e:  # argparse: the choices are listed
+        main(["calibrate", str(sim_csv), "--model", "ur10e", "--solver", "magic"])
+    assert e.value.code == 2
+    assert "invalid choice: 'magic' (choose from 'lm', 'ridge'" in capsys.readouterr().err
 
 
 def test_console_script_runs_models():

@@ -45,11 +45,16 @@ def test_report_with_params_and_text_output(c3_csv, tmp_path, capsys):
     assert "given parameters" in out.read_text()
 
 
+def test_unknown_solver_is_refused_by_the_parser_with_the_choices(c3_csv, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["report", str(c3_csv), "--model", "ur5e", "--solver", "nosuch"])
+    assert e.value.code == 2 and "choose from 'lm', 'ridge'" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("extra, message", [
     (["--model", "nosuchrobot"], "unknown model"),
     (["--model", "ur5e", "--effects", "geometric,nosuch"], "unknown effect"),
     (["--model", "ur5e", "--sigma", "-1"], "--sigma"),
-    (["--model", "ur5e", "--solver", "nosuch"], "unknown solver"),
     (["--model", "ur5e", "--params", "/nonexistent/p.json"], "no such file"),
     (["--model", "ur5e", "--out", "/nonexistent/dir/r.html"], "no such directory"),
 ])

@@ -74,33 +74,54 @@ def test_upgrade_turns_the_options_into_typed_contexts(v2_db):
     assert steps.context.seed == 7 and steps.context.executor.speed_rad_s == 0.4
     assert steps.context.executor.dwell_s == 0.01 and steps.context.executor.measure_s == 0.05
     # the zero-point loop's options became zero20's acquisition options; others have none
+    # (approach_rad came after schema 3: a schema-2 run records none, the default applies)
     assert ZeroLoopOptions(**zero.context.acquire) == ZeroLoopOptions(tol_mm=0.02, average=2)
     assert frame.context.acquire == steps.context.acquire == poses.context.acquire == {}
     with RunStore(v2_db) as st:  # reopened: already current, nothing to do
         assert st.run(3).context == zero.context
 
 
-def _columns(text: str) -> tuple[list[str], dict[str, list[str]]]:
-    """A CSV's metadata lines and its columns by name (as text)."""
-    meta = [ln for ln in text.splitlines() if ln.startswith("#")]
+def _columns(text: str) -> dict[str, list[str]]:
+    """A CSV's columns by name (as text)."""
     rows = list(csv.reader(ln for ln in text.splitlines() if not ln.startswith("#")))
-    return meta, {h: [r[k] for r in rows[1:]] for k, h in enumerate(rows[0])}
+    return {h: [r[k] for r in rows[1:]] for k, h in enumerate(rows[0])}
+
+
+def _split(text: str) -> tuple[dict, list[str]]:
+    """(``# key: value`` metadata, the other lines) of a CSV."""
+    meta = dict(line[2:].split(": ", 1) for line in text.splitlines() if line.startswith("# "))
+    return meta, [line for line in text.splitlines() if not line.startswith("#")]
+
+
+def _exported_as_before(new: str, old: str) -> None:
+    """The same rows, and every metadata line of before with its value (new lines, the
+    run's capture context, extend the header: docs/formats.md §1)."""
+    meta_new, rows_new = _split(new)
+    meta_old, rows_old = _split(old)
+    assert rows_new == rows_old
+    assert {k: meta_new.get(k) for k in meta_old} == meta_old
 
 
 def test_upgraded_store_exports_as_schema_2_did(v2_db, tmp_path, capsys):
     for run in (1, 2, 3, 4):
         out = tmp_path / f"run{run}.csv"
         assert main(["export", str(run), "--db", str(v2_db), "--out", str(out)]) == 0
-        meta, cols = _columns(out.read_text())
-        meta2, cols2 = _columns((V2 / f"run{run}.csv").read_text())
+        text, old = out.read_text(), (V2 / f"run{run}.csv").read_text()
+        cols, cols2 = _columns(text), _columns(old)
         # every column as schema 2 exported it, plus the air schema 2 stored but did not
         # export (FORMATS.md §1 optional columns); no reflector or face: not recorded then
-        assert meta == meta2 and {k: cols[k] for k in cols2} == cols2, run
+        assert {k: cols[k] for k in cols2} == cols2, run
         assert set(cols) - set(cols2) == {"pressure_hpa", "humidity_pct"}
         assert set(cols["pressure_hpa"]) == {"1013.25"}
+        # every metadata line of before with its value; the run's capture context extends
+        # the header (docs/formats.md §1)
+        meta, meta2 = _split(text)[0], _split(old)[0]
+        assert {k: meta.get(k) for k in meta2} == meta2, run
+        assert meta["tool_mm"] == "0, 0, 60" and meta["store"] == str(v2_db)
+        assert ("tracker_T_base" in meta) == (run != 1)  # run 1 is the frame run
     out = tmp_path / "postures3.csv"  # tips in the base frame: the context's tracker_T_base
     assert main(["export", "3", "--postures", "--db", str(v2_db), "--out", str(out)]) == 0
-    assert out.read_text() == (V2 / "postures3.csv").read_text()
+    _exported_as_before(out.read_text(), (V2 / "postures3.csv").read_text())
     capsys.readouterr()
     assert main(["runs", "--db", str(v2_db), "--json"]) == 0
     runs = json.loads(capsys.readouterr().out)

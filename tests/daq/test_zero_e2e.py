@@ -84,7 +84,7 @@ def test_zero20_capture_then_zero_from_the_store(tmp_path, capsys):
           f"{doc['seed']['offsets_deg'][1:5]}")
     assert np.abs(err).max() < TOL_DEG
     assert np.abs(np.array(doc["seed"]["offsets_deg"][1:5]) - hidden[1:5]).max() < TOL_DEG
-    # the postures CSV (FORMATS §1) from the store gives the same answer
+    # the postures CSV (docs/formats.md §1) from the store gives the same answer
     csv = tmp_path / "postures.csv"
     assert main(["export", "--db", str(db), "--postures", "--out", str(csv)]) == 0
     post = load_postures(csv, load_model("ur10e"))

@@ -177,7 +177,8 @@ def test_sim_serve_places_the_tracker_and_reads_the_cell(tmp_path):
     root = Path(__file__).resolve().parents[2]
     for cell_args, blocked in (([], False), (["--cell", str(f)], True)):
         proc = subprocess.Popen([sys.executable, "-m", "daq", "sim", "serve", "--no-pty",
-                                 "--no-rtde", f"--tracker-at={at[0]},{at[1]},{at[2]}",
+                                 "--no-rtde", "--port-base", "0",
+                                 f"--tracker-at={at[0]},{at[1]},{at[2]}",
                                  *cell_args], cwd=root, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE)
         try:

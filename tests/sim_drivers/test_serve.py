@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from drivers.urls import open_robot, open_tracker
-from sim_drivers.serve import ServeConfig, SimStack
+from sim_drivers.serve import PortInUse, ServeConfig, SimStack, ports_from_base
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -38,13 +38,14 @@ def _read_lines(proc: subprocess.Popen, n: int, timeout: float) -> list[str]:
 def test_cellcal_sim_serve_subprocess():
     proc = subprocess.Popen(
         [sys.executable, "-m", "daq", "sim", "serve", "--model", "toy", "--seed", "3",
-         "--faults", "beam=0"],
+         "--faults", "beam=0", "--port-base", "0", "--no-rtde"],  # 30004 may be free or not
         cwd=ROOT,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
     )
     try:
-        urls = _read_lines(proc, 5, timeout=20.0)
+        urls = _read_lines(proc, 6, timeout=20.0)
+        assert urls[5] == f"export R='{urls[0]}' T='{urls[2]}'"  # ready to paste
         assert urls[0].startswith("modbus+tcp://127.0.0.1:")
         assert urls[1].startswith("socket://127.0.0.1:")
         assert urls[2].startswith("tracker+tcp://127.0.0.1:")
@@ -86,7 +87,15 @@ def test_bad_fault_spec_is_a_usage_error():
     assert b"unknown fault 'laser'" in out.stderr
 
 
-def test_stack_falls_back_to_free_ports():
+def test_stack_refuses_a_port_in_use_or_falls_back_when_allowed():
+    free = {"modbus": 0, "line_robot": 0, "tracker": 0, "emscon": 0}
+    with SimStack(ServeConfig(pty=False, ports=free)) as a:
+        taken = {"modbus": a.servers[0].port, "line_robot": 0, "tracker": 0, "emscon": 0}
+        with pytest.raises(PortInUse, match=f"port {taken['modbus']} .Modbus robot.*--port-base"):
+            SimStack(ServeConfig(pty=False, ports=taken)).start()
+
+
+def test_stack_falls_back_to_free_ports_with_any_port():
     free = {"modbus": 0, "line_robot": 0, "tracker": 0, "emscon": 0}
     with SimStack(ServeConfig(pty=False, ports=free)) as a:
         taken = {
@@ -95,7 +104,7 @@ def test_stack_falls_back_to_free_ports():
             "tracker": a.servers[2].port,
             "emscon": a.servers[3].port,
         }
-        with SimStack(ServeConfig(pty=False, ports=taken)) as b:
+        with SimStack(ServeConfig(pty=False, ports=taken, any_port=True)) as b:
             assert len(b.urls) == 4
             assert [s.port for s in b.servers] != list(taken.values())
             with open_tracker(b.urls[2]) as trk:
@@ -112,15 +121,15 @@ def test_sim_serve_ur10e_with_rtde_read_by_the_real_ur_client():
     """The default truth (a UR10e with hidden errors) is also served over RTDE: the real
     ur-rtde receive client sees the joints the Modbus robot was moved to."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "daq", "sim", "serve", "--seed", "1", "--no-pty"],
+        [sys.executable, "-m", "daq", "sim", "serve", "--seed", "1", "--no-pty", "--port-base",
+         "0"],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
     )
     try:
         urls = _read_lines(proc, 4, timeout=20.0)
-        time.sleep(0.5)  # the RTDE line, if port 30004 was free, follows at once
-        more = _read_lines(proc, 1, timeout=5.0) if select.select(
-            [proc.stdout.fileno()], [], [], 0.5)[0] else []
-        ur = [u for u in urls + more if u.startswith("ur://")]
+        while not urls[-1].startswith("export "):  # the RTDE line, if port 30004 was free
+            urls += _read_lines(proc, 1, timeout=5.0)
+        ur = [u for u in urls if u.startswith("ur://")]
         if not ur:
             pytest.skip("port 30004 is taken on this machine: no RTDE server")
         assert ur[0] == "ur://127.0.0.1?read_only=1"
@@ -139,3 +148,19 @@ def test_sim_serve_ur10e_with_rtde_read_by_the_real_ur_client():
             proc.wait()
         proc.stdout.close()
         proc.stderr.close()
+
+
+def test_sim_serve_port_in_use_is_an_error_with_a_hint():
+    free = {"modbus": 0, "line_robot": 0, "tracker": 0, "emscon": 0}
+    with SimStack(ServeConfig(pty=False, ports=free)) as a:
+        port = a.servers[0].port
+        out = subprocess.run([sys.executable, "-m", "daq", "sim", "serve", "--no-pty",
+                              "--no-rtde", "--port-base", "0", "--modbus-port", str(port)],
+                             cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2 and out.stdout == ""
+    assert f"port {port} (Modbus robot)" in out.stderr and "--any-port" in out.stderr
+
+
+def test_port_base_gives_four_consecutive_ports():
+    assert ports_from_base(20000) == {"modbus": 20000, "line_robot": 20001, "tracker": 20002,
+                                      "emscon": 20003}
