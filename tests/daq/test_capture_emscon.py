@@ -23,14 +23,13 @@ from .capture_helpers import ROOT, sim_serve
 from .test_capture_e2e import _read_lines
 
 CLI = [sys.executable, "-m", "daq"]
-START = "20,-100,100,-90,-90,0"
 #: routine -> its flags, in the order they run into one store (frame first: the others
-#: use its measurement frame)
+#: use its measurement frame); the routines pick starts whose SMR faces the tracker
 ROUTINES = {
-    "frame": ["--start-deg", START, "--line-length-mm", "400"],
-    "steps": ["--start-deg", START, "--count", "3"],
+    "frame": ["--line-length-mm", "400"],
+    "steps": ["--count", "3"],
     "poses": ["--count", "12", "--seed", "1"],
-    "iso9283": ["--start-deg", START, "--cycles", "3"],
+    "iso9283": ["--cycles", "3"],
     "zero20": ["--target-xyz", "700,150,250"],
 }
 
