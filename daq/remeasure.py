@@ -243,6 +243,11 @@ class Settled:
     revisited: list[tuple[Sample, list[Reading]]] = field(default_factory=list)
 
 
+#: the share of judged readings confirmed against the model above which the model is taken
+#: to be incomplete and no longer trusted to call blunders (see Remeasure.model_trusted)
+MODEL_OFF_FRACTION = 0.05
+
+
 class Remeasure:
     """The re-measure policy of a run (module docstring).
 
@@ -263,6 +268,17 @@ class Remeasure:
         self.retract_rad, self.limits = float(retract_rad), np.asarray(limits, float)
         self.deadband_rad = float(deadband_rad)
         self.pending: list[int] = []
+        #: readings judged against the model, and re-measurements that agreed with each
+        #: other but not with it (the model, not the reading, was off)
+        self.judged = 0
+        self.model_off = 0
+
+    def model_trusted(self) -> bool:
+        """Whether the running model still tells blunders from physics: once more than a
+        few per cent of the judged readings were confirmed by their re-measurement against
+        it (an effect the model lacks, e.g. backlash — a case for ``diagnose``), a reading
+        out of line with it is no longer re-measured on its word."""
+        return self.model_off <= max(3, MODEL_OFF_FRACTION * self.judged)
 
     @classmethod
     def for_run(cls, store: RunStore, run_id: int, plan: Plan, model, options
@@ -316,7 +332,8 @@ class Remeasure:
         if j.suspect is None:
             return replace(first, verdict="warmup"), []
         first = _with_model(first, j, first.verdict if revisit else "ok")
-        if not j.suspect:
+        self.judged += 1
+        if not j.suspect or not self.model_trusted():
             return first, []
         note = "warm-up reading, judged once the model was fitted: " if revisit else ""
         readings = [(first, j, note + j.describe())]
@@ -329,6 +346,7 @@ class Remeasure:
                            for r, _, why in readings]
             same = [self.running.agree(r, s) for r, _, _ in readings]
             if any(same):
+                self.model_off += 1
                 return replace(s, verdict="model"), [Reading(r, f"{why}; " + (
                     "agrees with the accepted re-measurement (the model, not the reading, is "
                     "off)" if agrees else "agrees with no other reading"))

@@ -226,7 +226,7 @@ def report(out: dict, as_json: bool) -> int:
         if out.get("reason"):
             print(f"  reason: {out['reason']}")
         rm = (out.get("summary") or {}).get("remeasure")
-        if rm:
+        if rm and (rm["suspects"] or rm["rejected"] or rm["unresolved"]):
             print(f"  re-measured {rm['suspects']} points ({rm['remeasurements']} "
                   f"re-measurements, {rm['rejected']} readings rejected, "
                   f"{rm['model_disagrees']} where the model disagrees, {rm['unresolved']} "
