@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sqlite3
 import threading
 import time
 from collections.abc import Callable
@@ -227,7 +228,8 @@ class Executor:
                     self._report(n_done)
             except _Pause as p:
                 kind = "sigint" if p.status == "stopped" else "pause"
-                store.add_interruption(rid, getattr(t, "index", None), kind, p.reason)
+                with contextlib.suppress(sqlite3.Error):  # a full disk: the status first
+                    store.add_interruption(rid, getattr(t, "index", None), kind, p.reason)
                 store.set_status(rid, p.status, p.reason)
                 self.last_error = p.reason
                 self._report(n_done)
@@ -262,7 +264,11 @@ class Executor:
             try:
                 sample = self._acquire(t, attempt, phase)
                 t0 = time.perf_counter()
-                self.store.add_sample(self.run_id, sample)
+                try:
+                    self.store.add_sample(self.run_id, sample)
+                except sqlite3.OperationalError as e:  # a full disk: nothing was stored
+                    raise _Pause("paused", f"the run store could not be written at point "
+                                 f"{t.index}: {e}; free space, then `cellcal resume`") from e
                 self.commit_s += time.perf_counter() - t0
                 self.n_committed += 1
                 return

@@ -22,6 +22,15 @@ Schema versions
     older file applies the upgrades of :mod:`daq.store_schema` in order, each in one
     transaction; a newer file is refused.
 
+Opening read-only and refusing what is not a store
+    ``read_only=True`` (the commands that only read: ``runs``, ``export``, ``zero --db``)
+    opens the file with SQLite's ``mode=ro``: no WAL switch, nothing written, so a
+    read-only file or folder works and the file stays byte for byte the same; an older
+    schema is upgraded in a copy in memory. Any open refuses, with one line
+    (:class:`StoreError`), a file that is not an SQLite database, a damaged (truncated,
+    overwritten) one, an SQLite database of another program (tables that are not a run
+    store's; it is never written to) and a store of a newer schema.
+
 Every run stores its plan and its typed context (:class:`daq.run_context.RunContext`).
 Reading turns a run's samples into calibration inputs: :mod:`daq.run_data`.
 
@@ -32,12 +41,15 @@ temperature °C, pressure hPa, humidity %.
 from __future__ import annotations
 
 import json
+import os
 import sqlite3
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from calibration.files import SQLITE_MAGIC
 
 from .run_context import RunContext
 from .store_schema import SCHEMA_V1, SCHEMA_VERSION, UPGRADES
@@ -174,27 +186,63 @@ class RunStore:
         SQLite's ``synchronous`` pragma (see the module docstring).
     """
 
-    def __init__(self, path: str | Path, synchronous: str = "FULL") -> None:
+    def __init__(self, path: str | Path, synchronous: str = "FULL", *,
+                 read_only: bool = False) -> None:
         if synchronous.upper() not in ("FULL", "NORMAL"):
             raise ValueError(f"synchronous must be FULL or NORMAL, got {synchronous!r}")
         self.path = Path(path)
-        self.con = sqlite3.connect(str(self.path), timeout=30.0, isolation_level=None)
+        self.read_only = read_only
+        _check_file(self.path, must_exist=read_only)
         try:
-            self.con.execute("PRAGMA journal_mode=WAL")
-            self.con.execute(f"PRAGMA synchronous={synchronous.upper()}")
-            self.con.execute("PRAGMA foreign_keys=ON")
+            if read_only:
+                self.con = _connect_read_only(self.path)
+            else:
+                self.con = sqlite3.connect(str(self.path), timeout=30.0, isolation_level=None)
+        except sqlite3.Error as e:
+            raise StoreError(f"{self.path}: cannot open the run store: {e}") from None
+        try:
+            self._check_tables()
+            if not read_only:
+                self.con.execute("PRAGMA journal_mode=WAL")
+                self.con.execute(f"PRAGMA synchronous={synchronous.upper()}")
+                self.con.execute("PRAGMA foreign_keys=ON")
             self._migrate()
+        except sqlite3.DatabaseError as e:
+            self.con.close()
+            raise StoreError(f"{self.path}: {_damage(e)}") from None
         except BaseException:
             self.con.close()
             raise
 
     @classmethod
-    def open_existing(cls, path: str | Path, synchronous: str = "FULL") -> RunStore:
+    def open_existing(cls, path: str | Path, synchronous: str = "FULL", *,
+                      read_only: bool = False) -> RunStore:
         """An existing store; :class:`StoreError` when there is no such file (never create
-        an empty store for a mistyped path)."""
-        if not Path(path).exists():
-            raise StoreError(f"{path}: no such run store")
-        return cls(path, synchronous=synchronous)
+        an empty store for a mistyped path) or it is no run store."""
+        _check_file(Path(path), must_exist=True)
+        return cls(path, synchronous=synchronous, read_only=read_only)
+
+    def _check_tables(self) -> None:
+        """Refuse an SQLite file of another program (before anything is written to it)."""
+        tables = {r[0] for r in self.con.execute(
+            "SELECT name FROM sqlite_master WHERE type='table' AND name NOT LIKE 'sqlite_%'")}
+        if not tables:
+            if self.read_only:
+                raise StoreError(f"{self.path}: an empty database, not a cellcal run store "
+                                 "(no runs)")
+            return
+        if not {"runs", "samples"} <= tables:
+            shown = ", ".join(sorted(tables)[:5])
+            raise StoreError(f"{self.path}: not a cellcal run store (an SQLite database with "
+                             f"the tables {shown}); give the run store of a capture")
+        v = self.version
+        if v > SCHEMA_VERSION:
+            raise StoreError(f"{self.path}: schema version {v} is newer than this cellcal "
+                             f"({SCHEMA_VERSION}); update cellcal to read it")
+        if self.read_only:  # a damaged file shows on a full read, not always on open
+            bad = self.con.execute("PRAGMA quick_check").fetchone()[0]
+            if bad != "ok":
+                raise StoreError(f"{self.path}: damaged run store (SQLite: {bad})")
 
     # ------------------------------------------------------------ lifecycle
     def close(self) -> None:
@@ -212,19 +260,19 @@ class RunStore:
 
     def _migrate(self) -> None:
         v = self.version
+        if self.read_only and v < SCHEMA_VERSION:
+            self._upgrade_in_memory()
+            v = self.version
         if v == 0:
             has = self.con.execute(
                 "SELECT count(*) FROM sqlite_master WHERE type='table' AND name='runs'"
             ).fetchone()[0]
             if has:
-                raise StoreError(f"{self.path}: has a runs table but no schema version")
+                raise StoreError(f"{self.path}: not a cellcal run store (a runs table but no "
+                                 "schema version)")
             # one script, one transaction: a new file is either complete v1 or empty
             self.con.executescript(f"BEGIN; {SCHEMA_V1} PRAGMA user_version=1; COMMIT;")
             v = 1
-        if v > SCHEMA_VERSION:
-            raise StoreError(
-                f"{self.path}: schema version {v} is newer than this cellcal ({SCHEMA_VERSION})"
-            )
         while v < SCHEMA_VERSION:
             self.con.execute("BEGIN IMMEDIATE")
             try:
@@ -235,6 +283,16 @@ class RunStore:
                 self.con.execute("ROLLBACK")
                 raise
             v += 1
+
+    def _upgrade_in_memory(self) -> None:
+        """An older schema opened read-only: work on an upgraded copy in memory."""
+        if self.version == 0:
+            raise StoreError(f"{self.path}: not a cellcal run store (no schema version)")
+        mem = sqlite3.connect(":memory:", isolation_level=None)
+        self.con.backup(mem)
+        self.con.close()
+        self.con = mem
+        self.read_only = False  # the copy may be upgraded; the file is left alone
 
     # ------------------------------------------------------------------ runs
     def create_run(
@@ -435,6 +493,71 @@ class RunStore:
             if r.routine == routine and r.status == status:
                 return r
         raise StoreError(f"{self.path}: no {status} {routine} run")
+
+
+def _check_file(path: Path, must_exist: bool) -> None:
+    """Refuse, before SQLite opens it, a path that cannot be a run store."""
+    if not path.exists():
+        if path.is_symlink():
+            raise StoreError(f"{path}: a broken symbolic link, not a run store")
+        if not path.parent.is_dir():
+            raise StoreError(f"{path}: no such run store (the folder {path.parent} does not "
+                             "exist)")
+        if must_exist:
+            raise StoreError(f"{path}: no such run store")
+        return
+    if path.is_dir():
+        raise StoreError(f"{path}: is a directory, not a run store (an SQLite file)")
+    if not path.is_file():
+        raise StoreError(f"{path}: not a regular file, not a run store")
+    size = path.stat().st_size
+    if size == 0:
+        if must_exist:
+            raise StoreError(f"{path}: an empty file, not a cellcal run store")
+        return
+    with open(path, "rb") as f:
+        head = f.read(100)
+    if not head.startswith(SQLITE_MAGIC):
+        raise StoreError(f"{path}: not a cellcal run store (not an SQLite database)")
+    if len(head) < 100:
+        raise StoreError(f"{path}: damaged run store (truncated to {size} bytes)")
+    page = int.from_bytes(head[16:18], "big")
+    page = 65536 if page == 1 else page
+    pages = int.from_bytes(head[28:32], "big")
+    valid = head[24:28] == head[92:96]  # the in-header size is trustworthy
+    if valid and pages and size < pages * page:
+        raise StoreError(f"{path}: damaged run store (truncated: {size} bytes, the header "
+                         f"says {pages * page})")
+
+
+def _connect_read_only(path: Path) -> sqlite3.Connection:
+    """A read-only connection that creates nothing next to the file.
+
+    With a ``-wal`` file present (a capture is writing, or one was killed) the store is
+    opened ``mode=ro``, which reads the WAL's commits too (the side files already exist).
+    Without one, the file holds every commit and is opened ``immutable``: SQLite then
+    neither creates the ``-wal``/``-shm`` files a WAL store's readers otherwise leave
+    behind, nor needs a writable folder."""
+    uri = path.resolve().as_uri()
+    if Path(f"{path}-wal").exists():
+        con = sqlite3.connect(f"{uri}?mode=ro", uri=True, timeout=30.0, isolation_level=None)
+        try:
+            con.execute("SELECT count(*) FROM sqlite_master").fetchone()
+            return con
+        except sqlite3.OperationalError:
+            con.close()
+            if os.access(path.parent, os.W_OK):
+                raise
+    return sqlite3.connect(f"{uri}?immutable=1", uri=True, isolation_level=None)
+
+
+def _damage(e: sqlite3.DatabaseError) -> str:
+    text = str(e)
+    if "not a database" in text:
+        return "not a cellcal run store (not an SQLite database)"
+    if "malformed" in text or "corrupt" in text:
+        return f"damaged run store (SQLite: {text})"
+    return f"cannot use the run store: {text}"
 
 
 def _software_version() -> str:

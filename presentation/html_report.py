@@ -26,6 +26,7 @@ import numpy as np
 from calibration.dataset import Dataset
 from calibration.diagnosis import Diagnosis, describe_effect
 from calibration.effects import DEFAULT_EFFECTS
+from calibration.files import write_atomic
 from calibration.identify import Fit, error_stats
 from calibration.robot_model import RobotModel
 from calibration.workflow import ParamsSource, staged_fit
@@ -76,9 +77,9 @@ class Report:
     timings: dict[str, float] = field(default_factory=dict)
 
     def write(self, path: str | Path) -> Path:
-        path = Path(path)
-        path.write_text(self.html, encoding="utf-8")
-        return path
+        """Write the page atomically (an interrupted write leaves the old page whole)."""
+        write_atomic(path, self.html)
+        return Path(path)
 
 
 # ---- computing the stages ------------------------------------------------------------
@@ -355,6 +356,8 @@ def _params_table(stage: Stage, diag: Diagnosis) -> str:
     rows = []
     for r in fit.parameter_rows():
         status = "identifiable" if r["identifiable"] else "fixed: " + fixed.get(r["name"], "")
+        if r["weak"]:
+            status = f"weakly identified: {r['weak']}"
         value, std = _value_std(r["value"], r["std"])
         ratio = ""
         if r["std"]:
@@ -374,7 +377,8 @@ def _params_table(stage: Stage, diag: Diagnosis) -> str:
         f"{ident.observability_index:.3g}); solver {html.escape(fit.solver)}"
         f"{'' if fit.converged else ' — did not converge: ' + html.escape(fit.reason)}. "
         "Values in display units (angles in degrees) with their standard uncertainty; "
-        "|value|/σ below 2 means the data cannot tell the parameter from zero. "
+        "|value|/σ below 2 means the data cannot tell the parameter from zero; weakly "
+        "identified: σ at least |value|, or |r| >= 0.999 with another parameter. "
         + ("Highlighted: the recommended effect's parameters. " if new else "")
         + "Fixed parameters are held at their start value, with the reason.</caption>"
         "<tr><th>parameter</th><th>value</th><th>σ</th><th>|value|/σ</th><th>unit</th>"

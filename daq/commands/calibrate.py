@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 from calibration import DEFAULT_EFFECTS, ErrorModel, identify, load_csv
-from calibration.params_io import fit_to_dict, load_params, solver_summary
+from calibration.files import atomic_output
+from calibration.params_io import read_params, save_params, solver_summary
 from calibration.solvers import SOLVERS
 from calibration.uncertainty import correlations, monte_carlo
 from calibration.workflow import UNCALIBRATED_LABEL, fit_uncalibrated
@@ -14,7 +12,20 @@ from presentation.ridge_plot import plot_ridge
 from presentation.summaries import fit_summary
 
 from ..cli import UsageError
-from .common import add_model_args, fmt, load_inputs, print_json, table, wrap_errors
+from .common import (
+    add_model_args,
+    check_data,
+    check_outputs,
+    fmt,
+    input_paths,
+    load_inputs,
+    nonneg_int,
+    print_json,
+    print_note,
+    seed_int,
+    table,
+    wrap_errors,
+)
 
 
 def register(sub) -> None:
@@ -31,9 +42,9 @@ def register(sub) -> None:
     p.add_argument("--valid", metavar="FILE", help="validation CSV (besides set=valid rows)")
     p.add_argument("--params", metavar="params.json", help="start from these parameters")
     p.add_argument("--out", metavar="params.json", help="write the parameters here")
-    p.add_argument("--seed", type=int, default=None,
+    p.add_argument("--seed", type=seed_int, default=None,
                    help="random seed of the besa/sa solvers and of --monte-carlo (default 0)")
-    p.add_argument("--monte-carlo", type=int, default=0, metavar="N",
+    p.add_argument("--monte-carlo", type=nonneg_int, default=0, metavar="N",
                    help="re-identify N times from the calibrated model plus instrument noise "
                    "(sigma from the data or --sigma) and report the parameter spread and the "
                    "position uncertainty over the workspace")
@@ -42,20 +53,32 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def check_calibrate_outputs(args) -> None:
+    """--out and --ridge-plot: never an input, a run store, a directory (exit 2)."""
+    check_outputs({"--out": args.out, "--ridge-plot": getattr(args, "ridge_plot", None)},
+                  input_paths(args, "data", "valid", "params", "model", "effect_file"))
+
+
 def calibrate(args):
     """Run a calibration from parsed arguments; returns (fit, baseline fit)."""
-    model, data = load_inputs(args)
     if args.solver not in SOLVERS:
         raise UsageError(f"unknown solver {args.solver!r}; available: {', '.join(SOLVERS)}")
+    model, data = load_inputs(args)
     em = wrap_errors(lambda: ErrorModel(model, args.effects))
     valid = wrap_errors(lambda: load_csv(args.valid, model)) if args.valid else None
     x0 = None
+    notes = []
     if args.params:
-        em_p, x_p, _ = wrap_errors(lambda: load_params(args.params))
+        start = read_params(args.params, model=model)
+        notes += start.notes
+    notes += check_data(em, data)
+    if args.params:
         x0 = em.initial(em.bind(data.calib() if data.is_valid.any() else data))
-        for k, name in enumerate(em_p.names):
+        for k, name in enumerate(start.error_model.names):
             if name in em.names:
-                x0[em.index(name)] = x_p[k]
+                x0[em.index(name)] = start.values[k]
+    for n in notes:
+        print_note(n)
     baseline = fit_uncalibrated(model, data, valid=valid)
     opts = {}
     if getattr(args, "seed", None) is not None and args.solver in ("besa", "sa", "besa+lm"):
@@ -72,20 +95,21 @@ def run(args) -> int:
     n_mc = getattr(args, "monte_carlo", 0) or 0
     if n_mc and n_mc < 2:
         raise UsageError("--monte-carlo needs N >= 2")
+    check_calibrate_outputs(args)
     fit, baseline = calibrate(args)
     if ridge_plot:
-        plot_ridge(fit.info, ridge_plot, f"{fit.data.source}: ridge solver")
+        with atomic_output(ridge_plot) as tmp:
+            plot_ridge(fit.info, tmp, f"{fit.data.source}: ridge solver")
     mc = None
     if n_mc:
         seed = args.seed if getattr(args, "seed", None) is not None else 0
         mc = monte_carlo(fit, n_mc, seed=seed)
     if args.out:
-        Path(args.out).write_text(
-            json.dumps(fit_to_dict(fit, args.effect_file), indent=1) + "\n"
-        )
+        save_params(fit, args.out)
     if args.json:
         out = fit_summary(fit)
         out["params_file"] = args.out
+        out["weakly_identified"] = fit.weakly_identified()
         out["uncalibrated"] = {"calib": baseline.calib, "valid": baseline.valid}
         out["strongest_correlations"] = correlations(fit)["strongest"]
         info = solver_summary(fit)
@@ -144,8 +168,13 @@ def print_report(fit, baseline, out_path=None, mc=None, ridge_plot=None) -> None
     rows = []
     for r in fit.parameter_rows():
         std = "fixed" if not r["identifiable"] else fmt(r["std"], 4)
-        rows.append([r["name"], fmt(r["value"], 4), std, r["unit"]])
-    print(table(rows, ["parameter", "value", "std", "unit"]))
+        rows.append([r["name"], fmt(r["value"], 4), std, r["unit"],
+                     f"weak: {r['weak']}" if r["weak"] else ""])
+    print(table(rows, ["parameter", "value", "std", "unit", "note"]))
+    weak = fit.weakly_identified()
+    if weak:
+        print(f"weakly identified: {len(weak)} parameter(s) whose std is as large as the "
+              "value or that the data cannot tell from another (|r| >= 0.999)")
     if ident.fixed:
         print()
         print("fixed at their start value (the data cannot determine them):")

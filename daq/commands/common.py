@@ -1,17 +1,121 @@
-"""Helpers shared by the sub-commands: loading inputs with user-facing errors, printing."""
+"""Helpers shared by the sub-commands: loading inputs with user-facing errors, the guards
+on outputs and on numbers, printing.
+
+Guards
+    :func:`check_outputs` refuses an output path that is one of the command's inputs, a
+    run store (any SQLite file), a directory, in a missing folder, or named twice; every
+    write then goes through :func:`calibration.files.write_atomic`. The argparse types
+    (:func:`positive_float`, :func:`nonneg_int`, ...) refuse NaN, infinities and
+    out-of-range numbers with a message naming the flag (exit 2).
+"""
 
 from __future__ import annotations
 
+import argparse
+import contextlib
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
 from calibration import DEFAULT_EFFECTS, DataError, ModelError, load_csv, load_model
 from calibration.effects import EffectError, load_effect_file
+from calibration.files import is_sqlite_file
 from calibration.params_io import ParamsError
 
 from ..cli import UsageError
+
+
+# ------------------------------------------------------------------ number arguments
+def _number_type(kind, lo=None, hi=None, lo_open=False, what="a number"):
+    def parse(text: str):
+        try:
+            v = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        if isinstance(v, float) and not math.isfinite(v):
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what} (finite)")
+        if lo is not None and (v <= lo if lo_open else v < lo):
+            raise argparse.ArgumentTypeError(f"{text} is not {what}")
+        if hi is not None and v > hi:
+            raise argparse.ArgumentTypeError(f"{text} is not {what} (at most {hi:g})")
+        return v
+    parse.__name__ = what  # argparse names the type in its messages
+    return parse
+
+
+#: argparse types: finite numbers within their range (messages name the expected form)
+positive_float = _number_type(float, 0.0, None, True, "a positive number")
+nonneg_float = _number_type(float, 0.0, None, False, "a number >= 0")
+finite_float = _number_type(float, None, None, False, "a finite number")
+nonneg_int = _number_type(int, 0, None, False, "an integer >= 0")
+positive_int = _number_type(int, 1, None, False, "an integer >= 1")
+seed_int = _number_type(int, 0, 2**63 - 1, False, "a seed (an integer 0 .. 2**63-1)")
+
+
+def bounded_int(lo: int, hi: int):
+    """An argparse type: an integer in [lo, hi]."""
+    return _number_type(int, lo, hi, False, f"an integer {lo} .. {hi}")
+
+
+# ------------------------------------------------------------------------- outputs
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def check_outputs(outputs: dict[str, str | None], inputs=(), *, stdout: bool = False) -> None:
+    """Refuse output paths that would destroy something (UsageError, exit 2).
+
+    ``outputs`` maps a flag (``--out``) to its path (None: not given); ``inputs`` are the
+    command's input paths (None and non-paths such as built-in model names are skipped).
+    Refused: an output that is an input, any SQLite file (a run store is never
+    overwritten), a directory, a path in a missing folder, a folder not writable, and one
+    path given for two outputs. ``stdout``: ``-`` means standard output.
+    """
+    seen: dict[str, str] = {}
+    ins = [Path(i) for i in inputs if i]
+    for flag, out in outputs.items():
+        if out is None or (stdout and out == "-"):
+            continue
+        p = Path(out)
+        if p.is_dir():
+            raise UsageError(f"{flag} {out}: is a directory; give a file name")
+        folder = p.parent
+        if not folder.is_dir():
+            raise UsageError(f"{flag} {out}: the folder {folder} does not exist (no such "
+                             "directory)")
+        for i in ins:
+            if _same_file(p, i) or p.resolve() == i.resolve():
+                raise UsageError(f"{flag} {out} is an input of this command; write to a new "
+                                 "file (cellcal never overwrites its inputs)")
+        if is_sqlite_file(p):
+            raise UsageError(f"{flag} {out}: is a run store (an SQLite database); cellcal "
+                             "never overwrites one: give a new file name")
+        if p.exists() and not p.is_file():
+            continue  # /dev/null, /dev/stdout, a FIFO: written directly
+        if not os.access(folder, os.W_OK):
+            raise UsageError(f"{flag} {out}: the folder {folder} is not writable")
+        key = str(p.resolve())
+        if key in seen:
+            raise UsageError(f"{seen[key]} and {flag} name the same file {out}; give two "
+                             "different files")
+        seen[key] = flag
+
+
+def input_paths(args, *names: str) -> list[str]:
+    """The values of these argparse attributes that name existing files (lists flattened;
+    a built-in model name is no path)."""
+    out = []
+    for n in names:
+        v = getattr(args, n, None)
+        for item in v if isinstance(v, list) else [v]:
+            if item and isinstance(item, str) and Path(item).exists():
+                out.append(item)
+    return out
 
 
 def add_model_args(p, data: bool = True) -> None:
@@ -21,7 +125,7 @@ def add_model_args(p, data: bool = True) -> None:
                    help="built-in model name (see `cellcal models`) or a model YAML file")
     p.add_argument("--effect-file", action="append", default=[], metavar="FILE.py",
                    help="load user-defined effects from a Python file (repeatable)")
-    p.add_argument("--sigma", type=float, default=None, metavar="MM",
+    p.add_argument("--sigma", type=positive_float, default=None, metavar="MM",
                    help="tracker standard uncertainty per axis, mm (else from the CSV)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
 
@@ -45,11 +149,35 @@ def load_inputs(args):
     except (ModelError, DataError, EffectError) as e:
         raise UsageError(str(e)) from None
     if data is not None and args.sigma is not None:
-        if not (args.sigma > 0 and math.isfinite(args.sigma)):
-            raise UsageError("--sigma must be a positive number of mm")
         data.sigma_mm = None
         data.meta["tracker_sigma_mm"] = repr(args.sigma)
     return model, data
+
+
+def current_model(args, model):
+    """The current model of diagnose/report: (error model, params source for
+    :func:`calibration.workflow.current_fit` or None, notes). ``--params`` is read
+    strictly and checked against ``--model``; else ``--effects`` on the model."""
+    from calibration import ErrorModel
+    from calibration.params_io import read_params
+
+    if getattr(args, "params", None):
+        p = read_params(args.params, model=model)
+        return p.error_model, (p.error_model, p.values), p.notes
+    return ErrorModel(model, args.effects), None, []
+
+
+def check_data(error_model, data) -> list[str]:
+    """Refuse data too poor to identify ``error_model`` (InsufficientData: exit 3); the
+    notes on marginal data otherwise."""
+    from calibration.data_quality import check_for_fit
+
+    return check_for_fit(error_model, data).notes
+
+
+def print_note(text: str) -> None:
+    """A remark for the user on stderr (stdout stays for results and JSON)."""
+    print(f"note: {text}", file=sys.stderr)
 
 
 def wrap_errors(fn, *exc):
@@ -99,12 +227,24 @@ def table(rows: list[list[str]], header: list[str]) -> str:
     return "\n".join(lines)
 
 
-def open_store(path, synchronous: str = "FULL"):
+@contextlib.contextmanager
+def store_errors(path):
+    """Turn an SQLite error while reading a store (damage found late) into a UsageError."""
+    import sqlite3
+
+    try:
+        yield
+    except sqlite3.DatabaseError as e:
+        raise UsageError(f"{path}: damaged run store (SQLite: {e})") from None
+
+
+def open_store(path, synchronous: str = "FULL", read_only: bool = False):
     """An existing run store; a missing file or an unreadable store is a UsageError (never
-    create an empty store for a mistyped path)."""
+    create an empty store for a mistyped path). ``read_only``: for commands that only read
+    (no WAL switch, no upgrade written, works on a read-only file)."""
     from ..store import RunStore, StoreError
 
     try:
-        return RunStore.open_existing(path, synchronous=synchronous)
+        return RunStore.open_existing(path, synchronous=synchronous, read_only=read_only)
     except (StoreError, OSError) as e:
         raise UsageError(str(e)) from None

@@ -6,17 +6,18 @@ from __future__ import annotations
 import csv
 import io
 import math
-from pathlib import Path
 
 import numpy as np
 
 from calibration.compensation import compensate, load_targets
+from calibration.effects import load_effect_file
+from calibration.files import write_atomic
 from calibration.model_export import calibrated_model, write_model_yaml, write_ur_conf
 from calibration.params_io import load_params
 from calibration.transforms import matrix_to_rotvec
 
 from ..cli import UsageError
-from .common import fmt, print_json, wrap_errors
+from .common import check_outputs, fmt, input_paths, print_json, wrap_errors
 
 
 def register(sub) -> None:
@@ -32,6 +33,9 @@ def register(sub) -> None:
     p.add_argument("targets", metavar="TARGETS.csv", nargs="?",
                    help="target points (omit to only export)")
     p.add_argument("--params", required=True, metavar="params.json", help="the calibration")
+    p.add_argument("--effect-file", action="append", default=[], metavar="FILE.py",
+                   help="load user-defined effects from a Python file (needed when the "
+                   "calibration used one; repeatable)")
     p.add_argument("--out", metavar="compensated.csv", help="write the compensated targets")
     p.add_argument("--start", metavar="Q1,..,QN",
                    help="start configuration (deg) for targets without nominal joints")
@@ -57,14 +61,15 @@ def _parse_start(text, n):
 
 
 def run(args) -> int:
-    em, x, _ = wrap_errors(lambda: load_params(args.params))
-    model = em.model
-    inputs = {Path(p).resolve() for p in (args.params, args.targets) if p}
-    for out in (args.out, args.export_model, args.export_ur):
-        if out and Path(out).resolve() in inputs:
-            raise UsageError(f"{out} is an input file; write a new file instead")
     if not args.targets and not (args.export_model or args.export_ur):
         raise UsageError("give TARGETS.csv, --export-model or --export-ur")
+    check_outputs({"--out": args.out, "--export-model": args.export_model,
+                   "--export-ur": args.export_ur},
+                  input_paths(args, "params", "targets", "effect_file"))
+    for f in args.effect_file:
+        wrap_errors(lambda f=f: load_effect_file(f))
+    em, x, _ = wrap_errors(lambda: load_params(args.params))
+    model = em.model
     doc = {"params_file": args.params, "model": model.name, "notes": []}
     if args.export_model:
         m, notes = calibrated_model(em, x)
@@ -86,7 +91,7 @@ def run(args) -> int:
                        keep_orientation=not args.position_only, columns=t.columns)
         text = _csv(t, c)
         if args.out:
-            Path(args.out).write_text(text)
+            write_atomic(args.out, text)
         doc.update({
             "n_targets": len(t.base_p_tcp),
             "n_reached": int(c.success.sum()),

@@ -8,9 +8,13 @@ from calibration.workflow import current_fit
 from .common import (
     add_current_model_args,
     add_model_args,
+    check_data,
+    current_model,
     fmt,
     load_inputs,
+    positive_int,
     print_json,
+    print_note,
     table,
     wrap_errors,
 )
@@ -26,13 +30,22 @@ def register(sub) -> None:
     )
     add_model_args(p)
     add_current_model_args(p, "use these parameters (and their model) instead of fitting")
-    p.add_argument("--top", type=int, default=12, help="rows of the ranking to print")
+    p.add_argument("--top", type=positive_int, default=12, help="rows of the ranking to print")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from calibration.solvers import SOLVERS
+
+    from ..cli import UsageError
+
+    if args.solver not in SOLVERS:
+        raise UsageError(f"unknown solver {args.solver!r}; available: {', '.join(SOLVERS)}")
     model, data = load_inputs(args)
-    fit = wrap_errors(lambda: current_fit(model, data, args.effects, args.params, args.solver))
+    em, params, notes = current_model(args, model)
+    for n in notes + check_data(em, data):
+        print_note(n)
+    fit = wrap_errors(lambda: current_fit(model, data, args.effects, params, args.solver))
     diag = diagnose(fit, data)
     if args.json:
         print_json(diag.to_json())

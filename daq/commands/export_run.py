@@ -21,12 +21,13 @@ from __future__ import annotations
 import sys
 
 from ..cli import UsageError
+from .common import check_outputs, positive_int
 
 
 def register(sub) -> None:
     p = sub.add_parser("export", help="write a run's samples as a measurement CSV",
                        description=__doc__.splitlines()[0])
-    p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN",
+    p.add_argument("run_id", nargs="?", type=positive_int, default=None, metavar="RUN",
                    help="run id (default: the latest)")
     p.add_argument("--db", required=True, metavar="cell.db")
     p.add_argument("--out", required=True, metavar="data.csv", help="CSV to write ('-': stdout)")
@@ -41,10 +42,11 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..run_data import dataset_from_run
     from ..store import StoreError
-    from .common import open_store
+    from .common import open_store, store_errors
 
-    store = open_store(args.db)
-    try:
+    check_outputs({"--out": args.out}, [args.db], stdout=True)
+    store = open_store(args.db, read_only=True)
+    with store, store_errors(args.db):
         if args.postures:
             return _postures(store, args)
         try:
@@ -60,8 +62,6 @@ def run(args) -> int:
             print(f"run {r.id}: {data.n}/{r.n_points} points written to {args.out}{note}",
                   file=sys.stderr)
         return 0
-    finally:
-        store.close()
 
 
 def _postures(store, args) -> int:

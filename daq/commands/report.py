@@ -9,7 +9,18 @@ from calibration.solvers import SOLVERS
 from presentation.html_report import ReportError, build_report
 
 from ..cli import UsageError
-from .common import add_current_model_args, add_model_args, load_inputs, print_json, wrap_errors
+from .common import (
+    add_current_model_args,
+    add_model_args,
+    check_data,
+    check_outputs,
+    current_model,
+    input_paths,
+    load_inputs,
+    print_json,
+    print_note,
+    wrap_errors,
+)
 
 
 def register(sub) -> None:
@@ -35,10 +46,13 @@ def run(args) -> int:
     if args.solver not in SOLVERS:
         raise UsageError(f"unknown solver {args.solver!r}; available: {', '.join(SOLVERS)}")
     out = Path(args.out)
-    if not out.parent.is_dir():
-        raise UsageError(f"{out.parent}: no such directory for --out")
+    check_outputs({"--out": args.out},
+                  input_paths(args, "data", "params", "model", "effect_file"))
     model, data = load_inputs(args)
-    rep = wrap_errors(lambda: build_report(data, model, args.effects, args.params,
+    em, params, notes = current_model(args, model)
+    for n in notes + check_data(em, data):
+        print_note(n)
+    rep = wrap_errors(lambda: build_report(data, model, args.effects, params,
                                            solver=args.solver, title=args.title), ReportError)
     rep.write(out)
     size = out.stat().st_size

@@ -11,7 +11,14 @@ from __future__ import annotations
 
 import sys
 
-from .capture import EXEC_FLAGS, add_common, confirm_motion, flag_values, run_and_report
+from .capture import (
+    EXEC_FLAGS,
+    add_common,
+    check_urls,
+    confirm_motion,
+    flag_values,
+    run_and_report,
+)
 from .routine_args import ROUTINE_ARGS
 
 #: every routine's acquisition flags (given, they apply to a run of that routine)
@@ -32,6 +39,7 @@ def run(args) -> int:
     from ..service import prepare_resume, resume_run
     from .common import open_store
 
+    check_urls(args.robot, args.tracker)
     store = open_store(args.db, synchronous=args.synchronous)
     try:
         res = prepare_resume(store, args.run_id, robot_url=args.robot, tracker_url=args.tracker)

@@ -6,11 +6,12 @@ from __future__ import annotations
 import datetime as dt
 
 from ..cli import UsageError
+from .common import positive_int
 
 
 def register(sub) -> None:
     p = sub.add_parser("runs", help="list the runs in a run store")
-    p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN",
+    p.add_argument("run_id", nargs="?", type=positive_int, default=None, metavar="RUN",
                    help="show this run in detail, with its interruptions")
     p.add_argument("--db", required=True, metavar="cell.db")
     p.add_argument("--json", action="store_true", help="print JSON")
@@ -32,10 +33,10 @@ def _run_dict(store, r) -> dict:
 
 def run(args) -> int:
     from ..store import StoreError
-    from .common import open_store, print_json, table
+    from .common import open_store, print_json, store_errors, table
 
-    store = open_store(args.db)
-    try:
+    store = open_store(args.db, read_only=True)
+    with store, store_errors(args.db):
         if args.run_id is not None:
             try:
                 r = store.run(args.run_id)
@@ -70,5 +71,3 @@ def run(args) -> int:
         print(table(rows, ["run", "routine", "status", "points", "model", "started",
                            "interruptions", "reason"]))
         return 0
-    finally:
-        store.close()

@@ -8,10 +8,22 @@ import numpy as np
 
 from calibration import DEFAULT_EFFECTS, ErrorModel
 from calibration.effects import display_unit
+from calibration.files import write_atomic
 from calibration.simulate import random_joints, realistic_truth, simulate
 
 from ..cli import UsageError
-from .common import load_inputs, wrap_errors
+from .common import (
+    bounded_int,
+    check_outputs,
+    input_paths,
+    load_inputs,
+    positive_float,
+    seed_int,
+    wrap_errors,
+)
+
+#: the most poses one simulated CSV holds
+MAX_POSES = 1_000_000
 
 
 def register(sub) -> None:
@@ -26,21 +38,24 @@ def register(sub) -> None:
     p.add_argument("--effect-file", action="append", default=[], metavar="FILE.py")
     p.add_argument("--hidden", default="", metavar="EFFECTS",
                    help="extra hidden effects besides geometric,base,tool (e.g. compliance:2)")
-    p.add_argument("--poses", type=int, default=300, help="calibration poses (default 300)")
-    p.add_argument("--valid", type=int, default=300, help="validation poses (default 300)")
-    p.add_argument("--sigma", type=float, default=0.015, help="tracker noise per axis, mm")
-    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--poses", type=bounded_int(1, MAX_POSES), default=300,
+                   help="calibration poses (default 300)")
+    p.add_argument("--valid", type=bounded_int(0, MAX_POSES), default=300,
+                   help="validation poses (default 300)")
+    p.add_argument("--sigma", type=positive_float, default=0.015,
+                   help="tracker noise per axis, mm")
+    p.add_argument("--seed", type=seed_int, default=1)
     p.add_argument("--out", required=True, metavar="FILE.csv")
     p.add_argument("--truth", metavar="FILE.json", help="write the hidden parameters here")
     p.set_defaults(func=run, data=None, json=False)
 
 
 def run(args) -> int:
+    check_outputs({"--out": args.out, "--truth": args.truth},
+                  input_paths(args, "model", "effect_file"))
     model, _ = load_inputs(args)
-    if args.poses < 1 or args.valid < 0:
-        raise UsageError("--poses must be >= 1 and --valid >= 0")
-    if not args.sigma > 0:
-        raise UsageError("--sigma must be positive")
+    if args.poses + args.valid > MAX_POSES:
+        raise UsageError(f"--poses plus --valid must be at most {MAX_POSES}")
     spec = DEFAULT_EFFECTS + ("," + args.hidden if args.hidden else "")
     em = wrap_errors(lambda: ErrorModel(model, spec))
     rng = np.random.default_rng(args.seed)
@@ -56,8 +71,8 @@ def run(args) -> int:
         for k, name in enumerate(em.names):
             unit, f = display_unit(em.units[k])
             rows.append({"name": name, "value": float(x[k] * f), "unit": unit})
-        with open(args.truth, "w") as fh:
-            json.dump({"effects": em.labels, "parameters": rows}, fh, indent=1)
+        write_atomic(args.truth, json.dumps({"effects": em.labels, "parameters": rows},
+                                            indent=1))
     print(f"wrote {args.out}: {args.poses} calibration + {args.valid} validation poses of a "
           f"simulated {model.name} ({','.join(em.labels)} hidden), tracker sigma {args.sigma} mm")
     return 0
