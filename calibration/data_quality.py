@@ -11,7 +11,8 @@ the reason and what to capture instead when
   a hundred repeats of one pose are one pose);
 - the design is rank-deficient: the poses leave parameters undetermined that a spread
   of poses over the same joint ranges would determine (the poses vary too little, or
-  only together).
+  only together): a parameter of the core families (geometric, base, tool) or most of
+  another effect's (a few knots of a correction table are only held, with a note).
 
 What "identifiable" means here is structural: the analysis of
 :func:`calibration.identify.structural_identifiability` on a reference sample of poses
@@ -105,6 +106,26 @@ def reference_sample(error_model: ErrorModel, calib: Dataset, n: int, seed: int 
                    source="reference sample")
 
 
+#: families whose every parameter the poses must determine (the core of every model)
+CORE_FAMILIES = ("geometric", "base", "tool")
+
+
+def _design_broken(error_model: ErrorModel, lost: list[int], free_ref: np.ndarray) -> bool:
+    """A rank deficiency refuses the fit when it takes a parameter of the core families,
+    or most of some effect's parameters (an effect the data cannot see at all); a few
+    knots of a correction table without independent data are only held (a note)."""
+    for e, sl in zip(error_model.effects, error_model.slices, strict=True):
+        idx = set(range(sl.start, sl.stop))
+        gone = len(idx & set(lost))
+        if not gone:
+            continue
+        if e.family in CORE_FAMILIES:
+            return True
+        if gone * 2 > int(free_ref[sl].sum()):
+            return True
+    return False
+
+
 def check_for_fit(error_model: ErrorModel, data: Dataset) -> DataVerdict:
     """Raise :class:`InsufficientData` when ``data`` cannot identify ``error_model`` (see the
     module docstring); else what was found (with notes on marginal data)."""
@@ -151,15 +172,20 @@ def check_for_fit(error_model: ErrorModel, data: Dataset) -> DataVerdict:
     ident_ref = reference(0.0)
     if ident_ref is not None:
         _, _, ident = structural_identifiability(error_model, calib_p, rtol=LOST_RTOL)
-        lost = [n for n, f_ref, f in zip(error_model.names, ident_ref.free, ident.free,
-                                         strict=True) if f_ref and not f]
+        lost = [k for k in range(error_model.n_params)
+                if ident_ref.free[k] and not ident.free[k]]
         if lost:
-            shown = ", ".join(lost[:6]) + (f" and {len(lost) - 6} more" if len(lost) > 6 else "")
-            raise InsufficientData(
-                f"{src}: rank-deficient design: these {n_distinct} distinct poses{same} "
-                f"cannot determine {shown}, which poses spread over the same joint ranges "
-                "would; capture more poses that vary every joint independently (or drop "
-                "the effect)")
+            names = [error_model.names[k] for k in lost]
+            shown = ", ".join(names[:6]) + (f" and {len(names) - 6} more" if len(names) > 6
+                                            else "")
+            if _design_broken(error_model, lost, ident_ref.free):
+                raise InsufficientData(
+                    f"{src}: rank-deficient design: these {n_distinct} distinct poses{same} "
+                    f"cannot determine {shown}, which poses spread over the same joint "
+                    "ranges would; capture more poses that vary every joint independently "
+                    "(or drop the effect)")
+            notes.append(f"these poses cannot determine {shown} (poses spread over the same "
+                         "joint ranges would): held at their start values")
     redundancy = 3 * n_distinct - p
     if redundancy < p:
         notes.append(f"only {redundancy} observations beyond the {p} parameters "

@@ -15,6 +15,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import re
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Literal
@@ -38,8 +39,15 @@ from .files import read_text
 MAX_MODEL_BYTES = 1 << 20
 
 
+#: a number YAML 1.1 reads as a string (``1e300``: an exponent without a dot)
+_EXP_NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
+
+
 def _number(v):
-    """Only numbers: YAML's true/false and strings are refused (no silent coercion)."""
+    """Only numbers: YAML's true/false and strings are refused (no silent coercion); a
+    number YAML 1.1 leaves as a string (``1e3``) is read as the number it is."""
+    if isinstance(v, str) and _EXP_NUMBER.match(v.strip()):
+        return float(v)
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         shown = str(v).lower() if isinstance(v, bool) else repr(v)
         raise ValueError(f"{shown[:40]} is not a number")

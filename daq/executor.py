@@ -267,6 +267,7 @@ class Executor:
                 try:
                     self.store.add_sample(self.run_id, sample)
                 except sqlite3.OperationalError as e:  # a full disk: nothing was stored
+                    self.store.release_reserve()  # room to record the pause and why
                     raise _Pause("paused", f"the run store could not be written at point "
                                  f"{t.index}: {e}; free space, then `cellcal resume`") from e
                 self.commit_s += time.perf_counter() - t0

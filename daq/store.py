@@ -52,7 +52,7 @@ import numpy as np
 from calibration.files import SQLITE_MAGIC
 
 from .run_context import RunContext
-from .store_schema import SCHEMA_V1, SCHEMA_VERSION, UPGRADES
+from .store_schema import RESERVE_BYTES, SCHEMA_V1, SCHEMA_VERSION, UPGRADES
 
 #: run statuses: ``running`` (or killed while running), ``paused`` (protective stop,
 #: retries exhausted: resumable), ``stopped`` (Ctrl-C: resumable), ``completed``,
@@ -207,6 +207,8 @@ class RunStore:
                 self.con.execute(f"PRAGMA synchronous={synchronous.upper()}")
                 self.con.execute("PRAGMA foreign_keys=ON")
             self._migrate()
+            if not self.read_only:
+                self._refill_reserve()
         except sqlite3.DatabaseError as e:
             self.con.close()
             raise StoreError(f"{self.path}: {_damage(e)}") from None
@@ -283,6 +285,27 @@ class RunStore:
                 self.con.execute("ROLLBACK")
                 raise
             v += 1
+
+    # ------------------------------------------------------------- reserve
+    def release_reserve(self) -> bool:
+        """Give up the reserve of free space (the disk is full): the pages it held let the
+        run's status and the reason still be written. True when there was one."""
+        try:
+            with self.con:
+                cur = self.con.execute("DELETE FROM reserve")
+            return cur.rowcount > 0
+        except sqlite3.Error:
+            return False
+
+    def _refill_reserve(self) -> None:
+        """Put the reserve back when it was given up and there is space again."""
+        try:
+            with self.con:
+                if self.con.execute("SELECT count(*) FROM reserve").fetchone()[0] == 0:
+                    self.con.execute("INSERT INTO reserve (id, pad) VALUES (1, zeroblob(?))",
+                                     (RESERVE_BYTES,))
+        except sqlite3.OperationalError:  # still no space: the capture will say so
+            pass
 
     def _upgrade_in_memory(self) -> None:
         """An older schema opened read-only: work on an upgraded copy in memory."""

@@ -14,6 +14,9 @@ Versions
        joints' time; the interruptions table.
     3. ``options_json`` becomes ``context_json``: a versioned run context
        (:class:`daq.run_context.RunContext`, version 1).
+    4. the ``reserve`` table: one row of zeros (:data:`RESERVE_BYTES`) the store gives up
+       when the disk is full, so that the run can still be marked paused with the reason
+       (:meth:`daq.store.RunStore.release_reserve`).
 """
 
 from __future__ import annotations
@@ -23,7 +26,9 @@ import sqlite3
 from collections.abc import Callable
 
 #: current schema version (PRAGMA user_version)
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
+#: the free space the store keeps in reserve for a full disk (bytes)
+RESERVE_BYTES = 1 << 20
 
 SCHEMA_V1 = """
 CREATE TABLE runs (
@@ -121,5 +126,12 @@ def _upgrade_2_to_3(con: sqlite3.Connection) -> None:
     con.execute("ALTER TABLE runs DROP COLUMN options_json")
 
 
+def _upgrade_3_to_4(con: sqlite3.Connection) -> None:
+    """v4: a reserve of space for a full disk (additive: one new table and its row)."""
+    con.execute("CREATE TABLE reserve (id INTEGER PRIMARY KEY, pad BLOB NOT NULL)")
+    con.execute("INSERT INTO reserve (id, pad) VALUES (1, zeroblob(?))", (RESERVE_BYTES,))
+
+
 #: UPGRADES[k] takes a database from version k+1 to k+2
-UPGRADES: list[Callable[[sqlite3.Connection], None]] = [_upgrade_1_to_2, _upgrade_2_to_3]
+UPGRADES: list[Callable[[sqlite3.Connection], None]] = [_upgrade_1_to_2, _upgrade_2_to_3,
+                                                        _upgrade_3_to_4]

@@ -59,8 +59,9 @@ def _split(url: str):
 
 
 def _query(url: str) -> dict[str, str]:
+    query = _split(url).query
     try:
-        q = parse_qs(_split(url).query, strict_parsing=False, keep_blank_values=True)
+        q = parse_qs(query, strict_parsing=False, keep_blank_values=True)
     except ValueError as e:
         raise ValueError(f"bad URL {url!r}: {e}") from e
     return {k: v[-1] for k, v in q.items()}

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from calibration import DEFAULT_EFFECTS, ErrorModel, identify, load_csv
+from calibration import DEFAULT_EFFECTS, identify, load_csv
 from calibration.files import atomic_output
 from calibration.params_io import read_params, save_params, solver_summary
 from calibration.solvers import SOLVERS
@@ -16,6 +16,7 @@ from .common import (
     add_model_args,
     check_data,
     check_outputs,
+    error_model_of,
     fmt,
     input_paths,
     load_inputs,
@@ -64,7 +65,7 @@ def calibrate(args):
     if args.solver not in SOLVERS:
         raise UsageError(f"unknown solver {args.solver!r}; available: {', '.join(SOLVERS)}")
     model, data = load_inputs(args)
-    em = wrap_errors(lambda: ErrorModel(model, args.effects))
+    em = error_model_of(model, args.effects)
     valid = wrap_errors(lambda: load_csv(args.valid, model)) if args.valid else None
     x0 = None
     notes = []
@@ -170,7 +171,7 @@ def print_report(fit, baseline, out_path=None, mc=None, ridge_plot=None) -> None
         std = "fixed" if not r["identifiable"] else fmt(r["std"], 4)
         rows.append([r["name"], fmt(r["value"], 4), std, r["unit"],
                      f"weak: {r['weak']}" if r["weak"] else ""])
-    print(table(rows, ["parameter", "value", "std", "unit", "note"]))
+    print(table(rows, ["parameter", "value", "std", "unit", "note"], left=(0, 4)))
     weak = fit.weakly_identified()
     if weak:
         print(f"weakly identified: {len(weak)} parameter(s) whose std is as large as the "

@@ -154,17 +154,26 @@ def load_inputs(args):
     return model, data
 
 
+def error_model_of(model, spec: str, flag: str = "--effects"):
+    """``ErrorModel(model, spec)``; a bad effect list is a UsageError naming the flag."""
+    from calibration import ErrorModel
+
+    try:
+        return ErrorModel(model, spec)
+    except EffectError as e:
+        raise UsageError(f"{flag} {spec!r}: {e}") from None
+
+
 def current_model(args, model):
     """The current model of diagnose/report: (error model, params source for
     :func:`calibration.workflow.current_fit` or None, notes). ``--params`` is read
     strictly and checked against ``--model``; else ``--effects`` on the model."""
-    from calibration import ErrorModel
     from calibration.params_io import read_params
 
     if getattr(args, "params", None):
         p = read_params(args.params, model=model)
         return p.error_model, (p.error_model, p.values), p.notes
-    return ErrorModel(model, args.effects), None, []
+    return error_model_of(model, args.effects), None, []
 
 
 def check_data(error_model, data) -> list[str]:
@@ -215,15 +224,16 @@ def fmt(v, digits: int = 3) -> str:
     return f"{v:.{digits}f}"
 
 
-def table(rows: list[list[str]], header: list[str]) -> str:
+def table(rows: list[list[str]], header: list[str], left: tuple[int, ...] = (0,)) -> str:
+    """A text table; the ``left`` columns left-aligned, the others right-aligned."""
     widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
     lines = ["  ".join(str(h).ljust(w) for h, w in zip(header, widths, strict=True))]
     lines.append("  ".join("-" * w for w in widths))
     for r in rows:
         lines.append("  ".join(
-            str(c).rjust(w) if i else str(c).ljust(w)
+            str(c).ljust(w) if i in left else str(c).rjust(w)
             for i, (c, w) in enumerate(zip(r, widths, strict=True))
-        ))
+        ).rstrip())
     return "\n".join(lines)
 
 

@@ -41,7 +41,7 @@ def run(args) -> int:
         try:
             parse_effect(args.hidden, load_model("ur10e"))
         except EffectError as e:
-            raise UsageError(str(e)) from None
+            raise UsageError(f"--hidden {args.hidden!r}: {e}") from None
     from pathlib import Path
 
     from ..demo_workflow import DemoFolderError, check_demo_folder, run_demo

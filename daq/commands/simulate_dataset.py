@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 
-from calibration import DEFAULT_EFFECTS, ErrorModel
+from calibration import DEFAULT_EFFECTS
 from calibration.effects import display_unit
 from calibration.files import write_atomic
 from calibration.simulate import random_joints, realistic_truth, simulate
@@ -15,11 +15,11 @@ from ..cli import UsageError
 from .common import (
     bounded_int,
     check_outputs,
+    error_model_of,
     input_paths,
     load_inputs,
     positive_float,
     seed_int,
-    wrap_errors,
 )
 
 #: the most poses one simulated CSV holds
@@ -57,7 +57,7 @@ def run(args) -> int:
     if args.poses + args.valid > MAX_POSES:
         raise UsageError(f"--poses plus --valid must be at most {MAX_POSES}")
     spec = DEFAULT_EFFECTS + ("," + args.hidden if args.hidden else "")
-    em = wrap_errors(lambda: ErrorModel(model, spec))
+    em = error_model_of(model, spec, "--hidden")
     rng = np.random.default_rng(args.seed)
     x = realistic_truth(em, rng)
     n = args.poses + args.valid

@@ -382,9 +382,10 @@ def build_cases() -> list[Case]:
     cases += _file_cases("zero", zero, "{POST}", post_v, post_tab, src="postures.csv")
     cases += _path_cases("zero", zero, "{POST}", "postures.csv")
     cases += _special_file_cases("zero", zero, "{POST}")
-    zp = ["zero", "postures.csv", "--model", "ur10e", "--params", "{PARAMS}"]
-    cases += _file_cases("zero", zp, "{PARAMS}", params_v,
-                         PARAMS | {"ok_v1": (2, r"model|ur5|joints")}, src="params.json")
+    # (the ur5 params with the ur10e postures read as ur5: a bad params file is refused first)
+    zp = ["zero", "postures.csv", "--model", "ur5", "--params", "{PARAMS}"]
+    cases += _file_cases("zero", zp, "{PARAMS}", params_v, PARAMS, src="params.json",
+                         skip=("ok_v1",))
     zm = ["zero", "postures.csv", "--model", "{MODEL}"]
     cases += _file_cases("zero", zm, "{MODEL}", model_v, MODEL | {"seven_joints": (
         2, r"q7|joints")}, src="model.yaml")
