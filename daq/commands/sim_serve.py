@@ -14,13 +14,16 @@ import threading
 
 from daq.cli import UsageError
 
+from .common import nonneg_float, seed_int
+
 
 def register(sub) -> None:
     p = sub.add_parser("sim", help="simulated cell: serve it over the real wire protocols")
     ssub = p.add_subparsers(dest="sim_command", metavar="SIM_COMMAND")
     ssub.required = True
     s = ssub.add_parser("serve", help="start the simulated servers and print their URLs")
-    s.add_argument("--seed", type=int, default=0, help="random seed of the cell (default 0)")
+    s.add_argument("--seed", type=seed_int, default=0,
+                   help="random seed of the cell (default 0)")
     s.add_argument("--model", default="ur10e",
                    help="the true robot: a model name or YAML with realistic hidden errors "
                         "(default ur10e), or 'toy' for a 3-joint stand-in arm")
@@ -28,7 +31,7 @@ def register(sub) -> None:
                    help="hidden physical effects of the true robot, e.g. compliance:3")
     s.add_argument("--faults", default=None,
                    help="fault spec, e.g. 'beam=0.05,slow=0.02,drop@3,delay=2'")
-    s.add_argument("--time-scale", type=float, default=0.0,
+    s.add_argument("--time-scale", type=nonneg_float, default=0.0,
                    help="wall seconds per simulated second (0: instantaneous)")
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (default loopback)")
     s.add_argument("--no-pty", action="store_true", help="no tracker on a pseudo-terminal")
@@ -40,8 +43,14 @@ def register(sub) -> None:
 def run(args) -> int:
     from sim_drivers.serve import ServeConfig, SimStack
 
-    if args.time_scale < 0:
-        raise UsageError(f"--time-scale must be >= 0, got {args.time_scale}")
+    if args.hidden and args.model != "toy":
+        from calibration import EffectError, load_model, parse_effects
+
+        model = load_model(args.model)  # a bad model: ModelError, exit 2
+        try:
+            parse_effects(args.hidden, model)
+        except EffectError as e:
+            raise UsageError(f"--hidden {args.hidden!r}: {e}") from None
     config = ServeConfig(seed=args.seed, hidden=args.hidden, faults=args.faults,
                          time_scale=args.time_scale, host=args.host, pty=not args.no_pty,
                          rtde=not args.no_rtde)

@@ -49,7 +49,7 @@ class Case:
     forbid: tuple[str, ...] = ("PWNED",)  # files that must not appear
     mode: str = "inproc"                # or "subprocess"
     slow: bool = False
-    unprivileged: bool = False          # subprocess as user nobody (root only)
+    unprivileged: bool = False          # subprocess that may not override file permissions
     stdout_closed: bool = False         # subprocess whose stdout pipe has no reader
 
     @property
@@ -660,23 +660,31 @@ def run_inproc(case: Case, ws: Path) -> Outcome:
     return Outcome(int(rc), out.getvalue(), err.getvalue())
 
 
-def _nobody():
-    os.setgid(65534)
-    os.setuid(65534)
+def _without_permission_override() -> None:
+    """In the child, before exec: give up root's right to ignore file permissions
+    (CAP_DAC_OVERRIDE, CAP_DAC_READ_SEARCH, CAP_FOWNER), so a read-only file or folder
+    is read-only to it as to any user. Without root there is nothing to give up."""
+    if os.geteuid() != 0:
+        return
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    for cap in (1, 2, 3):
+        libc.prctl(24, cap, 0, 0, 0)  # PR_CAPBSET_DROP: gone after the exec
 
 
 def run_subprocess(case: Case, ws: Path, timeout: float = 120.0) -> Outcome:
     env = dict(os.environ)
     env["PYTHONPATH"] = str(ROOT)
     env.setdefault("MPLBACKEND", "Agg")
-    env["MPLCONFIGDIR"] = str(ws / ".mpl") if not case.unprivileged else "/tmp/.mpl-nobody"
+    env["MPLCONFIGDIR"] = str(ws / ".mpl")
 
     def limits():
         import resource
 
         resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))
         if case.unprivileged:
-            _nobody()
+            _without_permission_override()
 
     cmd = [sys.executable, "-m", "daq", *case.argv]
     if case.stdout_closed:
@@ -704,13 +712,6 @@ def prepare(case: Case, ws: Path) -> dict[str, str]:
     """Run the case's setup in ``ws``; the snapshot of every file before the command."""
     for s in case.setup:
         s(ws)
-    if case.unprivileged and os.geteuid() == 0:
-        # nobody must be able to reach the folder (read and traverse only)
-        for p in [ws, *[q for q in ws.rglob("*") if q.is_dir() and q.name != "ro"]]:
-            p.chmod(0o755)
-        for p in ws.rglob("*"):
-            if p.is_file() and p.parent.name != "ro":
-                p.chmod(0o644)
     return snapshot(ws)
 
 

@@ -18,7 +18,7 @@ import time
 from collections import Counter, defaultdict
 from pathlib import Path
 
-from .cases import build_cases, classify, judge, run_case
+from .cases import _restore_permissions, build_cases, classify, judge, run_case
 from .workspace import build, copy_workspace
 
 KINDS = ("ok", "traceback", "accepted", "loss", "code", "message")
@@ -43,11 +43,15 @@ def main(argv: list[str] | None = None) -> int:
             try:
                 outcome, before = run_case(case, ws)
                 problems = judge(case, outcome, before, ws)
+            except Exception as e:  # noqa: BLE001 - the harness itself: count, go on
+                outcome, problems = None, [f"traceback: harness: {type(e).__name__}: {e}"]
             finally:
+                _restore_permissions(ws)
                 shutil.rmtree(ws, ignore_errors=True)
             kind = classify(problems)
             results.append({"id": case.id, "command": case.command, "expected": case.rc,
-                            "rc": outcome.rc, "kind": kind, "problems": problems})
+                            "rc": None if outcome is None else outcome.rc, "kind": kind,
+                            "problems": problems})
             if args.verbose and problems:
                 print(f"{case.id}: {'; '.join(problems)}", file=sys.stderr)
     finally:

@@ -9,8 +9,6 @@ corpus as a table per command.
 
 from __future__ import annotations
 
-import os
-
 import pytest
 
 from .cases import build_cases, judge, run_case
@@ -26,8 +24,6 @@ def corpus_workspace(tmp_path_factory):
 
 def _param(case):
     marks = [pytest.mark.slow] if case.slow else []
-    if case.unprivileged and os.geteuid() != 0:
-        marks.append(pytest.mark.skip(reason="needs root to run as an unprivileged user"))
     return pytest.param(case, id=case.id, marks=marks)
 
 
