@@ -56,9 +56,15 @@ from pydantic import (
 
 from .effects import REGISTRY, EffectError, display_unit, effect_source
 from .error_model import ErrorModel
-from .files import read_text, write_atomic
+from .files import json_ready, read_text, write_atomic
 from .identify import Fit
-from .robot_model import ModelError, RobotModel, format_validation, model_from_dict
+from .robot_model import (
+    ModelError,
+    RobotModel,
+    format_validation,
+    model_from_dict,
+    number_only,
+)
 from .uncertainty import correlations
 
 FORMAT = "cellcal-params"
@@ -75,12 +81,6 @@ class ParamsError(ValueError):
 
 
 # ------------------------------------------------------------------------- schema
-def _number(v):
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise ValueError(f"{str(v)[:40]!s} is not a number")
-    return v
-
-
 def _finite_value(v: float) -> float:
     if not math.isfinite(v):
         raise ValueError(f"{v} is not a finite number")
@@ -95,8 +95,8 @@ def _std(v: float | None) -> float | None:
     return v
 
 
-Value = Annotated[float, BeforeValidator(_number), AfterValidator(_finite_value)]
-Std = Annotated[float | None, BeforeValidator(lambda v: v if v is None else _number(v)),
+Value = Annotated[float, BeforeValidator(number_only), AfterValidator(_finite_value)]
+Std = Annotated[float | None, BeforeValidator(lambda v: v if v is None else number_only(v)),
                 AfterValidator(_std)]
 
 
@@ -204,23 +204,13 @@ def solver_summary(fit: Fit) -> dict:
 
 def params_json(fit: Fit, effect_files: list[str] | None = None) -> str:
     """The text of params.json (NaN and infinities written as null: strict JSON)."""
-    return json.dumps(_finite(fit_to_dict(fit, effect_files)), indent=1,
+    return json.dumps(json_ready(fit_to_dict(fit, effect_files)), indent=1,
                       allow_nan=False) + "\n"
 
 
 def save_params(fit: Fit, path: str | Path, effect_files: list[str] | None = None) -> None:
     """Write params.json atomically (the old file stays whole if writing fails)."""
     write_atomic(path, params_json(fit, effect_files))
-
-
-def _finite(o):
-    if isinstance(o, float) and not math.isfinite(o):
-        return None
-    if isinstance(o, dict):
-        return {k: _finite(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_finite(v) for v in o]
-    return o
 
 
 # ------------------------------------------------------------------------- reading

@@ -43,7 +43,7 @@ MAX_MODEL_BYTES = 1 << 20
 _EXP_NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 
 
-def _number(v):
+def number_only(v):
     """Only numbers: YAML's true/false and strings are refused (no silent coercion); a
     number YAML 1.1 leaves as a string (``1e3``) is read as the number it is."""
     if isinstance(v, str) and _EXP_NUMBER.match(v.strip()):
@@ -63,7 +63,7 @@ def _bounded(limit: float, unit: str, what: str):
             raise ValueError(f"{v:g} {unit} is not a plausible {what} "
                              f"(|value| <= {limit:g} {unit})")
         return v
-    return Annotated[float, BeforeValidator(_number), AfterValidator(check)]
+    return Annotated[float, BeforeValidator(number_only), AfterValidator(check)]
 
 
 Length = _bounded(20000.0, "mm", "length")
@@ -71,7 +71,7 @@ Angle = _bounded(360.0, "deg", "angle")
 Limit = _bounded(3600.0, "deg", "joint limit")
 Offset = _bounded(10000.0, "mm", "offset")
 Acceleration = _bounded(100.0, "m/s^2", "acceleration")
-Mass = Annotated[float, BeforeValidator(_number),
+Mass = Annotated[float, BeforeValidator(number_only),
                  AfterValidator(lambda v: _mass(v))]
 
 

@@ -41,7 +41,6 @@ temperature °C, pressure hPa, humidity %.
 from __future__ import annotations
 
 import json
-import os
 import sqlite3
 import time
 from dataclasses import dataclass
@@ -49,19 +48,14 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.files import SQLITE_MAGIC
-
 from .run_context import RunContext
+from .store_open import StoreError, check_store_file, connect_read_only, describe_error
 from .store_schema import RESERVE_BYTES, SCHEMA_V1, SCHEMA_VERSION, UPGRADES
 
 #: run statuses: ``running`` (or killed while running), ``paused`` (protective stop,
 #: retries exhausted: resumable), ``stopped`` (Ctrl-C: resumable), ``completed``,
 #: ``failed`` (refused or broken: resumable once the cause is fixed)
 STATUSES = ("running", "paused", "stopped", "completed", "failed")
-
-
-class StoreError(Exception):
-    """The store cannot be used (newer schema, unknown run...)."""
 
 
 @dataclass
@@ -192,10 +186,10 @@ class RunStore:
             raise ValueError(f"synchronous must be FULL or NORMAL, got {synchronous!r}")
         self.path = Path(path)
         self.read_only = read_only
-        _check_file(self.path, must_exist=read_only)
+        check_store_file(self.path, must_exist=read_only)
         try:
             if read_only:
-                self.con = _connect_read_only(self.path)
+                self.con = connect_read_only(self.path)
             else:
                 self.con = sqlite3.connect(str(self.path), timeout=30.0, isolation_level=None)
         except sqlite3.Error as e:
@@ -211,7 +205,7 @@ class RunStore:
                 self._refill_reserve()
         except sqlite3.DatabaseError as e:
             self.con.close()
-            raise StoreError(f"{self.path}: {_damage(e)}") from None
+            raise StoreError(f"{self.path}: {describe_error(e)}") from None
         except BaseException:
             self.con.close()
             raise
@@ -221,7 +215,7 @@ class RunStore:
                       read_only: bool = False) -> RunStore:
         """An existing store; :class:`StoreError` when there is no such file (never create
         an empty store for a mistyped path) or it is no run store."""
-        _check_file(Path(path), must_exist=True)
+        check_store_file(Path(path), must_exist=True)
         return cls(path, synchronous=synchronous, read_only=read_only)
 
     def _check_tables(self) -> None:
@@ -516,71 +510,6 @@ class RunStore:
             if r.routine == routine and r.status == status:
                 return r
         raise StoreError(f"{self.path}: no {status} {routine} run")
-
-
-def _check_file(path: Path, must_exist: bool) -> None:
-    """Refuse, before SQLite opens it, a path that cannot be a run store."""
-    if not path.exists():
-        if path.is_symlink():
-            raise StoreError(f"{path}: a broken symbolic link, not a run store")
-        if not path.parent.is_dir():
-            raise StoreError(f"{path}: no such run store (the folder {path.parent} does not "
-                             "exist)")
-        if must_exist:
-            raise StoreError(f"{path}: no such run store")
-        return
-    if path.is_dir():
-        raise StoreError(f"{path}: is a directory, not a run store (an SQLite file)")
-    if not path.is_file():
-        raise StoreError(f"{path}: not a regular file, not a run store")
-    size = path.stat().st_size
-    if size == 0:
-        if must_exist:
-            raise StoreError(f"{path}: an empty file, not a cellcal run store")
-        return
-    with open(path, "rb") as f:
-        head = f.read(100)
-    if not head.startswith(SQLITE_MAGIC):
-        raise StoreError(f"{path}: not a cellcal run store (not an SQLite database)")
-    if len(head) < 100:
-        raise StoreError(f"{path}: damaged run store (truncated to {size} bytes)")
-    page = int.from_bytes(head[16:18], "big")
-    page = 65536 if page == 1 else page
-    pages = int.from_bytes(head[28:32], "big")
-    valid = head[24:28] == head[92:96]  # the in-header size is trustworthy
-    if valid and pages and size < pages * page:
-        raise StoreError(f"{path}: damaged run store (truncated: {size} bytes, the header "
-                         f"says {pages * page})")
-
-
-def _connect_read_only(path: Path) -> sqlite3.Connection:
-    """A read-only connection that creates nothing next to the file.
-
-    With a ``-wal`` file present (a capture is writing, or one was killed) the store is
-    opened ``mode=ro``, which reads the WAL's commits too (the side files already exist).
-    Without one, the file holds every commit and is opened ``immutable``: SQLite then
-    neither creates the ``-wal``/``-shm`` files a WAL store's readers otherwise leave
-    behind, nor needs a writable folder."""
-    uri = path.resolve().as_uri()
-    if Path(f"{path}-wal").exists():
-        con = sqlite3.connect(f"{uri}?mode=ro", uri=True, timeout=30.0, isolation_level=None)
-        try:
-            con.execute("SELECT count(*) FROM sqlite_master").fetchone()
-            return con
-        except sqlite3.OperationalError:
-            con.close()
-            if os.access(path.parent, os.W_OK):
-                raise
-    return sqlite3.connect(f"{uri}?immutable=1", uri=True, isolation_level=None)
-
-
-def _damage(e: sqlite3.DatabaseError) -> str:
-    text = str(e)
-    if "not a database" in text:
-        return "not a cellcal run store (not an SQLite database)"
-    if "malformed" in text or "corrupt" in text:
-        return f"damaged run store (SQLite: {text})"
-    return f"cannot use the run store: {text}"
 
 
 def _software_version() -> str:

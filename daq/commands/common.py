@@ -21,7 +21,7 @@ from pathlib import Path
 
 from calibration import DEFAULT_EFFECTS, DataError, ModelError, load_csv, load_model
 from calibration.effects import EffectError, load_effect_file
-from calibration.files import is_sqlite_file
+from calibration.files import is_sqlite_file, json_ready
 from calibration.params_io import ParamsError
 
 from ..cli import UsageError
@@ -205,16 +205,7 @@ def print_json(obj) -> None:
             return str(o)
         raise TypeError(type(o).__name__)
 
-    def clean(o):
-        if isinstance(o, float) and not math.isfinite(o):
-            return None
-        if isinstance(o, dict):
-            return {k: clean(v) for k, v in o.items()}
-        if isinstance(o, (list, tuple)):
-            return [clean(v) for v in o]
-        return o
-
-    json.dump(clean(obj), sys.stdout, default=default)
+    json.dump(json_ready(obj), sys.stdout, default=default)
     sys.stdout.write("\n")
 
 

@@ -1,4 +1,5 @@
-"""The corpus table: every CLI command over bad inputs, with the documented outcome.
+"""The corpus table: every CLI command over bad inputs, with the documented outcome (a
+long module because it is one table: the inputs of each command and what must come of them).
 
 A :class:`Case` is one command line run in a fresh copy of the workspace
 (:mod:`tests.corpus.workspace`) after its ``setup`` wrote the bad input
