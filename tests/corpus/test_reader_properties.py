@@ -19,7 +19,7 @@ from calibration.params_io import ParamsError, params_from_doc, read_params
 from calibration.simulate import random_joints, realistic_truth, simulate
 from calibration.zero_point import load_postures
 
-SETTINGS = settings(max_examples=120, deadline=None, derandomize=True,
+SETTINGS = settings(max_examples=60, deadline=None, derandomize=True,
                     suppress_health_check=[HealthCheck.function_scoped_fixture,
                                            HealthCheck.too_slow])
 UR5 = load_model("ur5")
