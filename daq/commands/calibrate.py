@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from calibration import DEFAULT_EFFECTS, identify, load_csv
-from calibration.files import atomic_output
 from calibration.params_io import read_params, save_params, solver_summary
 from calibration.solvers import SOLVERS
 from calibration.uncertainty import correlations, monte_carlo
@@ -99,8 +98,7 @@ def run(args) -> int:
     check_calibrate_outputs(args)
     fit, baseline = calibrate(args)
     if ridge_plot:
-        with atomic_output(ridge_plot) as tmp:
-            plot_ridge(fit.info, tmp, f"{fit.data.source}: ridge solver")
+        plot_ridge(fit.info, ridge_plot, f"{fit.data.source}: ridge solver")
     mc = None
     if n_mc:
         seed = args.seed if getattr(args, "seed", None) is not None else 0
