@@ -13,13 +13,13 @@ from presentation.summaries import fit_summary
 from ..cli import UsageError
 from .common import (
     add_model_args,
+    bounded_int,
     check_data,
     check_outputs,
     error_model_of,
     fmt,
     input_paths,
     load_inputs,
-    nonneg_int,
     print_json,
     print_note,
     seed_int,
@@ -44,7 +44,7 @@ def register(sub) -> None:
     p.add_argument("--out", metavar="params.json", help="write the parameters here")
     p.add_argument("--seed", type=seed_int, default=None,
                    help="random seed of the besa/sa solvers and of --monte-carlo (default 0)")
-    p.add_argument("--monte-carlo", type=nonneg_int, default=0, metavar="N",
+    p.add_argument("--monte-carlo", type=bounded_int(0, 100_000), default=0, metavar="N",
                    help="re-identify N times from the calibrated model plus instrument noise "
                    "(sigma from the data or --sigma) and report the parameter spread and the "
                    "position uncertainty over the workspace")
