@@ -43,3 +43,49 @@ def test_corpus_covers_every_command():
     aliases = {"export_run": "export", "sim_serve": "sim", "simulate_dataset": "simulate"}
     covered = {c.command for c in CASES}
     assert {aliases.get(n, n) for n in names} <= covered
+
+
+class _ClosedPipe:
+    """stdout whose reader went away (`cellcal runs --json | head`)."""
+
+    def write(self, text):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    def flush(self):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    def fileno(self):
+        raise ValueError("no file")
+
+
+def test_a_closed_stdout_ends_quietly(corpus_workspace, monkeypatch, capsys):
+    from daq.cli import main
+
+    monkeypatch.chdir(corpus_workspace)
+    monkeypatch.setattr("sys.stdout", _ClosedPipe())
+    assert main(["runs", "--db", "cell.db", "--json"]) == 0
+    assert main(["models"]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_an_unexpected_error_is_one_line_not_a_traceback(monkeypatch, capsys):
+    from daq.cli import main
+
+    def boom(args):
+        raise RuntimeError("something nobody foresaw")
+
+    monkeypatch.delenv("CELLCAL_TRACEBACK", raising=False)
+    import daq.cli
+
+    parser = daq.cli.build_parser  # the sub-command binds run at registration
+    monkeypatch.setattr(daq.cli, "build_parser", lambda: _with_func(parser(), boom))
+    assert main(["models"]) == 1
+    err = capsys.readouterr().err
+    assert "internal error: RuntimeError: something nobody foresaw" in err
+    assert "Traceback" not in err and err.count("\n") == 1
+
+
+def _with_func(parser, func):
+    for action in parser._subparsers._group_actions:
+        action.choices["models"].set_defaults(func=func)
+    return parser
