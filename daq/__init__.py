@@ -10,6 +10,7 @@ Modules
     ``run_context``     ``RunContext`` and ``ExecutorOptions``: what a run was started with
     ``store``           ``RunStore``: runs, samples (``Samples``), interruptions in SQLite
     ``store_schema``    the store's SQL schema and its upgrades between versions
+    ``store_open``      opening a file as a store: refusing what is not one, read-only
     ``run_data``        runs as calibration inputs: a data set, zero-point postures
     ``service``         plan, start and resume runs (the commands and the demo call it)
     ``progress``        the progress line of a capture on a terminal
