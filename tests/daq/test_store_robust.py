@@ -147,3 +147,28 @@ def test_a_full_disk_pauses_the_run_with_the_reason_and_loses_nothing(tmp_path):
         robot.close()
         tracker.close()
         inproc.reset_cells()
+
+
+def test_upgrade_3_to_4_adds_the_reserve_and_keeps_every_run(tmp_path):
+    """Schema 4 is additive: a schema-3 store gains the reserve table (one row of
+    RESERVE_BYTES zeros); runs, samples and contexts stay as they were."""
+    from daq.store_schema import RESERVE_BYTES, UPGRADES
+
+    p = tmp_path / "v3.db"
+    shutil.copyfile(V2, p)
+    con = sqlite3.connect(p, isolation_level=None)
+    UPGRADES[1](con)  # 2 -> 3, as a schema-3 cellcal left it
+    con.execute("PRAGMA user_version=3")
+    before = con.execute("SELECT id, routine, status, context_json FROM runs").fetchall()
+    n_samples = con.execute("SELECT count(*) FROM samples").fetchone()[0]
+    con.close()
+    with RunStore(p) as st:
+        assert st.version == SCHEMA_VERSION == 4
+        assert st.con.execute("SELECT id, routine, status, context_json FROM runs"
+                              ).fetchall() == before
+        assert st.con.execute("SELECT count(*) FROM samples").fetchone()[0] == n_samples
+        assert st.con.execute("SELECT length(pad) FROM reserve").fetchall() == [
+            (RESERVE_BYTES,)]
+        assert st.release_reserve() and not st.release_reserve()
+    with RunStore(p) as st:  # given up, it is put back once there is space again
+        assert st.con.execute("SELECT count(*) FROM reserve").fetchone()[0] == 1
