@@ -4,7 +4,7 @@ For each target not yet in the store: move (via the pre-position if any) →
 wait until settled (+ an optional dwell) → read the joints (and the
 controller's nominal TCP when the robot offers :class:`CommandedPosition`) →
 measure (averaged; a per-axis std above ``max_std_mm`` is remeasured) → write
-one sample in one SQLite transaction. That commit is the checkpoint.
+one sample in one transaction of the run store. That commit is the checkpoint.
 
 Adaptive acquisition
     A routine may hand the executor an :class:`Acquisition` strategy: after the move
@@ -25,7 +25,14 @@ Faults
       and printed); an operator clears it, then ``cellcal resume``;
     * any other driver or capture error (command rejected, limit, a closed loop that
       did not converge) pauses the run too;
-    * Ctrl-C (SIGINT) stops after the current point (status ``stopped``).
+    * Ctrl-C (SIGINT) stops after the current point (status ``stopped``);
+    * a lost run store connection (:class:`~daq.store.StoreUnavailable`: a PostgreSQL
+      server restarting or out of reach) holds the robot where it is and keeps the
+      point's sample: the executor reconnects with the same backoff for up to
+      ``store_wait_s``, then commits the sample (the insert is idempotent, so a commit
+      that did land before the connection broke is not doubled) and goes on, recording a
+      ``store`` interruption; a store still away after that pauses the run (status
+      ``paused`` once it can be written; ``cellcal resume`` redoes the points not stored).
 
 Every interruption goes to the store's ``interruptions`` table. A point whose
 sample was not committed is simply done again on resume; the store's
@@ -59,7 +66,7 @@ from drivers.protocols import CommandedPosition, JointReading, Measurement
 from .errors import CaptureError, QualityError
 from .plans import Plan, Target
 from .run_context import ExecutorOptions
-from .store import RunStore, Sample
+from .store import RunStore, Sample, StoreUnavailable
 
 
 class _Pause(Exception):  # noqa: N818 - control flow
@@ -173,8 +180,14 @@ class Executor:
         self.n_faults = 0
         self.commit_s = 0.0
         self.n_committed = 0
+        self._n_done = 0
 
     # -------------------------------------------------------------- control
+    @property
+    def n_done(self) -> int:
+        """Points stored, as last counted."""
+        return self._n_done
+
     def request_stop(self) -> None:
         """Stop after the current point (what Ctrl-C does)."""
         self._stop.set()
@@ -198,9 +211,11 @@ class Executor:
         finally:
             signal.signal(signal.SIGINT, previous)
 
-    def _report(self, done: int) -> None:
+    def _report(self, done: int | None = None) -> None:
+        if done is not None:
+            self._n_done = done
         if self.progress is not None:
-            self.progress(done, len(self.plan), self.last_error)
+            self.progress(self._n_done, len(self.plan), self.last_error)
 
     # ------------------------------------------------------------------ run
     def run(self) -> str:
@@ -227,11 +242,17 @@ class Executor:
                     self._report(n_done)
             except _Pause as p:
                 kind = "sigint" if p.status == "stopped" else "pause"
-                store.add_interruption(rid, getattr(t, "index", None), kind, p.reason)
-                store.set_status(rid, p.status, p.reason)
+                self._record_stop(getattr(t, "index", None), kind, p.status, p.reason)
                 self.last_error = p.reason
                 self._report(n_done)
                 return p.status
+            except StoreUnavailable as e:  # the store went away outside a commit
+                reason = (f"run store unreachable at point {getattr(t, 'index', None)}: {e}; "
+                          "`cellcal resume` once it is back")
+                self._record_stop(getattr(t, "index", None), "store", "paused", reason)
+                self.last_error = reason
+                self._report(n_done)
+                return "paused"
             except KeyboardInterrupt:
                 store.add_interruption(rid, getattr(t, "index", None), "sigint",
                                        "interrupted (second Ctrl-C)")
@@ -261,10 +282,7 @@ class Executor:
             phase = ["robot"]
             try:
                 sample = self._acquire(t, attempt, phase)
-                t0 = time.perf_counter()
-                self.store.add_sample(self.run_id, sample)
-                self.commit_s += time.perf_counter() - t0
-                self.n_committed += 1
+                self._commit(t, sample)
                 return
             except ProtectiveStop as e:
                 self._fault(t, e)
@@ -279,6 +297,53 @@ class Executor:
                                  f"{fault_kind(e)}: {e}") from e
                 time.sleep(min(self.o.backoff_s * 2 ** (attempt - 1), self.o.backoff_max_s))
                 self._reconnect(t, phase[0])
+
+    def _commit(self, t: Target, sample: Sample) -> None:
+        """Store the point's sample; a lost store is waited for (module docstring)."""
+        waited, attempt, lost = 0.0, 0, None
+        while True:
+            try:
+                if lost is not None:
+                    self.store.reconnect()
+                t0 = time.perf_counter()
+                self.store.add_sample(self.run_id, sample)
+                self.commit_s += time.perf_counter() - t0
+                self.n_committed += 1
+                break
+            except StoreUnavailable as e:
+                if lost is None:
+                    lost = e
+                    self.n_faults += 1
+                self.last_error = f"store: {e}"
+                self._report()
+                if waited >= self.o.store_wait_s:
+                    raise _Pause("paused", f"run store unreachable at point {t.index} for "
+                                 f"{waited:.0f} s: {e}; `cellcal resume` once it is back"
+                                 ) from e
+                attempt += 1
+                pause = min(self.o.backoff_s * 2 ** (attempt - 1), self.o.backoff_max_s,
+                            max(self.o.store_wait_s - waited, 0.0))
+                time.sleep(pause)
+                waited += pause
+        if lost is not None:
+            self.store.add_interruption(self.run_id, t.index, "store",
+                                        f"connection lost for {waited:.1f} s, point kept and "
+                                        f"committed after reconnecting: {lost}")
+            self.last_error = None
+
+    def _record_stop(self, index, kind: str, status: str, reason: str) -> None:
+        """Record why the run stopped and its status; when the store is away (the reason
+        it stopped, perhaps) one reconnection is tried, then the record is left out: the
+        run stays ``running`` in the store and ``cellcal resume`` finds it so."""
+        for retry in (False, True):
+            try:
+                if retry:
+                    self.store.reconnect()
+                self.store.add_interruption(self.run_id, index, kind, reason)
+                self.store.set_status(self.run_id, status, reason)
+                return
+            except StoreUnavailable:
+                continue
 
     def _fault(self, t: Target, e: DriverError | CaptureError) -> None:
         self.n_faults += 1

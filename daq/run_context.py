@@ -47,6 +47,9 @@ class ExecutorOptions(BaseModel):
     backoff_max_s: float = 1.0
     #: a joint moved by less than this (rad) approached with direction 0
     dir_deadband_rad: float = 1e-6
+    #: a lost run store connection (a PostgreSQL server restarting): how long the executor
+    #: waits for it, holding the robot, before it pauses the run
+    store_wait_s: float = 30.0
 
 
 class RunContext(BaseModel):

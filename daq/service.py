@@ -38,7 +38,7 @@ from .executor import Executor
 from .plans import Plan
 from .routines import get as get_routine
 from .run_context import ExecutorOptions, RunContext
-from .store import Run, RunStore, StoreError
+from .store import Run, RunStore, StoreError, StoreUnavailable
 
 #: progress callback of the executor: (points done, points in all, last error)
 ProgressFn = Callable[[int, int, "str | None"], None]
@@ -50,8 +50,10 @@ class CaptureRequest:
 
     ``model`` is a built-in name or a YAML path (recorded with the run); ``params`` are
     the routine's ``make_plan`` keyword arguments; ``frame_run`` None takes the latest
-    completed frame run in the store, if any; ``acquire`` are the routine's acquisition
-    options (zero20: :class:`~daq.routines.zero20.ZeroLoopOptions` fields).
+    completed frame run of the same robot in the store, if any; ``acquire`` are the
+    routine's acquisition options (zero20: :class:`~daq.routines.zero20.ZeroLoopOptions`
+    fields); ``robot_id`` names the robot (default: the controller's ``MODEL/SERIAL`` when
+    it reports a serial number, :func:`robot_identity`).
     """
 
     routine: str
@@ -64,6 +66,7 @@ class CaptureRequest:
     frame_run: int | None = None
     executor: ExecutorOptions = field(default_factory=ExecutorOptions)
     acquire: dict = field(default_factory=dict)
+    robot_id: str | None = None
 
 
 @dataclass(frozen=True)
@@ -143,6 +146,17 @@ def describe(driver) -> str:
     if isinstance(n, int) and n:
         parts.append(f"joints={n}")
     return " ".join(parts)
+
+
+def robot_identity(robot, given: str | None = None) -> str | None:
+    """Who the robot is: ``given`` (a name from the command line), else the controller's
+    ``MODEL/SERIAL`` when its protocol reports a serial number, else None."""
+    if given:
+        return given
+    model, serial = getattr(robot, "model", ""), getattr(robot, "serial", "")
+    if isinstance(serial, str) and serial:
+        return f"{model}/{serial}" if isinstance(model, str) and model else serial
+    return None
 
 
 def open_drivers(robot_url: str, tracker_url: str, timeout: float = 5.0):
@@ -255,9 +269,20 @@ def _acquire_options(mod, given: dict) -> dict:
     return options(**given).model_dump()
 
 
-def frame_run(store: RunStore, run_id: int | None) -> Run | None:
+def _same_robot(r: Run, robot_id: str | None, robot_url: str | None) -> bool:
+    """Run ``r`` measured this robot: the same identity when both know theirs; the same URL
+    when only one does; any run when neither does (a store of one cell)."""
+    if robot_id and r.robot_id:
+        return r.robot_id == robot_id
+    if robot_id or r.robot_id:
+        return r.robot_url == robot_url
+    return True
+
+
+def frame_run(store: RunStore, run_id: int | None, robot_id: str | None = None,
+              robot_url: str | None = None) -> Run | None:
     """The frame run ``run_id`` (it must have a frame), else the latest completed frame
-    run of the store, else None."""
+    run of the same robot (``robot_id``, ``robot_url``: :func:`_same_robot`), else None."""
     if run_id is not None:
         try:
             r = store.run(run_id)
@@ -268,7 +293,8 @@ def frame_run(store: RunStore, run_id: int | None) -> Run | None:
                                "frame run)")
         return r
     for r in reversed(store.runs()):
-        if r.routine == "frame" and r.status == "completed" and r.frame is not None:
+        if (r.routine == "frame" and r.status == "completed" and r.frame is not None
+                and _same_robot(r, robot_id, robot_url)):
             return r
     return None
 
@@ -276,7 +302,8 @@ def frame_run(store: RunStore, run_id: int | None) -> Run | None:
 def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_url: str,
               devices: tuple | None = None, progress: ProgressFn | None = None,
               on_started: Callable[[int, int], None] | None = None) -> RunOutcome:
-    """Store a new run of ``planned`` and execute it.
+    """Store a new run of ``planned`` (with the robot's identity, :func:`robot_identity`)
+    and execute it.
 
     Parameters
     ----------
@@ -291,18 +318,20 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
         Called once the run is stored, before the first move.
     """
     req = planned.request
-    frame = frame_run(store, req.frame_run)
-    context = RunContext(
-        routine=planned.plan.routine, model=req.model,
-        tool_mm=tuple(float(v) for v in planned.model.tool_mm()), robot_url=robot_url,
-        tracker_url=tracker_url, seed=req.seed,
-        frame_run=None if frame is None else frame.id,
-        tracker_T_base=None if frame is None else frame.frame["tracker_T_base"],
-        executor=req.executor, acquire=planned.acquire)
+    given_frame = frame_run(store, req.frame_run) if req.frame_run is not None else None
     with _devices(robot_url, tracker_url, devices, req.executor.connect_timeout_s) as (
             robot, tracker):
+        robot_id = robot_identity(robot, req.robot_id)
+        frame = given_frame or frame_run(store, None, robot_id, robot_url)
+        context = RunContext(
+            routine=planned.plan.routine, model=req.model,
+            tool_mm=tuple(float(v) for v in planned.model.tool_mm()), robot_url=robot_url,
+            tracker_url=tracker_url, seed=req.seed,
+            frame_run=None if frame is None else frame.id,
+            tracker_T_base=None if frame is None else frame.frame["tracker_T_base"],
+            executor=req.executor, acquire=planned.acquire)
         run_id = store.create_run(planned.plan, context, robot_desc=describe(robot),
-                                  tracker_desc=describe(tracker))
+                                  tracker_desc=describe(tracker), robot_id=robot_id)
         if on_started is not None:
             on_started(run_id, 0)
         return execute(store, run_id, planned.plan, robot, tracker, model=planned.model,
@@ -311,12 +340,14 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
 
 # ------------------------------------------------------------------- resume
 def prepare_resume(store: RunStore, run_id: int | None = None, *,
-                   robot_url: str | None = None, tracker_url: str | None = None) -> Resumable:
+                   robot_url: str | None = None, tracker_url: str | None = None,
+                   robot_id: str | None = None) -> Resumable:
     """Find run ``run_id`` (default: the latest) and what resuming it needs.
 
-    A run found still ``running`` (its process was killed) gets a ``killed``
-    interruption. ``robot_url``/``tracker_url`` replace the stored ones. A completed run
-    comes back as it is (:attr:`Resumable.completed`).
+    A run found still ``running`` (its process was killed, or it lost its run store) gets
+    a ``killed`` interruption. ``robot_url``/``tracker_url`` replace the stored ones.
+    ``robot_id`` must be the run's robot (it is recorded when the run had none). A
+    completed run comes back as it is (:attr:`Resumable.completed`).
     """
     from calibration import ModelError, load_model
 
@@ -327,13 +358,17 @@ def prepare_resume(store: RunStore, run_id: int | None = None, *,
     plan = Plan.from_json(r.plan_json)
     if plan.hash != r.plan_hash:
         raise RequestError(f"run {r.id}: stored plan does not match its hash (edited store?)")
+    if robot_id and r.robot_id and robot_id != r.robot_id:
+        raise RequestError(f"run {r.id} is a run of robot {r.robot_id}, not {robot_id}")
     done = store.n_samples(r.id)
     if r.status == "completed":
         return Resumable(r, plan, done)
+    if robot_id and not r.robot_id:
+        store.update_run(r.id, robot_id=robot_id)
     if r.status == "running":
         store.add_interruption(r.id, None, "killed",
                                "found still running on resume: the process was killed or "
-                               "crashed")
+                               "crashed, or lost its run store")
     try:
         model = load_model(r.model or plan.model)
         if r.context.tool_mm is not None:
@@ -399,7 +434,10 @@ def execute(store: RunStore, run_id: int, plan: Plan, robot, tracker, *, model,
     t0 = time.monotonic()
     status = ex.run()
     elapsed = time.monotonic() - t0
-    run = store.run(run_id)
-    return RunOutcome(run_id, plan.routine, status, run.reason, len(plan),
-                      store.n_samples(run_id), ex.n_faults, elapsed, plan.hash,
-                      str(store.path), run.frame, run.summary)
+    try:
+        run = store.run(run_id)
+        reason, n, frame, summary = run.reason, store.n_samples(run_id), run.frame, run.summary
+    except StoreUnavailable:  # paused because the store is away: what the executor knows
+        reason, n, frame, summary = ex.last_error, ex.n_done, None, None
+    return RunOutcome(run_id, plan.routine, status, reason, len(plan), n, ex.n_faults,
+                      elapsed, plan.hash, store.address, frame, summary)

@@ -34,7 +34,8 @@ def run(args) -> int:
 
     store = open_store(args.db, synchronous=args.synchronous)
     try:
-        res = prepare_resume(store, args.run_id, robot_url=args.robot, tracker_url=args.tracker)
+        res = prepare_resume(store, args.run_id, robot_url=args.robot, tracker_url=args.tracker,
+                             robot_id=args.robot_id)
         r = res.run
         if res.completed:
             print(f"run {r.id} is already completed ({res.done}/{r.n_points} points)",
