@@ -3,10 +3,7 @@
 from __future__ import annotations
 
 import json
-import os
-import select
 import signal
-import sqlite3
 import subprocess
 import sys
 import time
@@ -28,6 +25,8 @@ from .capture_helpers import (
     TOY,
     base_only_truth,
     connected,
+    count_samples,
+    read_lines,
     run_plan,
     served_cell,
     sim_serve,
@@ -91,59 +90,33 @@ def test_steps_export_calibrates(tmp_path, capsys):
     assert out["calib"]["rms_mm"] < 0.1
 
 
-def _read_lines(proc, n, timeout):
-    lines, buf = [], b""
-    deadline = time.monotonic() + timeout
-    fd = proc.stdout.fileno()
-    while len(lines) < n:
-        left = deadline - time.monotonic()
-        assert left > 0, f"only got {lines}"
-        if select.select([fd], [], [], left)[0]:
-            chunk = os.read(fd, 4096)
-            assert chunk, "cellcal sim serve exited early"
-            buf += chunk
-            *done, buf = buf.split(b"\n")
-            lines += [d.decode().strip() for d in done if d.strip()]
-    return lines
-
-
-def _count(db) -> int:
-    try:
-        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5)
-        try:
-            return int(con.execute("SELECT count(*) FROM samples").fetchone()[0])
-        finally:
-            con.close()
-    except sqlite3.OperationalError:
-        return 0
-
-
 @pytest.mark.slow
-def test_sigkill_three_times_then_resume(tmp_path):
-    db = tmp_path / "cell.db"
+def test_sigkill_three_times_then_resume(store_address):
+    """Over sockets into a SQLite file and into PostgreSQL: killed three times, resumed."""
+    db = store_address
     rng = np.random.default_rng(7)
     cli = [sys.executable, "-m", "daq"]
     with sim_serve("--no-pty", "--seed", "5") as serve:
-        urls = _read_lines(serve, 3, timeout=30)
+        urls = read_lines(serve, 3, timeout=30)
         robot, tracker = urls[1], urls[2]
         capture = [*cli, "capture", "poses", "--count", "150", "--seed", "2", "--model",
                    "ur10e", "--tool-mm", "0,0,60", "--no-floor", "--robot", robot,
-                   "--tracker", tracker, "--db", str(db), "--json"]
-        resume = [*cli, "resume", "--db", str(db), "--json"]
+                   "--tracker", tracker, "--db", db, "--json"]
+        resume = [*cli, "resume", "--db", db, "--json"]
         kills = []
         for k in range(3):
-            start = _count(db)
+            start = count_samples(db)
             target = start + int(rng.integers(5, 35))
             p = subprocess.Popen(capture if k == 0 else resume, cwd=ROOT,
                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             deadline = time.monotonic() + 60
-            while _count(db) < target:
+            while count_samples(db) < target:
                 assert p.poll() is None, f"capture ended early (rc {p.returncode})"
                 assert time.monotonic() < deadline
                 time.sleep(0.001)
             p.send_signal(signal.SIGKILL)
             p.wait(timeout=10)
-            kills.append(_count(db))
+            kills.append(count_samples(db))
         out = subprocess.run(resume, cwd=ROOT, capture_output=True, timeout=120)
         assert out.returncode == 0, out.stderr.decode()
         summary = json.loads(out.stdout)

@@ -1,0 +1,150 @@
+"""A plant's run store on a PostgreSQL server, end to end over real sockets: the server
+restarted or gone during a capture (the run waits, or pauses and resumes, losing
+nothing), and two cells capturing into one database at once."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from daq.store import RunStore
+
+from .capture_helpers import ROOT, count_samples, read_lines, sim_serve
+
+CLI = [sys.executable, "-m", "daq"]
+POINTS = 120
+
+
+@pytest.fixture(scope="module")
+def own_pg():
+    """A server of these tests' own (they stop and start it)."""
+    from tests.pg_server import INSTALL_HINT, PgServer, find_bindir
+
+    if find_bindir() is None:
+        pytest.skip(f"PostgreSQL server binaries (initdb, pg_ctl) not found: {INSTALL_HINT}")
+    with PgServer.start_new() as server:
+        yield server
+
+
+def _capture(robot, tracker, db, *extra) -> list[str]:
+    return [*CLI, "capture", "poses", "--count", str(POINTS), "--seed", "2", "--model", "ur10e",
+            "--tool-mm", "0,0,60", "--no-floor", "--robot", robot, "--tracker", tracker,
+            "--db", db, "--json", *extra]
+
+
+def _wait_for(db, n, proc, timeout=60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while count_samples(db) < n:
+        assert proc.poll() is None, f"capture ended early (rc {proc.returncode})"
+        assert time.monotonic() < deadline
+        time.sleep(0.005)
+
+
+def _check_every_point_once(db, robot_id=None, run_id=1):
+    with RunStore(db) as store:
+        r = store.run(run_id)
+        s = store.samples(run_id)
+        kinds = [k for _, _, k, _ in store.interruptions(run_id)]
+    assert r.status == "completed"
+    assert np.array_equal(s.point_index, np.arange(POINTS))  # no gaps, no duplicates
+    if robot_id is not None:
+        assert r.robot_id == robot_id
+    return kinds
+
+
+@pytest.mark.slow
+def test_server_restarted_mid_capture_the_run_waits_and_loses_nothing(own_pg):
+    db = own_pg.create_database("restart")
+    with sim_serve("--no-pty", "--seed", "5") as serve:
+        urls = read_lines(serve, 3, timeout=30)
+        p = subprocess.Popen(_capture(urls[1], urls[2], db, "--store-wait", "120"), cwd=ROOT,
+                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+        try:
+            _wait_for(db, 30, p)
+            own_pg.restart()  # every client loses its connection; back after ~1-2 s
+            out, _ = p.communicate(timeout=180)
+        finally:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+    assert p.returncode == 0, out
+    summary = json.loads(out)
+    assert summary["status"] == "completed" and summary["samples"] == POINTS
+    kinds = _check_every_point_once(db, robot_id="SIMBOT-1/SN0042")
+    assert kinds.count("store") == 1, kinds  # the wait is recorded, once it could be
+    print(f"\nserver restarted mid-capture: {POINTS}/{POINTS}, interruptions {kinds}")
+
+
+@pytest.mark.slow
+def test_server_gone_longer_than_the_wait_pauses_then_resumes(own_pg):
+    db = own_pg.create_database("gone")
+    with sim_serve("--no-pty", "--seed", "6") as serve:
+        urls = read_lines(serve, 3, timeout=30)
+        p = subprocess.Popen(_capture(urls[1], urls[2], db, "--store-wait", "1"), cwd=ROOT,
+                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+        try:
+            _wait_for(db, 40, p)
+            own_pg.stop()
+            try:
+                out, _ = p.communicate(timeout=120)
+            finally:
+                own_pg.start()
+        finally:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+        assert p.returncode == 1, out
+        paused = json.loads(out)
+        assert paused["status"] == "paused" and "run store unreachable" in paused["reason"]
+        assert paused["samples"] < POINTS
+        stored = count_samples(db)
+        assert stored >= 40
+        resume = subprocess.run([*CLI, "resume", "--db", db, "--json"], cwd=ROOT,
+                                capture_output=True, timeout=180)
+    assert resume.returncode == 0, resume.stderr.decode()
+    summary = json.loads(resume.stdout)
+    assert summary["status"] == "completed" and summary["samples"] == POINTS
+    kinds = _check_every_point_once(db)
+    # the pause could not be written while the server was away: resume found it running
+    assert kinds.count("killed") == 1 and kinds.count("resume") == 1, kinds
+    print(f"\nserver gone: paused with {paused['samples']} stored ({stored} in the store), "
+          f"resumed to {POINTS}/{POINTS}; interruptions {kinds}")
+
+
+@pytest.mark.slow
+def test_two_cells_capture_into_one_database_at_once(pg_url):
+    with sim_serve("--no-pty", "--seed", "7") as cell_a, \
+            sim_serve("--no-pty", "--seed", "8") as cell_b:
+        a, b = read_lines(cell_a, 3, timeout=30), read_lines(cell_b, 3, timeout=30)
+        procs = [subprocess.Popen(_capture(urls[1], urls[2], pg_url, "--robot-id", name),
+                                  cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                 for urls, name in ((a, "cell-A"), (b, "cell-B"))]
+        try:
+            outs = [p.communicate(timeout=300) for p in procs]
+        finally:
+            for p in procs:
+                if p.poll() is None:
+                    p.kill()
+                    p.wait()
+    for p, (_out, err) in zip(procs, outs, strict=True):
+        assert p.returncode == 0, err.decode()
+    runs = {json.loads(out)["run"]: name for (out, _), name in zip(outs, ("cell-A", "cell-B"),
+                                                                     strict=True)}
+    assert sorted(runs) == [1, 2]
+    for run_id, name in runs.items():
+        _check_every_point_once(pg_url, robot_id=name, run_id=run_id)
+    with RunStore(pg_url) as store:
+        a_run, b_run = (store.runs(name)[0] for name in ("cell-A", "cell-B"))
+        order = [r[0] for r in store.db.execute("SELECT run_id FROM samples ORDER BY id"
+                                                ).fetchall()]
+    # they ran at once: the commits of the two cells interleave
+    switches = sum(x != y for x, y in zip(order, order[1:], strict=False))
+    assert switches >= 10, order
+    assert a_run.robot_url != b_run.robot_url
+    print(f"\ntwo cells into one database: runs {runs}, {len(order)} samples, the writer "
+          f"switched {switches} times")
