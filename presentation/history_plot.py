@@ -54,7 +54,7 @@ def history_figure(histories: list[ParameterHistory], times: np.ndarray, title: 
         ax.set_title(h.name + (" (changed)" if h.flagged.any() else ""),
                      color=_FLAG if h.flagged.any() else "black")
         ax.set_ylabel(h.unit)
-        locator = mdates.AutoDateLocator(maxticks=6)
+        locator = mdates.AutoDateLocator(minticks=3, maxticks=8)
         ax.xaxis.set_major_locator(locator)
         ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator))
     fig.suptitle(title)
