@@ -105,6 +105,7 @@ class RunStore:
                  create: bool = True, read_only: bool = False) -> None:
         self.db: Database = connect(address, create=create, read_only=read_only,
                                     synchronous=synchronous)
+        self._open_args = (address, read_only, synchronous)
         #: the address as printed (a URL without its password)
         self.address = display_address(address)
         try:
@@ -144,6 +145,15 @@ class RunStore:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+    def new_connection(self) -> Database:
+        """Another connection to this store (:mod:`daq.store_dialect`), for work beside
+        this one: e.g. leases renewed by a heartbeat thread (write them in the store's SQL
+        spelling; an insert-or-replace is :meth:`Database.upsert
+        <daq.store_dialect.Database.upsert>`, a serialised transaction
+        ``transaction(lock=True)``)."""
+        address, read_only, synchronous = self._open_args
+        return connect(address, create=False, read_only=read_only, synchronous=synchronous)
 
     def reconnect(self) -> None:
         """A new connection after a lost one (:class:`StoreUnavailable` when the server

@@ -16,15 +16,14 @@ import pytest
 
 from daq.store import RunStore
 
-from .capture_helpers import ROOT, sim_serve
-from .test_capture_e2e import _read_lines
+from .capture_helpers import ROOT, read_lines, sim_serve
 
 
 @pytest.mark.slow
 def test_capture_poses_over_emscon_matches_the_line_tracker(tmp_path):
     cli = [sys.executable, "-m", "daq"]
     with sim_serve("--no-pty", "--no-rtde", "--seed", "4") as serve:
-        urls = _read_lines(serve, 4, timeout=30)
+        urls = read_lines(serve, 4, timeout=30)
         robot, line_tracker, emscon = urls[1], urls[2], urls[3]
         assert emscon.startswith("emscon://127.0.0.1:")
         runs = {}

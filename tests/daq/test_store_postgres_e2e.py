@@ -57,23 +57,31 @@ def _check_every_point_once(db, robot_id=None, run_id=1):
     return kinds
 
 
-@pytest.mark.slow
-def test_server_restarted_mid_capture_the_run_waits_and_loses_nothing(own_pg):
-    db = own_pg.create_database("restart")
-    with sim_serve("--no-pty", "--seed", "5") as serve:
+def _capture_with_outage(db, seed: str, store_wait: str, at: int, outage) -> tuple[int, dict]:
+    """A capture over sockets into ``db``; ``outage()`` once ``at`` samples are stored.
+    Returns the exit code and the printed JSON."""
+    with sim_serve("--no-pty", "--seed", seed) as serve:
         urls = read_lines(serve, 3, timeout=30)
-        p = subprocess.Popen(_capture(urls[1], urls[2], db, "--store-wait", "120"), cwd=ROOT,
-                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+        p = subprocess.Popen(_capture(urls[1], urls[2], db, "--store-wait", store_wait),
+                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
         try:
-            _wait_for(db, 30, p)
-            own_pg.restart()  # every client loses its connection; back after ~1-2 s
+            _wait_for(db, at, p)
+            outage(p)
             out, _ = p.communicate(timeout=180)
         finally:
             if p.poll() is None:
                 p.kill()
                 p.wait()
-    assert p.returncode == 0, out
-    summary = json.loads(out)
+    assert out, f"no output (rc {p.returncode})"
+    return p.returncode, json.loads(out)
+
+
+@pytest.mark.slow
+def test_server_restarted_mid_capture_the_run_waits_and_loses_nothing(own_pg):
+    db = own_pg.create_database("restart")
+    # every client loses its connection; the server is back after ~1-2 s
+    rc, summary = _capture_with_outage(db, "5", "120", 30, lambda _p: own_pg.restart())
+    assert rc == 0, summary
     assert summary["status"] == "completed" and summary["samples"] == POINTS
     kinds = _check_every_point_once(db, robot_id="SIMBOT-1/SN0042")
     assert kinds.count("store") == 1, kinds  # the wait is recorded, once it could be
@@ -83,29 +91,22 @@ def test_server_restarted_mid_capture_the_run_waits_and_loses_nothing(own_pg):
 @pytest.mark.slow
 def test_server_gone_longer_than_the_wait_pauses_then_resumes(own_pg):
     db = own_pg.create_database("gone")
-    with sim_serve("--no-pty", "--seed", "6") as serve:
-        urls = read_lines(serve, 3, timeout=30)
-        p = subprocess.Popen(_capture(urls[1], urls[2], db, "--store-wait", "1"), cwd=ROOT,
-                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+
+    def away_until_paused(p):
+        own_pg.stop()
         try:
-            _wait_for(db, 40, p)
-            own_pg.stop()
-            try:
-                out, _ = p.communicate(timeout=120)
-            finally:
-                own_pg.start()
+            p.wait(timeout=120)
         finally:
-            if p.poll() is None:
-                p.kill()
-                p.wait()
-        assert p.returncode == 1, out
-        paused = json.loads(out)
-        assert paused["status"] == "paused" and "run store unreachable" in paused["reason"]
-        assert paused["samples"] < POINTS
-        stored = count_samples(db)
-        assert stored >= 40
-        resume = subprocess.run([*CLI, "resume", "--db", db, "--json"], cwd=ROOT,
-                                capture_output=True, timeout=180)
+            own_pg.start()
+
+    rc, paused = _capture_with_outage(db, "6", "1", 40, away_until_paused)
+    assert rc == 1, paused
+    assert paused["status"] == "paused" and "run store unreachable" in paused["reason"]
+    assert paused["samples"] < POINTS
+    stored = count_samples(db)
+    assert stored >= 40
+    resume = subprocess.run([*CLI, "resume", "--db", db, "--json"], cwd=ROOT,
+                            capture_output=True, timeout=180)
     assert resume.returncode == 0, resume.stderr.decode()
     summary = json.loads(resume.stdout)
     assert summary["status"] == "completed" and summary["samples"] == POINTS
