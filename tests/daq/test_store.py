@@ -258,3 +258,46 @@ def test_a_lost_server_connection_is_transient(pg_url, pg_server):
         st.add_sample(rid, sample(1))
         assert st.add_sample(rid, sample(1)) is False
         assert st.done_indices(rid) == {0, 1}
+
+
+@pytest.mark.parametrize("wait_s", [30.0, 0.0])
+def test_the_executor_waits_for_a_lost_store_then_pauses(pg_url, pg_server, wait_s):
+    """The store's connection is cut when 5 points are stored (in-process simulated cell):
+    with time to wait the executor reconnects and commits the held sample; without, the
+    run pauses and a resume finishes it. Every point once either way."""
+    import sim_drivers.inprocess as inproc
+    from daq.executor import Executor
+    from daq.run_context import ExecutorOptions
+    from drivers.urls import open_robot, open_tracker
+
+    inproc.reset_cells()
+    plan = make_plan("poses", TOYM, count=12, seed=4)
+    robot = open_robot("sim://robot?seed=12&name=lost")
+    tracker = open_tracker("sim://tracker?seed=12&name=lost")
+    robot.connect()
+    tracker.connect()
+    opts = ExecutorOptions(measure_s=0.01, backoff_s=0.001, store_wait_s=wait_s)
+    cut = []
+
+    def progress(done, total, err):
+        if done >= 5 and not cut:  # by state: once five samples are stored
+            cut.append(st.con.info.backend_pid)
+            pg_server.admin(f"SELECT pg_terminate_backend({cut[0]})")
+
+    try:
+        with RunStore(pg_url) as st:
+            rid = st.create_run(plan)
+            status = Executor(st, rid, plan, robot, tracker, opts, progress=progress).run()
+            if wait_s == 0:
+                assert status == "paused" and "run store unreachable" in st.run(rid).reason
+                assert st.n_samples(rid) == 5
+                status = Executor(st, rid, plan, robot, tracker, opts).run()
+            assert status == "completed"
+            s = st.samples(rid)
+            kinds = [k for _, _, k, _ in st.interruptions(rid)]
+    finally:
+        robot.close()
+        tracker.close()
+        inproc.reset_cells()
+    assert s.point_index.tolist() == list(range(12))
+    assert kinds == (["store"] if wait_s else ["pause"])
