@@ -299,8 +299,9 @@ class Executor:
                 self._reconnect(t, phase[0])
 
     def _commit(self, t: Target, sample: Sample) -> None:
-        """Store the point's sample; a lost store is waited for (module docstring)."""
-        waited, attempt, lost = 0.0, 0, None
+        """Store the point's sample; a lost store is waited for (module docstring), unless
+        the operator asks to stop (the point is then redone on resume)."""
+        attempt, lost, t_lost = 0, None, 0.0
         while True:
             try:
                 if lost is not None:
@@ -312,23 +313,26 @@ class Executor:
                 break
             except StoreUnavailable as e:
                 if lost is None:
-                    lost = e
+                    lost, t_lost = e, time.monotonic()
                     self.n_faults += 1
                 self.last_error = f"store: {e}"
                 self._report()
+                waited = time.monotonic() - t_lost
+                if self._stop.is_set():
+                    raise _Pause("stopped", f"stopped by the operator while waiting for the "
+                                 f"run store at point {t.index}") from e
                 if waited >= self.o.store_wait_s:
                     raise _Pause("paused", f"run store unreachable at point {t.index} for "
                                  f"{waited:.0f} s: {e}; `cellcal resume` once it is back"
                                  ) from e
                 attempt += 1
-                pause = min(self.o.backoff_s * 2 ** (attempt - 1), self.o.backoff_max_s,
-                            max(self.o.store_wait_s - waited, 0.0))
-                time.sleep(pause)
-                waited += pause
+                time.sleep(min(self.o.backoff_s * 2 ** (attempt - 1), self.o.backoff_max_s,
+                               self.o.store_wait_s - waited))
         if lost is not None:
             self.store.add_interruption(self.run_id, t.index, "store",
-                                        f"connection lost for {waited:.1f} s, point kept and "
-                                        f"committed after reconnecting: {lost}")
+                                        f"connection lost for {time.monotonic() - t_lost:.1f} "
+                                        f"s, point kept and committed after reconnecting: "
+                                        f"{lost}")
             self.last_error = None
 
     def _record_stop(self, index, kind: str, status: str, reason: str) -> None:

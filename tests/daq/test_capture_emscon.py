@@ -41,11 +41,11 @@ def test_capture_poses_over_emscon_matches_the_line_tracker(tmp_path):
                 runs[name] = store.samples(1)
                 assert store.run(1).tracker_url == tracker
     e, line = runs["emscon"], runs["line"]
-    assert np.array_equal(e["point_index"], line["point_index"])
-    diff = np.linalg.norm(e["xyz"] - line["xyz"], axis=1)
+    assert np.array_equal(e.point_index, line.point_index)
+    diff = np.linalg.norm(e.tracker_p_smr - line.tracker_p_smr, axis=1)
     # two noisy measurements of the same point (σ ≈ 12 µm per axis) + arrival noise
     assert np.max(diff) < 0.15, diff
-    assert np.all(e["std"] > 0) and np.all(e["n"] == 1)
-    assert np.allclose(e["temp_c"], 20.0, atol=0.1)
+    assert np.all(e.std_mm > 0) and np.all(e.n_averaged == 1)
+    assert np.allclose(e.temp_c, 20.0, atol=0.1)
     print(f"\nemScon vs line tracker, same 25 poses: max |Δ| {np.max(diff):.4f} mm, "
           f"mean {np.mean(diff):.4f} mm")

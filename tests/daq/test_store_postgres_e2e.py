@@ -57,9 +57,10 @@ def _check_every_point_once(db, robot_id=None, run_id=1):
     return kinds
 
 
-def _capture_with_outage(db, seed: str, store_wait: str, at: int, outage) -> tuple[int, dict]:
-    """A capture over sockets into ``db``; ``outage()`` once ``at`` samples are stored.
-    Returns the exit code and the printed JSON."""
+def _capture_with_outage(db, seed: str, store_wait: str, at: int, outage, then=None):
+    """A capture over sockets into ``db``; ``outage(proc)`` once ``at`` samples are stored;
+    ``then(summary)`` afterwards, the cell still served. Returns the exit code, the printed
+    JSON and what ``then`` returned."""
     with sim_serve("--no-pty", "--seed", seed) as serve:
         urls = read_lines(serve, 3, timeout=30)
         p = subprocess.Popen(_capture(urls[1], urls[2], db, "--store-wait", store_wait),
@@ -72,15 +73,16 @@ def _capture_with_outage(db, seed: str, store_wait: str, at: int, outage) -> tup
             if p.poll() is None:
                 p.kill()
                 p.wait()
-    assert out, f"no output (rc {p.returncode})"
-    return p.returncode, json.loads(out)
+        assert out, f"no output (rc {p.returncode})"
+        summary = json.loads(out)
+        return p.returncode, summary, None if then is None else then(summary)
 
 
 @pytest.mark.slow
 def test_server_restarted_mid_capture_the_run_waits_and_loses_nothing(own_pg):
     db = own_pg.create_database("restart")
     # every client loses its connection; the server is back after ~1-2 s
-    rc, summary = _capture_with_outage(db, "5", "120", 30, lambda _p: own_pg.restart())
+    rc, summary, _ = _capture_with_outage(db, "5", "120", 30, lambda _p: own_pg.restart())
     assert rc == 0, summary
     assert summary["status"] == "completed" and summary["samples"] == POINTS
     kinds = _check_every_point_once(db, robot_id="SIMBOT-1/SN0042")
@@ -99,16 +101,17 @@ def test_server_gone_longer_than_the_wait_pauses_then_resumes(own_pg):
         finally:
             own_pg.start()
 
-    rc, paused = _capture_with_outage(db, "6", "1", 40, away_until_paused)
+    def resume(_summary):
+        return count_samples(db), subprocess.run([*CLI, "resume", "--db", db, "--json"],
+                                                 cwd=ROOT, capture_output=True, timeout=180)
+
+    rc, paused, (stored, resumed) = _capture_with_outage(db, "6", "1", 40, away_until_paused,
+                                                         resume)
     assert rc == 1, paused
     assert paused["status"] == "paused" and "run store unreachable" in paused["reason"]
-    assert paused["samples"] < POINTS
-    stored = count_samples(db)
-    assert stored >= 40
-    resume = subprocess.run([*CLI, "resume", "--db", db, "--json"], cwd=ROOT,
-                            capture_output=True, timeout=180)
-    assert resume.returncode == 0, resume.stderr.decode()
-    summary = json.loads(resume.stdout)
+    assert paused["samples"] < POINTS and stored >= 40
+    assert resumed.returncode == 0, resumed.stderr.decode()
+    summary = json.loads(resumed.stdout)
     assert summary["status"] == "completed" and summary["samples"] == POINTS
     kinds = _check_every_point_once(db)
     # the pause could not be written while the server was away: resume found it running
