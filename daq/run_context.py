@@ -62,6 +62,9 @@ class ExecutorOptions(BaseModel):
     backoff_max_s: float = Field(1.0, ge=0)
     #: a joint moved by less than this (rad) approached with direction 0
     dir_deadband_rad: float = Field(1e-6, ge=0)
+    #: a lost run store connection (a PostgreSQL server restarting): how long the executor
+    #: waits for it, holding the robot, before it pauses the run
+    store_wait_s: float = Field(30.0, ge=0)
 
 
 #: plausible air for ``--meteo``: (°C, hPa, %RH) ranges

@@ -28,7 +28,7 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std"):
     run = store.run(run_id)
     s = store.samples(run_id)
     if len(s) == 0:
-        raise StoreError(f"{store.path}: run {run_id} has no samples")
+        raise StoreError(f"{store.address}: run {run_id} has no samples")
     sigma = np.sqrt(np.mean(s.std_mm ** 2, axis=1))
     if sigma_mode == "mean":
         sigma = sigma / np.sqrt(np.maximum(s.n_averaged, 1))
@@ -44,6 +44,7 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std"):
     meta = {"run": str(run.id), "routine": run.routine, "plan_hash": run.plan_hash,
             "model": run.model or "", "robot": run.robot_url or "",
             "tracker": run.tracker_url or "", "software": run.software or "",
+            **({"robot_id": run.robot_id} if run.robot_id else {}),
             "sigma_mm": ("tracker std, RMS over axes" if sigma_mode == "std"
                          else "tracker std / sqrt(n), RMS over axes")}
     return Dataset(
@@ -51,12 +52,14 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std"):
         temp_c=every(s.temp_c), t_s=s.t, sigma_mm=sigma, pressure_hpa=every(s.pressure_hpa),
         humidity_pct=every(s.humidity_pct), reflector=reflector, face=face, dirs=s.dirs,
         is_valid=np.array([v == "valid" for v in s.set_name]), meta=meta,
-        source=f"{store.path} run {run_id}",
+        source=f"{store.address} run {run_id}",
     )
 
 
-def postures_from_run(store: RunStore, run_id: int | None = None, *, to_base: bool = True):
-    """The zero-point postures of a ``zero20`` run (default: the latest completed one).
+def postures_from_run(store: RunStore, run_id: int | None = None, *, to_base: bool = True,
+                      robot_id: str | None = None):
+    """The zero-point postures of a ``zero20`` run (default: the latest completed one, of
+    ``robot_id`` when given).
 
     Built with :func:`calibration.zero_point.postures_from_dataset`: the joints read
     (rad), the plane of every posture from the plan's targets (``info.plane``) and the
@@ -72,19 +75,20 @@ def postures_from_run(store: RunStore, run_id: int | None = None, *, to_base: bo
     """
     from calibration.zero_point import postures_from_dataset
 
-    run = store.latest_run("zero20") if run_id is None else store.run(run_id)
+    run = (store.latest_run("zero20", robot_id=robot_id) if run_id is None
+           else store.run(run_id))
     if run.routine != "zero20":
-        raise StoreError(f"{store.path}: run {run.id} is a {run.routine} run, not zero20")
+        raise StoreError(f"{store.address}: run {run.id} is a {run.routine} run, not zero20")
     n = store.n_samples(run.id)
     if n != run.n_points:
-        raise StoreError(f"{store.path}: run {run.id} has {n}/{run.n_points} postures stored "
+        raise StoreError(f"{store.address}: run {run.id} has {n}/{run.n_points} postures stored "
                          f"(status {run.status}); finish it with `cellcal resume {run.id}`")
     data = dataset_from_run(store, run.id)
     targets = store.samples(run.id).targets
     try:
         plane = np.array([int(t["info"]["plane"]) for t in targets])
     except (TypeError, KeyError) as e:
-        raise StoreError(f"{store.path}: run {run.id}: a target has no plane ({e})") from None
+        raise StoreError(f"{store.address}: run {run.id}: a target has no plane ({e})") from None
     post = postures_from_dataset(data, plane)
     T = run.context.tracker_T_base_matrix
     if to_base and T is not None:

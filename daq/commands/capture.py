@@ -35,17 +35,25 @@ EXEC_FLAGS = [
      "remeasure when the tracker's per-axis std exceeds this, mm (default 0.05)"),
     ("--max-retries", "max_retries", int, "retries per point after transient faults (default 8)"),
     ("--io-timeout", "io_timeout_s", float, "timeout of reads, s (default 1)"),
+    ("--store-wait", "store_wait_s", float,
+     "a lost run store connection (PostgreSQL): wait this long for it, holding the robot, "
+     "before pausing the run, s (default 30)"),
 ]
 
 
 def add_common(p, *, resume: bool = False) -> None:
-    p.add_argument("--db", required=True, metavar="cell.db", help="run store (SQLite)")
+    from .common import DB_HELP
+
+    p.add_argument("--db", required=True, metavar="cell.db|URL", help=DB_HELP)
     p.add_argument("--robot", required=not resume, metavar="URL", help="robot driver URL")
     p.add_argument("--tracker", required=not resume, metavar="URL", help="tracker driver URL")
     p.add_argument("--yes", action="store_true",
                    help="do not ask before moving devices that did not identify themselves "
                    "as simulators (any real controller, whatever its address)")
     p.add_argument("--json", action="store_true", help="print one JSON object, no progress")
+    p.add_argument("--robot-id", metavar="NAME", default=None,
+                   help="who the robot is, recorded with the run (default: the controller's "
+                   "MODEL/SERIAL when its protocol reports one)")
     p.add_argument("--synchronous", choices=("FULL", "NORMAL"), default="FULL",
                    help=argparse_hidden())
 
@@ -107,7 +115,8 @@ def register(sub) -> None:
         help="run a capture routine into the run store",
         description="Make a routine's plan, dry-run it against the model (joint limits, reach, "
         "floor), then move and measure point by point; every sample is committed to the "
-        "SQLite run store at once. Resume an interrupted run with `cellcal resume`.",
+        "run store (SQLite file or PostgreSQL) at once. Resume an interrupted run with "
+        "`cellcal resume`.",
     )
     rsub = p.add_subparsers(dest="routine", metavar="ROUTINE")
     rsub.required = True
@@ -254,15 +263,21 @@ def check_line(c: dict) -> str:
 
 def run_and_report(command: str, as_json: bool, go) -> int:
     """``go(progress)`` (a service call returning a ``RunOutcome``) with a progress line;
-    prints the outcome and returns the exit code (1 when the devices cannot be reached)."""
+    prints the outcome and returns the exit code (1 when the devices or the run store cannot
+    be reached)."""
     from ..errors import ConnectFailed
     from ..progress import Progress
+    from ..store import StoreUnavailable
 
     progress = Progress(enabled=not as_json)
     try:
         outcome = go(progress)
     except ConnectFailed as e:
         print(f"cellcal {command}: cannot connect: {e}", file=sys.stderr)
+        return 1
+    except StoreUnavailable as e:
+        print(f"cellcal {command}: run store unreachable: {e}; `cellcal resume` once it is "
+              "back", file=sys.stderr)
         return 1
     finally:
         progress.close()
@@ -325,7 +340,7 @@ def request_from_args(args):
         floor_z_mm=limits.floor_z_mm, max_reach_mm=limits.max_reach_mm,
         frame_run=args.frame_run, executor=executor_options(flag_values(args, EXEC_FLAGS)),
         acquire=flag_values(args, spec.acquire_flags), motion=limits,
-        tracker=TrackerSetup(**tracker_setup(args)))
+        tracker=TrackerSetup(**tracker_setup(args)), robot_id=args.robot_id)
 
 
 def run(args) -> int:

@@ -26,11 +26,13 @@ from ..cli import UsageError
 
 
 def register(sub) -> None:
+    from .common import DB_HELP
+
     p = sub.add_parser("export", help="write a run's samples as a measurement CSV",
                        description=__doc__.splitlines()[0])
     p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN",
                    help="run id (default: the latest)")
-    p.add_argument("--db", required=True, metavar="cell.db")
+    p.add_argument("--db", required=True, metavar="cell.db|URL", help=DB_HELP)
     p.add_argument("--out", required=True, metavar="data.csv", help="CSV to write ('-': stdout)")
     p.add_argument("--postures", action="store_true",
                    help="a zero20 run: write the zero-point postures CSV (pose_id, plane, "

@@ -10,10 +10,13 @@ from ..cli import UsageError
 
 
 def register(sub) -> None:
+    from .common import DB_HELP
+
     p = sub.add_parser("runs", help="list the runs in a run store")
     p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN",
                    help="show this run in detail, with its interruptions")
-    p.add_argument("--db", required=True, metavar="cell.db")
+    p.add_argument("--db", required=True, metavar="cell.db|URL", help=DB_HELP)
+    p.add_argument("--robot-id", metavar="NAME", default=None, help="only this robot's runs")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(func=run)
 
@@ -25,6 +28,7 @@ def _time(t):
 def _run_dict(store, r) -> dict:
     return {"run": r.id, "routine": r.routine, "status": r.status, "reason": r.reason,
             "points": r.n_points, "samples": store.n_samples(r.id), "model": r.model,
+            "robot_id": r.robot_id,
             "robot": r.robot_url, "tracker": r.tracker_url, "robot_desc": r.robot_desc,
             "tracker_desc": r.tracker_desc, "software": r.software, "seed": r.seed,
             "started": r.started, "stopped": r.stopped, "plan_hash": r.plan_hash,
@@ -63,7 +67,7 @@ def run(args) -> int:
             for i in d["interruptions"]:
                 print(f"  {_time(i['t'])}  point {i['point']}  {i['kind']}: {i['message']}")
             return 0
-        runs = store.runs()
+        runs = store.runs(args.robot_id)
         if args.json:
             print_json([_run_dict(store, r) for r in runs])
             return 0
@@ -71,9 +75,9 @@ def run(args) -> int:
         for r in runs:
             kinds = [k for _, _, k, _ in store.interruptions(r.id)]
             rows.append([str(r.id), r.routine, r.status, f"{store.n_samples(r.id)}/{r.n_points}",
-                         r.model or "-", _time(r.started), len(kinds), kinds.count("beam"),
-                         kinds.count("skipped"), (r.reason or "")[:60]])
-        print(table(rows, ["run", "routine", "status", "points", "model", "started",
+                         r.model or "-", r.robot_id or "-", _time(r.started), len(kinds),
+                         kinds.count("beam"), kinds.count("skipped"), (r.reason or "")[:60]])
+        print(table(rows, ["run", "routine", "status", "points", "model", "robot", "started",
                            "interruptions", "beam breaks", "skipped", "reason"]))
         return 0
     finally:

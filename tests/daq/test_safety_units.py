@@ -169,9 +169,8 @@ def test_upgrade_from_a_schema_3_store(tmp_path):
                 (ctx.model_dump_json(exclude={"motion"}),))
     con.execute("PRAGMA user_version=3")
     con.close()
-    assert SCHEMA_VERSION == 5
     with RunStore(path) as st:
-        assert st.version == 5
+        assert st.version == SCHEMA_VERSION == 6
         r = st.run(1)
         assert r.robot_identity is None and r.tracker_identity is None and r.source_run is None
         # the limits it ran under: no floor (none was recorded), the rest the defaults

@@ -19,7 +19,7 @@ from daq.plans import Plan
 from daq.routines.zero20 import ZeroLoopOptions
 from daq.run_context import CONTEXT_VERSION, ExecutorOptions
 from daq.store import RunStore, Sample
-from daq.store_schema import SCHEMA_VERSION, UPGRADES
+from daq.store_schema import _V2_EXECUTOR_KEYS, SCHEMA_VERSION, UPGRADES
 from sim_drivers.model_truth import model_truth_factory
 
 from .capture_helpers import DATA, served_cell
@@ -62,7 +62,11 @@ def test_upgrade_turns_the_options_into_typed_contexts(v2_db):
         assert c.robot_url == r.robot_url and c.robot_url.startswith("socket://127.0.0.1:")
         assert c.tracker_url.startswith("tracker+tcp://127.0.0.1:")
         # every executor option as it was stored, none lost
-        assert c.executor.model_dump() == {k: old[r.id][k] for k in ExecutorOptions.model_fields}
+        dumped = c.executor.model_dump()
+        assert {k: dumped[k] for k in _V2_EXECUTOR_KEYS} == {
+            k: old[r.id][k] for k in _V2_EXECUTOR_KEYS}
+        assert dumped == ExecutorOptions(**{k: old[r.id][k] for k in _V2_EXECUTOR_KEYS}
+                                         ).model_dump()  # options added since: defaults
     assert frame.context.frame_run is None and frame.context.tracker_T_base is None
     for r in (steps, zero, poses):
         assert r.context.frame_run == 1
@@ -101,7 +105,9 @@ def test_upgraded_store_exports_as_schema_2_did(v2_db, tmp_path, capsys):
     assert out.read_text() == (V2 / "postures3.csv").read_text()
     capsys.readouterr()
     assert main(["runs", "--db", str(v2_db), "--json"]) == 0
-    assert json.loads(capsys.readouterr().out) == json.loads((V2 / "runs.json").read_text())
+    expected = [{**r, "robot_id": None}  # schema 4 added who the robot is: unknown here
+                for r in json.loads((V2 / "runs.json").read_text())]
+    assert json.loads(capsys.readouterr().out) == expected
 
 
 def test_paused_schema_2_run_resumes_with_its_context(v2_db, capsys):
@@ -145,7 +151,7 @@ def test_schema_3_gains_reflector_face_and_covariance(v3_db, tmp_path):
     n_cols = len(before[0])
     con.close()
     with RunStore(v3_db) as st:
-        assert st.version == SCHEMA_VERSION == 5
+        assert st.version == SCHEMA_VERSION == 6
         s = st.samples(2)
         assert s.reflector == [None] * len(s) and np.all(s.face == 0)
         assert np.all(np.isnan(s.cov_mm2))
