@@ -33,7 +33,8 @@ def own_pg():
 
 def _capture(robot, tracker, db, *extra) -> list[str]:
     return [*CLI, "capture", "poses", "--count", str(POINTS), "--seed", "2", "--model", "ur10e",
-            "--tool-mm", "0,0,60", "--no-floor", "--robot", robot, "--tracker", tracker,
+            "--tool-mm", "0,0,60", "--no-floor", "--tracker-at", "2500,0,500",
+            "--robot", robot, "--tracker", tracker,
             "--db", db, "--json", *extra]
 
 
