@@ -86,7 +86,8 @@ def test_server_restarted_mid_capture_the_run_waits_and_loses_nothing(own_pg):
     rc, summary, _ = _capture_with_outage(db, "5", "120", 30, lambda _p: own_pg.restart())
     assert rc == 0, summary
     assert summary["status"] == "completed" and summary["samples"] == POINTS
-    kinds = _check_every_point_once(db, robot_id="SIMBOT-1/SN0042")
+    # the robot's id: MODEL/SERIAL as the simulated controller identifies itself
+    kinds = _check_every_point_once(db, robot_id="SIMBOT-1/SIM-ur10e-5")
     assert kinds.count("store") == 1, kinds  # the wait is recorded, once it could be
     print(f"\nserver restarted mid-capture: {POINTS}/{POINTS}, interruptions {kinds}")
 
