@@ -24,14 +24,13 @@ visuals or inertials.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
 from .dh_conversion import rot_x, rot_y, rot_z, urdf_rpy
+from .files import write_atomic
 from .kinematics import ALPHA, BETA, PRISMATIC_MM_PER_UNIT, THETA, A, D
 from .parity import Parity, compare, parity_joints
 from .robot_model import RobotModel
@@ -129,19 +128,6 @@ def _comment(text: str) -> str:
 def _fixed(name: str, parent: str, child: str, T: np.ndarray) -> str:
     return (f'  <joint name={quoteattr(name)} type="fixed">\n    <parent link={quoteattr(parent)}/>'
             f"\n    <child link={quoteattr(child)}/>\n    {origin_xml(T)}\n  </joint>")
-
-
-def write_atomic(path: str | Path, text: str) -> None:
-    """Write a text file atomically (a temporary file beside it, then a rename)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def urdf_joint_values(model: RobotModel, q: np.ndarray) -> np.ndarray:

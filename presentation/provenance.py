@@ -4,7 +4,6 @@ capture run, which robot model and parameters."""
 from __future__ import annotations
 
 import datetime as dt
-import hashlib
 import html
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -25,11 +24,9 @@ def software_version() -> str:
 
 def sha256_of(path: str | Path) -> str:
     """Hex SHA-256 of a file's bytes."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+    from calibration.files import sha256_file
+
+    return sha256_file(path)
 
 
 @dataclass

@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -51,20 +49,6 @@ def check_auto_args(args) -> None:
             raise UsageError(f"--out {args.out}: no such directory {out.parent}")
 
 
-def write_atomic(path: str | Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder (a reader
-    never sees half a file; an existing file is replaced only when the new one is whole)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def run_auto(args, fit, data) -> int:
     from calibration.auto_diagnosis import auto_diagnose
     from calibration.params_io import fit_to_dict
@@ -84,6 +68,8 @@ def run_auto(args, fit, data) -> int:
     result = auto_diagnose(fit, data, max_steps=args.max_steps, budget_s=args.budget_s,
                            progress=progress)
     if args.out:
+        from calibration.files import write_atomic
+
         write_atomic(args.out, json.dumps(fit_to_dict(result.fit, args.effect_file,
                                                       auto=result), indent=1) + "\n")
     if quiet:
