@@ -337,7 +337,9 @@ class RunStore:
         said they were (:meth:`drivers.protocols.DeviceIdentity.to_dict`).
         """
         if software is None:
-            software = _software_version()
+            from .cli import software_version
+
+            software = software_version()
         if context is None:
             context = RunContext(routine=plan.routine)
         if context.routine != plan.routine:
@@ -622,12 +624,3 @@ class RunStore:
             if r.routine == routine and r.status == status:
                 return r
         raise StoreError(f"{self.path}: no {status} {routine} run")
-
-
-def _software_version() -> str:
-    try:
-        from importlib.metadata import version
-
-        return f"cellcal {version('cellcal')}"
-    except Exception:  # noqa: BLE001 - not installed: still record something
-        return "cellcal (unknown version)"
