@@ -1,5 +1,5 @@
-"""Capture: plans and routines, their dry run, the executor, the SQLite run store, the
-capture service and the ``cellcal`` command line.
+"""Capture: plans and routines, their dry run, the executor, the run store (a SQLite file
+or a PostgreSQL database), the capture service and the ``cellcal`` command line.
 
 Modules
     ``plans``           ``Plan`` and ``Target``: plans as data with a content hash; the
@@ -13,7 +13,9 @@ Modules
     ``run_context``     ``RunContext``, ``ExecutorOptions``, ``TrackerSetup``: what a run was
                         started with (and ``TrackerCheck``: what the tracker's checks found)
     ``tracker_checks``  the tracker's checks before a run: reflector, air, ready gate, two faces
-    ``store``           ``RunStore``: runs, samples (``Samples``), interruptions in SQLite
+    ``store``           ``RunStore``, ``open_store``: runs, samples, interruptions, calibrations
+    ``store_records``   the store's records: ``Run``, ``Sample``, ``Samples``, ``Calibration``
+    ``store_dialect``   the two databases (SQLite, PostgreSQL) behind one small interface
     ``store_schema``    the store's SQL schema and its upgrades between versions
     ``run_data``        runs as calibration inputs: a data set, zero-point postures
     ``service``         plan, start and resume runs (the commands and the demo call it)

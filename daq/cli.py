@@ -31,6 +31,7 @@ COMMANDS = [
     "daq.commands.resume",
     "daq.commands.export_run",
     "daq.commands.calibrate",
+    "daq.commands.history",
     "daq.commands.diagnose",
     "daq.commands.models",
     "daq.commands.sim_serve",

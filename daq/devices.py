@@ -5,7 +5,8 @@ model, and tell whether two runs were measured in the same cell.
 is (:class:`drivers.protocols.DeviceIdentity`: model, serial number, simulator or
 not); :func:`check_robot` refuses a robot whose joint count (or, for a simulator, whose
 robot model) is not the run's model's — before any run exists; :func:`same_cell`
-compares the identities stored with a run with the devices reached now.
+compares the identities stored with a run with the devices reached now;
+:func:`default_robot_id` names the robot for the store (``MODEL/SERIAL``).
 
 Errors: :class:`~daq.errors.RequestError` for a URL no driver knows or a robot that does
 not fit the model (exit code 2), :class:`~daq.errors.ConnectFailed` when a device cannot
@@ -127,6 +128,17 @@ def check_robot(model, robot, identity: DeviceIdentity) -> None:
     if identity.simulator and identity.kinematics and identity.kinematics != model.name:
         raise RequestError(f"the robot at {url} simulates a {identity.kinematics}, the run's "
                            f"model is {model.name}: wrong --model, or the wrong robot")
+
+
+def default_robot_id(identity: DeviceIdentity | None, given: str | None = None) -> str | None:
+    """Who the robot is, as recorded with a run (``runs.robot_id``): ``given`` (a name from
+    the command line), else the controller's ``MODEL/SERIAL`` when it reports a serial
+    number (its :class:`DeviceIdentity`), else None."""
+    if given:
+        return given
+    if identity is not None and identity.serial:
+        return f"{identity.model}/{identity.serial}" if identity.model else identity.serial
+    return None
 
 
 def stored_identity(d: dict | None) -> DeviceIdentity | None:

@@ -6,7 +6,7 @@ controller's nominal TCP when the robot offers :class:`CommandedPosition`) →
 measure (averaged; a per-axis std above ``max_std_mm`` is remeasured) → read the
 joints again → the re-measure policy when there is one (the reading judged against the
 model fitted so far, a suspect re-measured: :mod:`daq.remeasure`) → write one sample
-(with the readings not accepted) in one SQLite transaction, with what the tracker says
+(with the readings not accepted) in one transaction of the run store, with what the tracker says
 of its measurement (std, covariance, air, reflector, face). That commit is the
 checkpoint.
 
@@ -53,7 +53,14 @@ Faults
       did not converge) pauses the run too;
     * Ctrl-C (SIGINT) stops after the current point (status ``stopped``); a second
       Ctrl-C, SIGTERM or SIGHUP stops at once: the controller's stop is sent and the
-      run is ``paused`` with the reason (:mod:`daq.stop_signals`; :attr:`Executor.stop_signal`).
+      run is ``paused`` with the reason (:mod:`daq.stop_signals`; :attr:`Executor.stop_signal`);
+    * a lost run store connection (:class:`~daq.store.StoreUnavailable`: a PostgreSQL
+      server restarting or out of reach) holds the robot where it is and keeps the
+      point's sample: the executor reconnects with the same backoff for up to
+      ``store_wait_s``, then commits the sample (the insert is idempotent, so a commit
+      that did land before the connection broke is not doubled) and goes on, recording a
+      ``store`` interruption; a store still away after that pauses the run (status
+      ``paused`` once it can be written; ``cellcal resume`` redoes the points not stored).
 
 Beam breaks (the line of sight)
     A beam break is a fault like any other (recorded with the point and the tracker's
@@ -100,7 +107,7 @@ from .motion_guard import MotionGuard, MotionMismatch, MotionRefused
 from .plans import Plan, Target
 from .run_context import ExecutorOptions
 from .stop_signals import StopNow, signal_name, stop_handlers
-from .store import RunStore, Sample
+from .store import RunStore, Sample, StoreUnavailable
 
 #: beam breaks retried at one point before it is skipped (and a spare measured in its place)
 BEAM_RETRIES = 3
@@ -289,8 +296,14 @@ class Executor:
         self._t0 = time.monotonic()
         self.commit_s = 0.0
         self.n_committed = 0
+        self._n_done = 0
 
     # -------------------------------------------------------------- control
+    @property
+    def n_done(self) -> int:
+        """Points stored, as last counted."""
+        return self._n_done
+
     def request_stop(self) -> None:
         """Stop after the current point (what Ctrl-C does)."""
         self._stop.set()
@@ -313,9 +326,11 @@ class Executor:
                 return (f"the controller's stop could NOT be sent ({first}; {e}): check the "
                         "robot at once")
 
-    def _report(self, done: int) -> None:
+    def _report(self, done: int | None = None) -> None:
+        if done is not None:
+            self._n_done = done
         if self.progress is not None:
-            self.progress(done, self.plan.n_planned, self.last_error)
+            self.progress(self._n_done, self.plan.n_planned, self.last_error)
 
     # ------------------------------------------------------------------ run
     def run(self) -> str:
@@ -341,9 +356,7 @@ class Executor:
                     self._report(n_done)
             except _Pause as p:
                 kind = "sigint" if p.status == "stopped" else "pause"
-                store.add_interruption(rid, getattr(t, "index", None), kind, p.reason)
-                self._summarise()
-                store.set_status(rid, p.status, p.reason)
+                self._record_stop(getattr(t, "index", None), kind, p.status, p.reason)
                 self.last_error = p.reason
                 self._report(n_done)
                 return p.status
@@ -355,8 +368,15 @@ class Executor:
                 where = f"at point {t.index}" if t is not None else "before the first point"
                 reason = (f"stopped at once by {name} {where}: {what}; resume with "
                           "`cellcal resume`")
-                store.add_interruption(rid, getattr(t, "index", None), "stop_now", reason)
-                store.set_status(rid, "paused", reason)
+                self._record_stop(getattr(t, "index", None), "stop_now", "paused", reason,
+                                  summarise=False)
+                self.last_error = reason
+                self._report(n_done)
+                return "paused"
+            except StoreUnavailable as e:  # the store went away outside a commit
+                reason = (f"run store unreachable at point {getattr(t, 'index', None)}: {e}; "
+                          "`cellcal resume` once it is back")
+                self._record_stop(getattr(t, "index", None), "store", "paused", reason)
                 self.last_error = reason
                 self._report(n_done)
                 return "paused"
@@ -423,7 +443,7 @@ class Executor:
             phase = ["robot"]
             try:
                 sample = self._acquire(t, attempt, phase)
-                rejected, revisited = (), ()
+                rejected, revisited, settled = (), (), None
                 if self.remeasure is not None:
                     at_target, self._last_cmd_q = self._last_cmd_q, None  # moved: read again
                     settled = self.remeasure.settle(t, sample, PointContext(self, phase, t))
@@ -431,10 +451,7 @@ class Executor:
                                                    settled.revisited)
                     if not revisited:  # a re-measurement ends at the target
                         self._last_cmd_q = at_target
-                t0 = time.perf_counter()
-                stored = self.store.add_sample(self.run_id, sample, rejected, revisited)
-                self.commit_s += time.perf_counter() - t0
-                self.n_committed += 1
+                stored = self._commit(t, sample, rejected, revisited)
                 if stored and self.remeasure is not None:
                     self.remeasure.committed(settled)
                 return True
@@ -457,6 +474,68 @@ class Executor:
                                  f"{fault_kind(e)}: {e}") from e
                 time.sleep(min(self.o.backoff_s * 2 ** (attempt - 1), self.o.backoff_max_s))
                 self._reconnect(t, phase[0])
+
+    def _commit(self, t: Target, sample: Sample, rejected=(), revisited=()) -> bool:
+        """Store the point's sample (with the readings the re-measure policy did not
+        accept and the earlier points it re-measured: :meth:`RunStore.add_sample`); a lost
+        store is waited for (module docstring), unless the operator asks to stop (the
+        point is then redone on resume). True when the sample is stored (by this commit or
+        by the one the lost connection interrupted)."""
+        attempt, lost, t_lost = 0, None, 0.0
+        while True:
+            try:
+                if lost is not None:
+                    self.store.reconnect()
+                t0 = time.perf_counter()
+                stored = self.store.add_sample(self.run_id, sample, rejected, revisited)
+                self.commit_s += time.perf_counter() - t0
+                self.n_committed += 1
+                break
+            except StoreUnavailable as e:
+                if lost is None:
+                    lost, t_lost = e, time.monotonic()
+                    self.n_faults += 1
+                self.last_error = f"store: {e}"
+                self._report()
+                waited = time.monotonic() - t_lost
+                if self._stop.is_set():
+                    raise _Pause("stopped", f"stopped by the operator while waiting for the "
+                                 f"run store at point {t.index}") from e
+                if waited >= self.o.store_wait_s:
+                    raise _Pause("paused", f"run store unreachable at point {t.index} for "
+                                 f"{waited:.0f} s: {e}; `cellcal resume` once it is back"
+                                 ) from e
+                attempt += 1
+                time.sleep(min(self.o.backoff_s * 2 ** (attempt - 1), self.o.backoff_max_s,
+                               self.o.store_wait_s - waited))
+        if lost is not None:
+            self.store.add_interruption(self.run_id, t.index, "store",
+                                        f"connection lost for {time.monotonic() - t_lost:.1f} "
+                                        f"s, point kept and committed after reconnecting: "
+                                        f"{lost}")
+            self.last_error = None
+            # the point is not stored twice: an insert skipped after a lost connection is
+            # this very sample, stored by the commit the connection broke during
+            stored = True
+        return stored
+
+    def _record_stop(self, index, kind: str, status: str, reason: str, *,
+                     summarise: bool = True) -> None:
+        """Record why the run stopped and its status; when the store is away (the reason
+        it stopped, perhaps) one reconnection is tried, then the record is left out: the
+        run stays ``running`` in the store and ``cellcal resume`` finds it so. ``summarise``:
+        update the run's summary first (:meth:`_summarise`)."""
+        for retry in (False, True):
+            try:
+                if retry:
+                    self.store.reconnect()
+                self.store.add_interruption(self.run_id, index, kind, reason)
+                if summarise:
+                    self._summarise()
+                self.store.set_status(self.run_id, status, reason)
+                return
+            except StoreUnavailable:
+                continue
 
     def _fault(self, t: Target, e: DriverError | CaptureError) -> None:
         self.n_faults += 1

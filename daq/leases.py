@@ -10,9 +10,12 @@ stale lease — its owner's pid gone on this host, or its heartbeat older than `
 (an owner on another host, a frozen process) — is taken over, and :meth:`Leases.acquire`
 returns the stale owner so the caller can say so.
 
-The ``leases`` table (store schema 5, :mod:`daq.store_schema`) lives in the run store
-file; this module uses its own SQLite connection (and the heartbeat thread shares it
-under a lock), so it works beside an open :class:`~daq.store.RunStore`.
+The ``leases`` table (store schema 5, :mod:`daq.store_schema`) lives in the run store,
+a SQLite file or a PostgreSQL database alike; this module uses its own connection
+(:func:`daq.store_dialect.connect`; the heartbeat thread shares it under a lock), so it
+works beside an open :class:`~daq.store.RunStore`. Its SQL is the store's spelling: the
+take-over is one transaction under the store's write lock (``BEGIN IMMEDIATE`` on
+SQLite, an advisory lock on PostgreSQL) and the new owner is an upsert.
 """
 
 from __future__ import annotations
@@ -30,6 +33,10 @@ from pathlib import Path
 from urllib.parse import parse_qsl, urlencode, urlsplit
 
 from .errors import RequestError
+from .store_dialect import StoreError, connect
+
+#: what a best-effort write (release, heartbeat, close) may meet and shrug off
+_DB_ERRORS = (StoreError, sqlite3.Error)
 
 #: seconds without a heartbeat after which a lease counts as abandoned
 DEFAULT_TTL_S = 30.0
@@ -117,20 +124,23 @@ class Leases:
 
     Parameters
     ----------
-    path : str or Path
-        The run store (schema 5 or later: the ``leases`` table).
+    path : str, Path or RunStore
+        The run store (schema 5 or later: the ``leases`` table): a SQLite file, a
+        ``postgresql://`` URL, or an open :class:`~daq.store.RunStore` (whose address it
+        connects to again: a URL's password is not in ``RunStore.path``).
     ttl_s : float
         A heartbeat older than this makes a lease stale.
     """
 
     def __init__(self, path: str | Path, *, ttl_s: float = DEFAULT_TTL_S) -> None:
-        self.path = Path(path)
+        new_connection = getattr(path, "new_connection", None)
+        self.path = path.path if new_connection is not None else path
         self.ttl_s = float(ttl_s)
         self.host = socket.gethostname()
         self.pid = os.getpid()
         self.token = secrets.token_hex(8)
-        self._con = sqlite3.connect(str(self.path), timeout=30.0, isolation_level=None,
-                                    check_same_thread=False)
+        self._con = new_connection() if new_connection is not None else connect(
+            path, create=False)
         self._lock = threading.Lock()
         self._held: dict[str, str] = {}
         self._stop = threading.Event()
@@ -152,25 +162,16 @@ class Leases:
             if key in self._held:
                 return None
             now = time.time()
-            self._con.execute("BEGIN IMMEDIATE")
-            try:
+            with self._con.transaction(lock=True):  # LeaseBusy rolls it back
                 old = self._owner(key)
                 if old is not None and old.token != self.token and _alive(
                         old, self.host, self.ttl_s, now):
-                    self._con.execute("ROLLBACK")
                     raise LeaseBusy(old, f"{what or key} is in use by {old.describe(now)}: "
                                          "wait for it to finish or stop it, then try again")
-                self._con.execute(
-                    "INSERT OR REPLACE INTO leases (key, owner_pid, owner_host, owner_token, "
-                    "acquired, heartbeat, what) VALUES (?,?,?,?,?,?,?)",
-                    (key, self.pid, self.host, self.token, now, now, what))
-                self._con.execute("COMMIT")
-            except LeaseBusy:
-                raise
-            except BaseException:
-                with contextlib.suppress(sqlite3.Error):
-                    self._con.execute("ROLLBACK")
-                raise
+                self._con.upsert("leases", ["key"], {
+                    "key": key, "owner_pid": self.pid, "owner_host": self.host,
+                    "owner_token": self.token, "acquired": now, "heartbeat": now,
+                    "what": what})
             self._held[key] = what
         self._start_heartbeat()
         return old if old is not None and old.token != self.token else None
@@ -183,7 +184,7 @@ class Leases:
         with self._lock:
             if self._held.pop(key, None) is None:
                 return
-            with contextlib.suppress(sqlite3.Error):
+            with contextlib.suppress(*_DB_ERRORS):
                 self._con.execute("DELETE FROM leases WHERE key=? AND owner_token=?",
                                   (key, self.token))
 
@@ -194,7 +195,7 @@ class Leases:
             if not self._held:
                 return
             keys = list(self._held)
-            with contextlib.suppress(sqlite3.Error):
+            with contextlib.suppress(*_DB_ERRORS):
                 self._con.executemany("UPDATE leases SET heartbeat=? WHERE key=? AND "
                                       "owner_token=?",
                                       [(time.time(), k, self.token) for k in keys])
@@ -218,7 +219,7 @@ class Leases:
             self._thread = None
         for key in list(self._held):
             self.release(key)
-        with contextlib.suppress(sqlite3.Error):
+        with contextlib.suppress(*_DB_ERRORS):
             self._con.close()
 
     def __enter__(self) -> Leases:

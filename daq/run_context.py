@@ -69,6 +69,9 @@ class ExecutorOptions(BaseModel):
     remeasure_refit_every: int = Field(10, ge=1)
     #: a suspect's move away and back: this retract per joint (rad)
     remeasure_retract_rad: float = Field(0.01, gt=0)
+    #: a lost run store connection (a PostgreSQL server restarting): how long the executor
+    #: waits for it, holding the robot, before it pauses the run
+    store_wait_s: float = Field(30.0, ge=0)
 
 
 #: plausible air for ``--meteo``: (°C, hPa, %RH) ranges

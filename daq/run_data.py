@@ -37,7 +37,7 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
     run = store.run(run_id)
     s = store.samples(run_id)
     if len(s) == 0:
-        raise StoreError(f"{store.path}: run {run_id} has no samples")
+        raise StoreError(f"{store.address}: run {run_id} has no samples")
     ids = list(s.pose_id)
     if len(set(ids)) != len(ids):
         ids = [f"{p}#{i}" for p, i in zip(ids, s.point_index, strict=True)]
@@ -48,7 +48,7 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
     if not all_readings:
         keep = [i for i, r in enumerate(reading) if r == "accepted"]
         if not keep:
-            raise StoreError(f"{store.path}: run {run_id} has no accepted readings")
+            raise StoreError(f"{store.address}: run {run_id} has no accepted readings")
         rows, ids, valid = ([a[i] for i in keep] for a in (rows, ids, valid))
     else:
         pid = {int(p): (ids[i], valid[i]) for i, p in enumerate(s.point_index)}
@@ -75,6 +75,7 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
     meta = {"run": str(run.id), "routine": run.routine, **run_meta(store, run, sigma),
             "plan_hash": run.plan_hash, "robot": run.robot_url or "",
             "tracker": run.tracker_url or "", "software": run.software or "",
+            **({"robot_id": run.robot_id} if run.robot_id else {}),
             "sigma_mm": ("tracker std, RMS over axes" if sigma_mode == "std"
                          else "tracker std / sqrt(n), RMS over axes")}
     if all_readings:
@@ -86,7 +87,7 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
         t_s=np.array([r.t for r in rows], float), sigma_mm=sigma,
         pressure_hpa=every("pressure_hpa"), humidity_pct=every("humidity_pct"),
         reflector=reflector, face=every("face", int), dirs=every("dirs", int),
-        is_valid=np.array(valid, bool), meta=meta, source=f"{store.path} run {run_id}",
+        is_valid=np.array(valid, bool), meta=meta, source=f"{store.address} run {run_id}",
     )
     return (data, reading, reason) if all_readings else data
 
@@ -104,14 +105,16 @@ def run_meta(store: RunStore, run, sigma_mm: np.ndarray | None = None) -> dict[s
     if sigma_mm is not None and len(sigma_mm) and np.all(sigma_mm > 0):
         sigma = float(np.sqrt(np.mean(np.asarray(sigma_mm) ** 2)))
     return CaptureMeta(
-        run=run.id, store=str(store.path), model=run.model or ctx.model,
+        run=run.id, store=store.address, model=run.model or ctx.model,
         tool_mm=None if ctx.tool_mm is None else np.asarray(ctx.tool_mm, float),
         smr_radius_mm=ctx.smr_radius_mm, reflector=ctx.reflector, frame_run=ctx.frame_run,
         tracker_T_base=T, tracker_sigma_mm=sigma).to_meta()
 
 
-def postures_from_run(store: RunStore, run_id: int | None = None, *, to_base: bool = True):
-    """The zero-point postures of a ``zero20`` run (default: the latest completed one).
+def postures_from_run(store: RunStore, run_id: int | None = None, *, to_base: bool = True,
+                      robot_id: str | None = None):
+    """The zero-point postures of a ``zero20`` run (default: the latest completed one, of
+    ``robot_id`` when given).
 
     Built with :func:`calibration.zero_point.postures_from_dataset`: the joints read
     (rad), the plane of every posture from the plan's targets (``info.plane``) and the
@@ -127,19 +130,20 @@ def postures_from_run(store: RunStore, run_id: int | None = None, *, to_base: bo
     """
     from calibration.zero_point import postures_from_dataset
 
-    run = store.latest_run("zero20") if run_id is None else store.run(run_id)
+    run = (store.latest_run("zero20", robot_id=robot_id) if run_id is None
+           else store.run(run_id))
     if run.routine != "zero20":
-        raise StoreError(f"{store.path}: run {run.id} is a {run.routine} run, not zero20")
+        raise StoreError(f"{store.address}: run {run.id} is a {run.routine} run, not zero20")
     n = store.n_samples(run.id)
     if n != run.n_points:
-        raise StoreError(f"{store.path}: run {run.id} has {n}/{run.n_points} postures stored "
+        raise StoreError(f"{store.address}: run {run.id} has {n}/{run.n_points} postures stored "
                          f"(status {run.status}); finish it with `cellcal resume {run.id}`")
     data = dataset_from_run(store, run.id)
     targets = store.samples(run.id).targets
     try:
         plane = np.array([int(t["info"]["plane"]) for t in targets])
     except (TypeError, KeyError) as e:
-        raise StoreError(f"{store.path}: run {run.id}: a target has no plane ({e})") from None
+        raise StoreError(f"{store.address}: run {run.id}: a target has no plane ({e})") from None
     post = postures_from_dataset(data, plane)
     T = run.context.tracker_T_base_matrix
     if to_base and T is not None:

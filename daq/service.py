@@ -45,6 +45,7 @@ for input it refuses or a tracker that fails its checks,
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from collections.abc import Callable
@@ -57,6 +58,7 @@ from .check import CheckResult, check_plan
 from .devices import (
     CellIdentity,
     check_robot,
+    default_robot_id,
     describe,
     identify,
     same_cell,
@@ -72,7 +74,7 @@ from .remeasure import Remeasure
 from .routines import get as get_routine
 from .run_context import ExecutorOptions, RunContext, TrackerSetup
 from .stop_signals import signal_name
-from .store import Run, RunStore, StoreError
+from .store import Run, RunStore, StoreError, StoreUnavailable
 from .tracker_checks import check_tracker
 
 #: called with the devices' identities before anything moves; raises to refuse
@@ -92,11 +94,14 @@ class CaptureRequest:
 
     ``model`` is a built-in name or a YAML path (recorded with the run); ``params`` are
     the routine's ``make_plan`` keyword arguments; ``frame_run`` None takes the latest
-    completed frame run in the store, if any; ``acquire`` are the routine's acquisition
-    options (zero20: :class:`~daq.routines.zero20.ZeroLoopOptions` fields); ``motion``
+    completed frame run of the same robot in the store, if any; ``acquire`` are the
+    routine's acquisition options (zero20: :class:`~daq.routines.zero20.ZeroLoopOptions`
+    fields); ``motion``
     the run's motion limits (default: ``floor_z_mm`` and ``max_reach_mm`` with the other
     limits' defaults); ``tracker`` the tracker's setup and checks
-    (:class:`~daq.run_context.TrackerSetup`). Checked when made: :class:`RequestError`
+    (:class:`~daq.run_context.TrackerSetup`); ``robot_id`` names the robot (default: the
+    controller's ``MODEL/SERIAL`` when it reports a serial number,
+    :func:`daq.devices.default_robot_id`). Checked when made: :class:`RequestError`
     for a tool or floor that is not finite, motion limits that are not valid.
     """
 
@@ -118,6 +123,7 @@ class CaptureRequest:
     visibility: bool = True
     tracker: TrackerSetup = field(default_factory=TrackerSetup)
     motion: MotionLimits | None = None
+    robot_id: str | None = None
 
     def __post_init__(self) -> None:
         if self.tool_mm is not None and (len(self.tool_mm) != 3 or not all(
@@ -304,11 +310,25 @@ def _acquire_options(mod, given: dict) -> dict:
     return options(**given).model_dump()
 
 
-def frame_run(store: RunStore, run_id: int | None, cell: CellIdentity | None = None
-              ) -> Run | None:
+def _same_robot(r: Run, robot_id: str | None, robot_url: str | None) -> bool:
+    """Run ``r`` measured this robot: the same robot id when both know theirs; the same URL
+    when only one does; any run when neither does (a store of one cell) or nothing is
+    known of this robot (``robot_id`` and ``robot_url`` None)."""
+    if robot_id and r.robot_id:
+        return r.robot_id == robot_id
+    if robot_id is None and robot_url is None:
+        return True
+    if robot_id or r.robot_id:
+        return r.robot_url == robot_url
+    return True
+
+
+def frame_run(store: RunStore, run_id: int | None, cell: CellIdentity | None = None,
+              robot_id: str | None = None, robot_url: str | None = None) -> Run | None:
     """The frame run ``run_id`` (it must have a frame), else the latest completed frame
     run of the store measured in ``cell`` (a run without stored identities counts as
-    any cell's), else None."""
+    any cell's) of the same robot (``robot_id``, ``robot_url``: :func:`_same_robot`),
+    else None."""
     if run_id is not None:
         try:
             r = store.run(run_id)
@@ -320,7 +340,8 @@ def frame_run(store: RunStore, run_id: int | None, cell: CellIdentity | None = N
         return r
     for r in reversed(store.runs()):
         if (r.routine == "frame" and r.status == "completed" and r.frame is not None
-                and (cell is None or _measured_in(r, cell))):
+                and (cell is None or _measured_in(r, cell))
+                and _same_robot(r, robot_id, robot_url)):
             return r
     return None
 
@@ -337,7 +358,8 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
               devices: tuple | None = None, progress: ProgressFn | None = None,
               on_started: Callable[[int, int], None] | None = None,
               confirm: ConfirmFn | None = None, leases: Leases | None = None) -> RunOutcome:
-    """Store a new run of ``planned`` and execute it.
+    """Store a new run of ``planned`` (with the robot's id, :func:`daq.devices.default_robot_id`)
+    and execute it.
 
     Parameters
     ----------
@@ -364,7 +386,7 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
         The robot does not fit the model (joint count, a simulator of another model).
     """
     req = planned.request
-    with held_leases(store.path, leases) as held:
+    with held_leases(store, leases) as held:
         take_robot(held, robot_url)
         with reach_devices(robot_url, tracker_url, devices,
                            req.executor.connect_timeout_s) as (robot, tracker):
@@ -374,7 +396,8 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
             found = check_tracker(tracker, req.tracker, req.executor)  # nothing stored yet
             if confirm is not None:
                 confirm(cell, robot_url, tracker_url)
-            frame = frame_run(store, req.frame_run, cell)
+            robot_id = default_robot_id(cell.robot, req.robot_id)
+            frame = frame_run(store, req.frame_run, cell, robot_id, robot_url)
             if frame is not None and not _measured_in(frame, cell):
                 raise RequestError(f"frame run {frame.id} was measured in another cell (robot "
                                    f"{stored_identity(frame.robot_identity)}, tracker "
@@ -392,7 +415,8 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
             run_id = store.create_run(planned.plan, context, robot_desc=describe(robot),
                                       tracker_desc=describe(tracker),
                                       robot_identity=cell.robot.to_dict(),
-                                      tracker_identity=cell.tracker.to_dict())
+                                      tracker_identity=cell.tracker.to_dict(),
+                                      robot_id=robot_id)
             held.acquire(run_key(run_id), f"run {run_id}")
             if on_started is not None:
                 on_started(run_id, 0)
@@ -403,7 +427,8 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
 # ------------------------------------------------------------------- resume
 def prepare_resume(store: RunStore, run_id: int | None = None, *,
                    robot_url: str | None = None, tracker_url: str | None = None,
-                   leases: Leases | None = None) -> Resumable:
+                   leases: Leases | None = None,
+                   robot_id: str | None = None) -> Resumable:
     """Find run ``run_id`` (default: the latest) and what resuming it needs.
 
     Unless it is completed, the run's lease is taken first (in ``leases``, kept; else
@@ -411,7 +436,8 @@ def prepare_resume(store: RunStore, run_id: int | None = None, *,
     (:class:`~daq.leases.LeaseBusy`, naming the owner). A run found ``running`` without
     a live owner (its process was killed) then gets a ``killed`` interruption.
     ``robot_url``/``tracker_url`` replace the stored ones for this resume (stored only
-    once the devices prove to be the run's cell). A completed run comes back as it is
+    once the devices prove to be the run's cell). ``robot_id`` must be the run's robot
+    (it is recorded when the run had none). A completed run comes back as it is
     (:attr:`Resumable.completed`).
     """
     from calibration import ModelError, load_model
@@ -423,18 +449,22 @@ def prepare_resume(store: RunStore, run_id: int | None = None, *,
     plan = Plan.from_json(r.plan_json)
     if plan.hash != r.plan_hash:
         raise RequestError(f"run {r.id}: stored plan does not match its hash (edited store?)")
+    if robot_id and r.robot_id and robot_id != r.robot_id:
+        raise RequestError(f"run {r.id} is a run of robot {r.robot_id}, not {robot_id}")
     done = store.n_samples(r.id)
     if r.status == "completed":
         return Resumable(r, plan, done)
-    with held_leases(store.path, leases) as held:
+    with held_leases(store, leases) as held:
         taken = held.acquire(run_key(r.id), f"run {r.id}")
+    if robot_id and not r.robot_id:
+        store.update_run(r.id, robot_id=robot_id)
     r = store.run(r.id)  # as it is now that no one else runs it
     done = store.n_samples(r.id)
     if r.status == "running":
         owner = "" if taken is None else f" (its owner, {taken.describe()}, is gone)"
         store.add_interruption(r.id, None, "killed",
                                "found still running on resume: the process was killed or "
-                               f"crashed{owner}")
+                               f"crashed, or lost its run store{owner}")
     try:
         model = load_model(r.model or plan.model)
         if r.context.tool_mm is not None:
@@ -483,7 +513,7 @@ def resume_run(store: RunStore, resumable: Resumable, *, executor: dict | None =
     def record(e: ConnectFailed) -> None:
         store.add_interruption(r.id, None, "connection", f"resume: cannot connect: {e}")
 
-    with held_leases(store.path, leases) as held:
+    with held_leases(store, leases) as held:
         held.acquire(run_key(r.id), f"run {r.id}")
         take_robot(held, robot_url)
         with reach_devices(robot_url, tracker_url, devices, options.connect_timeout_s,
@@ -515,6 +545,8 @@ def resume_run(store: RunStore, resumable: Resumable, *, executor: dict | None =
             if r.robot_identity is None:  # a run stored before identities were
                 store.update_run(r.id, robot_identity=cell.robot.to_dict(),
                                  tracker_identity=cell.tracker.to_dict())
+            if not r.robot_id and (robot_id := default_robot_id(cell.robot)):
+                store.update_run(r.id, robot_id=robot_id)
             done = store.n_samples(r.id)
             if on_started is not None:
                 on_started(r.id, done)
@@ -528,7 +560,8 @@ def _repeat_elsewhere(store, resumable: Resumable, cell: CellIdentity, options, 
                       tracker, held: Leases, progress, on_started, why: str) -> RunOutcome:
     """``resume --other-cell``: a new run of the resumed run's plan in this cell."""
     r = resumable.run
-    frame = frame_run(store, None, cell)
+    robot_id = default_robot_id(cell.robot)
+    frame = frame_run(store, None, cell, robot_id, resumable.robot_url)
     context = r.context.model_copy(update={
         "executor": options, "acquire": acq, "robot_url": resumable.robot_url,
         "tracker_url": resumable.tracker_url,
@@ -537,7 +570,8 @@ def _repeat_elsewhere(store, resumable: Resumable, cell: CellIdentity, options, 
     run_id = store.create_run(resumable.plan, context, robot_desc=describe(robot),
                               tracker_desc=describe(tracker),
                               robot_identity=cell.robot.to_dict(),
-                              tracker_identity=cell.tracker.to_dict(), source_run=r.id)
+                              tracker_identity=cell.tracker.to_dict(), source_run=r.id,
+                              robot_id=robot_id)
     held.acquire(run_key(run_id), f"run {run_id}")
     store.add_interruption(r.id, None, "other_cell",
                            f"not resumed here: {why}; its plan runs again as run {run_id}")
@@ -569,13 +603,18 @@ def execute(store: RunStore, run_id: int, plan: Plan, robot, tracker, *, model,
         status = ex.run()
     finally:
         if remeasure is not None:
-            _remeasure_summary(store, run_id, remeasure)
+            # a store away now (the run paused for it): resume recounts from the store
+            with contextlib.suppress(StoreUnavailable):
+                _remeasure_summary(store, run_id, remeasure)
     elapsed = time.monotonic() - t0
-    run = store.run(run_id)
-    check = run.context.tracker_check
-    return RunOutcome(run_id, plan.routine, status, run.reason, plan.n_planned,
-                      store.n_samples(run_id), ex.n_faults, elapsed, plan.hash,
-                      str(store.path), run.frame, run.summary, ex.stop_signal,
+    try:
+        run = store.run(run_id)
+        reason, n, frame, summary = run.reason, store.n_samples(run_id), run.frame, run.summary
+        check = run.context.tracker_check
+    except StoreUnavailable:  # paused because the store is away: what the executor knows
+        reason, n, frame, summary, check = ex.last_error, ex.n_done, None, None, None
+    return RunOutcome(run_id, plan.routine, status, reason, plan.n_planned, n, ex.n_faults,
+                      elapsed, plan.hash, store.address, frame, summary, ex.stop_signal,
                       None if check is None else check.model_dump(mode="json"))
 
 

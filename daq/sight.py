@@ -43,10 +43,19 @@ def frame_from_store(db: str | Path | None, run_id: int | None) -> tuple[np.ndar
     store does not exist yet or has no frame."""
     from .service import frame_run
     from .store import RunStore
+    from .store_dialect import StoreError, StoreUnavailable, is_server_address
 
-    if db is None or not Path(db).is_file():
+    if db is None or (not is_server_address(db) and not Path(db).is_file()):
         return None, None
-    with RunStore.open_existing(db) as store:
+    try:
+        store = RunStore.open_existing(db)
+    except StoreUnavailable:
+        raise
+    except StoreError:
+        if is_server_address(db):  # a database without a run store yet
+            return None, None
+        raise
+    with store:
         r = frame_run(store, run_id)
     return (None, None) if r is None else (np.asarray(r.frame["tracker_T_base"], float), r.id)
 

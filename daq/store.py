@@ -1,29 +1,46 @@
-"""The durable run store: one SQLite file holds runs, samples and interruptions.
+"""The durable run store: runs, samples, interruptions and calibrations, in one SQLite file
+(one per cell, the default) or in a PostgreSQL database (a plant's central store).
+
+:func:`open_store` (and :class:`RunStore` itself) picks the backend from the address
+(docs/formats.md §5): a ``postgresql://user@host/db`` URL is a server, anything else a
+file. The SQL below is written once; what the two databases spell differently lives in
+:mod:`daq.store_dialect`.
 
 Durability
-    The database runs in WAL mode with ``synchronous=FULL``. Each sample is
-    written in one transaction (:meth:`RunStore.add_sample`); that commit is the
-    executor's checkpoint. In WAL mode ``NORMAL`` already survives a killed
-    process (the WAL is written before the commit returns) but may lose the
-    last commits on a power cut or OS crash; ``FULL`` also fsyncs the WAL on
-    every commit. A sample costs the robot seconds of motion and measurement,
-    the fsync about a millisecond, and a sample the operator was told is
-    stored must stay stored, so ``FULL`` is the default (``synchronous="NORMAL"``
-    is accepted for bulk tests).
+    One transaction per sample (:meth:`RunStore.add_sample`); that commit is the
+    executor's checkpoint. SQLite runs in WAL mode with ``synchronous=FULL``: in WAL
+    mode ``NORMAL`` already survives a killed process (the WAL is written before the
+    commit returns) but may lose the last commits on a power cut or OS crash; ``FULL``
+    also fsyncs the WAL on every commit. A sample costs the robot seconds of motion and
+    measurement, the fsync about a millisecond, and a sample the operator was told is
+    stored must stay stored, so ``FULL`` is the default (``synchronous="NORMAL"`` is
+    accepted for bulk tests). On PostgreSQL a commit returns once the server has
+    flushed its WAL (``synchronous_commit`` on, the server's default; ``NORMAL`` turns
+    it off for the session).
 
 Idempotence
-    ``samples`` has ``UNIQUE(run_id, point_index)`` and samples are inserted
-    with ``INSERT OR IGNORE``: writing a point twice (a resumed run redoing a
-    point whose commit did land) keeps the first one, so nothing is ever
-    duplicated.
+    ``samples`` has ``UNIQUE(run_id, point_index)`` and samples are inserted with
+    ``ON CONFLICT DO NOTHING``: writing a point twice (a resumed run redoing a point
+    whose commit did land, or a commit repeated after the server connection broke
+    during it) keeps the first one, so nothing is ever duplicated.
+
+Lost connections
+    A PostgreSQL server that goes away raises :class:`StoreUnavailable` (a
+    :class:`StoreError`, transient); :meth:`RunStore.reconnect` opens a new connection.
+    The executor waits for the store, then pauses the run (:mod:`daq.executor`).
 
 Schema versions
-    ``PRAGMA user_version`` holds :data:`~daq.store_schema.SCHEMA_VERSION`. Opening an
-    older file applies the upgrades of :mod:`daq.store_schema` in order, each in one
-    transaction; a newer file is refused.
+    :meth:`Database.get_version <daq.store_dialect.Database.get_version>` holds
+    :data:`~daq.store_schema.SCHEMA_VERSION` (SQLite's ``PRAGMA user_version``, a
+    ``schema_version`` table on PostgreSQL). Opening an older store applies the upgrades
+    of :mod:`daq.store_schema` in order, each in one transaction that holds the
+    store's write lock (two processes opening an old store upgrade it once); a newer
+    store is refused. A read-only store is never upgraded.
 
-Every run stores its plan and its typed context (:class:`daq.run_context.RunContext`).
-Reading turns a run's samples into calibration inputs: :mod:`daq.run_data`.
+Every run stores its plan, its typed context (:class:`daq.run_context.RunContext`) and
+the robot's identity (``robot_id``). Reading turns a run's samples into calibration
+inputs: :mod:`daq.run_data`. Calibrations (a params.json per robot and time) are read
+by ``cellcal history``.
 
 Units: joints rad (stored as JSON lists), lengths mm, covariances mm², times epoch s,
 temperature °C, pressure hPa, humidity %.
@@ -31,189 +48,26 @@ temperature °C, pressure hPa, humidity %.
 
 from __future__ import annotations
 
+import hashlib
 import json
-import sqlite3
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .run_context import RunContext
+from .store_dialect import (
+    Database,
+    StoreError,
+    StoreUnavailable,
+    connect,
+    display_address,
+)
+from .store_records import STATUSES, Calibration, Reading, Run, Sample, Samples
 from .store_schema import SCHEMA_V1, SCHEMA_VERSION, UPGRADES
 
-#: run statuses: ``running`` (or killed while running), ``paused`` (protective stop,
-#: retries exhausted: resumable), ``stopped`` (Ctrl-C: resumable), ``completed``,
-#: ``failed`` (refused or broken: resumable once the cause is fixed)
-STATUSES = ("running", "paused", "stopped", "completed", "failed")
-
-
-class StoreError(Exception):
-    """The store cannot be used (newer schema, unknown run...)."""
-
-
-@dataclass
-class Run:
-    """One row of ``runs``: plan, frame, summary and context decoded.
-
-    ``robot_url``, ``tracker_url``, ``seed`` and ``model`` are the context's.
-    """
-
-    id: int
-    routine: str
-    plan_json: str
-    plan_hash: str
-    n_points: int
-    robot_desc: str | None
-    tracker_desc: str | None
-    software: str | None
-    started: float | None
-    stopped: float | None
-    status: str
-    reason: str | None
-    frame: dict | None
-    summary: dict | None
-    context: RunContext
-    #: who the devices said they were (DeviceIdentity dicts), None when not recorded
-    robot_identity: dict | None = None
-    tracker_identity: dict | None = None
-    #: the run whose plan this run repeats on another cell (``resume --other-cell``)
-    source_run: int | None = None
-
-    @property
-    def robot_url(self) -> str | None:
-        return self.context.robot_url
-
-    @property
-    def tracker_url(self) -> str | None:
-        return self.context.tracker_url
-
-    @property
-    def seed(self) -> int | None:
-        return self.context.seed
-
-    @property
-    def model(self) -> str | None:
-        return self.context.model
-
-
-@dataclass
-class Sample:
-    """One measured point, as the executor hands it to :meth:`RunStore.add_sample`.
-
-    ``joints_rad`` joints read (rad, (N,)), ``tracker_p_smr`` the reflector measured (mm,
-    tracker frame), ``std_mm`` per-axis std reported by the tracker (mm), ``n`` samples
-    averaged, ``t`` measurement time (epoch s), ``base_p_tcp_cmd`` the controller's
-    nominal TCP (mm, base frame) or None, ``dirs`` approach direction per joint
-    (-1/0/+1) or None; ``reflector`` the reflector measured, ``face`` the tracker face
-    (1 or 2) and ``cov_mm2`` the (3, 3) covariance of ``tracker_p_smr`` (mm²), each None
-    when the tracker did not say.
-    """
-
-    point_index: int
-    joints_rad: np.ndarray
-    tracker_p_smr: np.ndarray
-    std_mm: np.ndarray
-    n: int
-    t: float
-    pose_id: str = ""
-    set_name: str = "calib"
-    target: dict | None = None
-    temp_c: float | None = None
-    pressure_hpa: float | None = None
-    humidity_pct: float | None = None
-    base_p_tcp_cmd: np.ndarray | None = None
-    dirs: np.ndarray | None = None
-    attempts: int = 1
-    joints_t: float | None = None
-    reflector: str | None = None
-    face: int | None = None
-    cov_mm2: np.ndarray | None = None
-    #: how the reading was judged (:data:`daq.remeasure.VERDICTS`); None: not judged
-    verdict: str | None = None
-    #: re-measurements made at the point (the readings not accepted are :class:`Reading`)
-    remeasures: int = 0
-    #: 3-D distance from the running model's prediction and the threshold there (mm)
-    model_residual_mm: float | None = None
-    model_threshold_mm: float | None = None
-
-
-@dataclass
-class Reading:
-    """A reading of a point that was not accepted (the ``readings`` table): the sample it
-    would have been (its joints, measurement, distance from the model) and why not."""
-
-    sample: Sample
-    reason: str
-
-
-@dataclass(frozen=True)
-class Samples:
-    """Every sample of a run ordered by point index, as named columns (``n`` rows).
-
-    Attributes
-    ----------
-    point_index : (n,) int
-    pose_id, set_name : list of str (``set_name`` ``calib`` or ``valid``)
-    joints_rad : (n, N) rad, the joints read
-    tracker_p_smr : (n, 3) mm, the reflector measured in the tracker frame
-    std_mm : (n, 3) mm, the tracker's per-axis std
-    n_averaged : (n,) samples the tracker averaged
-    t : (n,) epoch s, the measurement times
-    temp_c, pressure_hpa, humidity_pct : (n,), NaN where unknown
-    base_p_tcp_cmd : (n, 3) mm, the controller's nominal TCP (base frame), NaN where unknown
-    dirs : (n, N) int approach directions, or None unless every sample has them
-    targets : list of dict (the plan's targets, JSON) or None
-    reflector : list of str or None (None where unknown)
-    face : (n,) int, the tracker face (1 or 2), 0 where unknown
-    cov_mm2 : (n, 3, 3) mm², the covariance of ``tracker_p_smr``, NaN where unknown
-    verdict : list of str or None, how each reading was judged (:data:`daq.remeasure.VERDICTS`)
-    remeasures : (n,) int, re-measurements made at each point
-    """
-
-    point_index: np.ndarray
-    pose_id: list[str]
-    set_name: list[str]
-    joints_rad: np.ndarray
-    tracker_p_smr: np.ndarray
-    std_mm: np.ndarray
-    n_averaged: np.ndarray
-    t: np.ndarray
-    temp_c: np.ndarray
-    pressure_hpa: np.ndarray
-    humidity_pct: np.ndarray
-    base_p_tcp_cmd: np.ndarray
-    dirs: np.ndarray | None
-    targets: list[dict | None]
-    reflector: list[str | None]
-    face: np.ndarray
-    cov_mm2: np.ndarray
-    verdict: list[str | None]
-    remeasures: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.point_index)
-
-    def sample(self, i: int) -> Sample:
-        """Row ``i`` as a :class:`Sample` (NaN columns as None)."""
-        def opt(a):
-            v = float(a[i])
-            return None if np.isnan(v) else v
-
-        cmd = self.base_p_tcp_cmd[i]
-        return Sample(
-            point_index=int(self.point_index[i]), joints_rad=self.joints_rad[i].copy(),
-            tracker_p_smr=self.tracker_p_smr[i].copy(), std_mm=self.std_mm[i].copy(),
-            n=int(np.nan_to_num(self.n_averaged[i])), t=float(self.t[i]),
-            pose_id=self.pose_id[i],
-            set_name=self.set_name[i], target=self.targets[i], temp_c=opt(self.temp_c),
-            pressure_hpa=opt(self.pressure_hpa), humidity_pct=opt(self.humidity_pct),
-            base_p_tcp_cmd=None if np.isnan(cmd).any() else cmd.copy(),
-            dirs=None if self.dirs is None else self.dirs[i].copy(),
-            reflector=self.reflector[i], face=int(self.face[i]) or None,
-            cov_mm2=None if np.isnan(self.cov_mm2[i]).all() else self.cov_mm2[i].copy(),
-            verdict=self.verdict[i], remeasures=int(self.remeasures[i]))
-
+__all__ = ["STATUSES", "Calibration", "Reading", "Run", "RunStore", "Sample", "Samples",
+           "StoreError", "StoreUnavailable", "open_store"]
 
 def _f(v) -> float | None:
     return None if v is None else float(v)
@@ -243,42 +97,71 @@ def _json(v) -> str | None:
     return None if v is None else json.dumps(v)
 
 
+def open_store(address, *, create: bool = True, read_only: bool = False,
+               synchronous: str = "FULL") -> RunStore:
+    """The run store at ``address``: a SQLite file path or a ``postgresql://`` URL.
+
+    ``create`` False refuses a store that does not exist yet (a missing file, a
+    PostgreSQL database without the store's tables): never create an empty store for a
+    mistyped address. ``read_only`` opens without write access and never upgrades (an
+    older schema is refused).
+    """
+    return RunStore(address, synchronous, create=create, read_only=read_only)
+
+
 class RunStore:
-    """The run store in one SQLite file.
+    """The run store (see the module docstring).
 
     Parameters
     ----------
-    path : str or Path
-        Database file (created with the current schema when absent).
+    address : str or Path
+        A SQLite file (created with the current schema when absent) or a
+        ``postgresql://user[:password]@host[:port]/dbname`` URL (the database must exist;
+        the store's tables are created in an empty one).
     synchronous : {"FULL", "NORMAL"}
-        SQLite's ``synchronous`` pragma (see the module docstring).
+        Durability of a commit (see the module docstring).
+    create, read_only : bool
+        As :func:`open_store`.
     """
 
-    def __init__(self, path: str | Path, synchronous: str = "FULL") -> None:
-        if synchronous.upper() not in ("FULL", "NORMAL"):
-            raise ValueError(f"synchronous must be FULL or NORMAL, got {synchronous!r}")
-        self.path = Path(path)
-        self.con = sqlite3.connect(str(self.path), timeout=30.0, isolation_level=None)
+    def __init__(self, address: str | Path, synchronous: str = "FULL", *,
+                 create: bool = True, read_only: bool = False) -> None:
+        self.db: Database = connect(address, create=create, read_only=read_only,
+                                    synchronous=synchronous)
+        self._open_args = (address, read_only, synchronous)
+        #: the address as printed (a URL without its password)
+        self.address = display_address(address)
         try:
-            self.con.execute("PRAGMA journal_mode=WAL")
-            self.con.execute(f"PRAGMA synchronous={synchronous.upper()}")
-            self.con.execute("PRAGMA foreign_keys=ON")
-            self._migrate()
+            self._migrate(create=create)
         except BaseException:
-            self.con.close()
+            self.db.close()
             raise
 
     @classmethod
-    def open_existing(cls, path: str | Path, synchronous: str = "FULL") -> RunStore:
-        """An existing store; :class:`StoreError` when there is no such file (never create
-        an empty store for a mistyped path)."""
-        if not Path(path).exists():
-            raise StoreError(f"{path}: no such run store")
-        return cls(path, synchronous=synchronous)
+    def open_existing(cls, path: str | Path, synchronous: str = "FULL", *,
+                      read_only: bool = False) -> RunStore:
+        """An existing store; :class:`StoreError` when there is none at ``path`` (never
+        create an empty store for a mistyped path)."""
+        return cls(path, synchronous, create=False, read_only=read_only)
+
+    @property
+    def path(self) -> Path | str:
+        """The SQLite file, or the server's address (no password)."""
+        return self.db.path if self.db.kind == "sqlite" else self.address
+
+    @property
+    def con(self):
+        """The driver's connection (sqlite3 or psycopg), for inspection."""
+        return self.db.con
+
+    @property
+    def kind(self) -> str:
+        """``sqlite`` or ``postgresql``."""
+        return self.db.kind
 
     # ------------------------------------------------------------ lifecycle
     def close(self) -> None:
-        self.con.close()
+        self.db.close()
 
     def __enter__(self) -> RunStore:
         return self
@@ -286,35 +169,58 @@ class RunStore:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    def new_connection(self) -> Database:
+        """Another connection to this store (:mod:`daq.store_dialect`), for work beside
+        this one: e.g. leases renewed by a heartbeat thread (write them in the store's SQL
+        spelling; an insert-or-replace is :meth:`Database.upsert
+        <daq.store_dialect.Database.upsert>`, a serialised transaction
+        ``transaction(lock=True)``)."""
+        address, read_only, synchronous = self._open_args
+        return connect(address, create=False, read_only=read_only, synchronous=synchronous)
+
+    def reconnect(self) -> None:
+        """A new connection after a lost one (:class:`StoreUnavailable` when the server
+        is still away)."""
+        self.db.reconnect()
+
     @property
     def version(self) -> int:
-        return int(self.con.execute("PRAGMA user_version").fetchone()[0])
+        return self.db.get_version()
 
-    def _migrate(self) -> None:
-        v = self.version
-        if v == 0:
-            has = self.con.execute(
-                "SELECT count(*) FROM sqlite_master WHERE type='table' AND name='runs'"
-            ).fetchone()[0]
-            if has:
-                raise StoreError(f"{self.path}: has a runs table but no schema version")
-            # one script, one transaction: a new file is either complete v1 or empty
-            self.con.executescript(f"BEGIN; {SCHEMA_V1} PRAGMA user_version=1; COMMIT;")
-            v = 1
+    def _migrate(self, create: bool) -> None:
+        db = self.db
+        v = db.get_version()
+        if v == 0 and (not create or db.read_only):
+            raise StoreError(f"{self.address}: no run store here (an empty database)")
         if v > SCHEMA_VERSION:
-            raise StoreError(
-                f"{self.path}: schema version {v} is newer than this cellcal ({SCHEMA_VERSION})"
-            )
+            raise StoreError(f"{self.address}: schema version {v} is newer than this "
+                             f"cellcal ({SCHEMA_VERSION})")
+        if db.read_only:
+            if v < SCHEMA_VERSION:
+                raise StoreError(f"{self.address}: schema version {v}, this cellcal reads "
+                                 f"{SCHEMA_VERSION}: open it once with write access (any "
+                                 "capture, runs or export) to upgrade it")
+            return
         while v < SCHEMA_VERSION:
-            self.con.execute("BEGIN IMMEDIATE")
-            try:
-                UPGRADES[v - 1](self.con)
-                self.con.execute(f"PRAGMA user_version={v + 1}")
-                self.con.execute("COMMIT")
-            except BaseException:
-                self.con.execute("ROLLBACK")
-                raise
-            v += 1
+            # one step per transaction, under the store's write lock; the version is read
+            # again inside it, so two processes opening an old store upgrade it once
+            with db.transaction(lock=True):
+                v = db.get_version()
+                if v == 0:
+                    if db.has_table("runs"):
+                        raise StoreError(f"{self.address}: has a runs table but no schema "
+                                         "version")
+                    for statement in SCHEMA_V1.split(";"):
+                        if statement.strip():
+                            db.execute(statement)
+                elif v < SCHEMA_VERSION:
+                    UPGRADES[v - 1](db)
+                if v < SCHEMA_VERSION:
+                    db.set_version(v + 1)
+                    v += 1
+        if v > SCHEMA_VERSION:
+            raise StoreError(f"{self.address}: schema version {v} is newer than this "
+                             f"cellcal ({SCHEMA_VERSION})")
 
     # ------------------------------------------------------------------ runs
     def create_run(
@@ -325,6 +231,7 @@ class RunStore:
         robot_desc: str | None = None,
         tracker_desc: str | None = None,
         software: str | None = None,
+        robot_id: str | None = None,
         robot_identity: dict | None = None,
         tracker_identity: dict | None = None,
         source_run: int | None = None,
@@ -333,13 +240,13 @@ class RunStore:
 
         ``context`` defaults to the plan's routine and model; its model defaults to the
         plan's. The context's URLs, seed and model also fill the run's columns (for
-        listing and queries). ``robot_identity``/``tracker_identity`` are who the devices
-        said they were (:meth:`drivers.protocols.DeviceIdentity.to_dict`).
+        listing and queries). ``robot_id`` is who the robot is (:class:`Run`);
+        ``robot_identity``/``tracker_identity`` are who the devices said they were
+        (:meth:`drivers.protocols.DeviceIdentity.to_dict`); ``source_run`` the run whose
+        plan this one repeats on another cell.
         """
         if software is None:
-            from .cli import software_version
-
-            software = software_version()
+            software = _software_version()
         if context is None:
             context = RunContext(routine=plan.routine)
         if context.routine != plan.routine:
@@ -347,23 +254,23 @@ class RunStore:
         if context.model is None and plan.model:
             context = context.model_copy(update={"model": plan.model})
         c = context
-        with self.con:
-            self.con.execute("BEGIN IMMEDIATE")
-            cur = self.con.execute(
+        with self.db.transaction():
+            row = self.db.execute(
                 """INSERT INTO runs (routine, plan_json, plan_hash, n_points, robot_url,
                    tracker_url, robot_desc, tracker_desc, software, seed, model, started,
-                   status, context_json, robot_identity, tracker_identity, source_run)
-                   VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)""",
+                   status, context_json, robot_id, robot_identity, tracker_identity,
+                   source_run) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)
+                   RETURNING id""",
                 (plan.routine, plan.to_json(), plan.hash, plan.n_planned, c.robot_url,
                  c.tracker_url, robot_desc, tracker_desc, software, c.seed, c.model,
-                 time.time(), "running", c.to_json(), _json(robot_identity),
+                 time.time(), "running", c.to_json(), robot_id, _json(robot_identity),
                  _json(tracker_identity), source_run),
-            )
-        return int(cur.lastrowid)
+            ).fetchone()
+        return int(row[0])
 
     _RUN_COLS = ("id, routine, plan_json, plan_hash, n_points, robot_desc, tracker_desc, "
                  "software, started, stopped, status, reason, frame_json, summary_json, "
-                 "context_json, robot_identity, tracker_identity, source_run")
+                 "context_json, robot_id, robot_identity, tracker_identity, source_run")
 
     def _row_to_run(self, r) -> Run:
         return Run(
@@ -372,45 +279,49 @@ class RunStore:
             status=r[10], reason=r[11],
             frame=json.loads(r[12]) if r[12] else None,
             summary=json.loads(r[13]) if r[13] else None,
-            context=RunContext.from_json(r[14]),
-            robot_identity=json.loads(r[15]) if r[15] else None,
-            tracker_identity=json.loads(r[16]) if r[16] else None,
-            source_run=r[17],
+            context=RunContext.from_json(r[14]), robot_id=r[15],
+            robot_identity=json.loads(r[16]) if r[16] else None,
+            tracker_identity=json.loads(r[17]) if r[17] else None,
+            source_run=r[18],
         )
 
     def run(self, run_id: int | None = None) -> Run:
         """The run ``run_id`` (default: the latest); :class:`StoreError` when there is none."""
         if run_id is None:
-            r = self.con.execute(
+            r = self.db.execute(
                 f"SELECT {self._RUN_COLS} FROM runs ORDER BY id DESC LIMIT 1"
             ).fetchone()
             if r is None:
-                raise StoreError(f"{self.path}: no runs yet")
+                raise StoreError(f"{self.address}: no runs yet")
         else:
-            r = self.con.execute(
+            r = self.db.execute(
                 f"SELECT {self._RUN_COLS} FROM runs WHERE id=?", (int(run_id),)
             ).fetchone()
             if r is None:
-                raise StoreError(f"{self.path}: no run {run_id}")
+                raise StoreError(f"{self.address}: no run {run_id}")
         return self._row_to_run(r)
 
-    def runs(self) -> list[Run]:
-        rows = self.con.execute(f"SELECT {self._RUN_COLS} FROM runs ORDER BY id").fetchall()
-        return [self._row_to_run(r) for r in rows]
+    def runs(self, robot_id: str | None = None) -> list[Run]:
+        """Every run in order (only those of ``robot_id`` when given)."""
+        if robot_id is None:
+            rows = self.db.execute(f"SELECT {self._RUN_COLS} FROM runs ORDER BY id")
+        else:
+            rows = self.db.execute(f"SELECT {self._RUN_COLS} FROM runs WHERE robot_id=? "
+                                   "ORDER BY id", (robot_id,))
+        return [self._row_to_run(r) for r in rows.fetchall()]
 
     def set_status(self, run_id: int, status: str, reason: str | None = None) -> None:
         """Record the run's status (and why); a final status also sets the stop time."""
         if status not in STATUSES:
             raise ValueError(f"status must be one of {STATUSES}, got {status!r}")
         stopped = None if status == "running" else time.time()
-        with self.con:
-            self.con.execute("UPDATE runs SET status=?, reason=?, stopped=? WHERE id=?",
-                             (status, reason, stopped, run_id))
+        self.db.execute("UPDATE runs SET status=?, reason=?, stopped=? WHERE id=?",
+                        (status, reason, stopped, run_id))
 
     def update_run(self, run_id: int, **fields) -> None:
         """Set ``frame``, ``summary``, ``robot_identity``/``tracker_identity`` (dicts),
-        ``robot_desc``/``tracker_desc``, or ``robot_url``/``tracker_url`` (in the run's
-        context and its columns)."""
+        ``robot_desc``/``tracker_desc``, ``robot_id``, or ``robot_url``/``tracker_url`` (in
+        the run's context and its columns)."""
         cols, vals = [], []
         urls = {}
         for k, v in fields.items():
@@ -420,7 +331,7 @@ class RunStore:
             elif k in ("frame", "summary"):
                 cols.append(f"{k}_json=?")
                 vals.append(json.dumps(v) if v is not None else None)
-            elif k in ("robot_desc", "tracker_desc"):
+            elif k in ("robot_desc", "tracker_desc", "robot_id"):
                 cols.append(f"{k}=?")
                 vals.append(v)
             elif k in ("robot_url", "tracker_url"):
@@ -431,13 +342,22 @@ class RunStore:
                 raise ValueError(f"cannot update run field {k!r}")
         if not cols:
             return
-        with self.con:
-            self.con.execute("BEGIN IMMEDIATE")
+        with self.db.transaction():
             if urls:
                 ctx = self.run(run_id).context.model_copy(update=urls)
                 cols.append("context_json=?")
                 vals.append(ctx.to_json())
-            self.con.execute(f"UPDATE runs SET {', '.join(cols)} WHERE id=?", (*vals, run_id))
+            self.db.execute(f"UPDATE runs SET {', '.join(cols)} WHERE id=?", (*vals, run_id))
+
+    def latest_run(self, routine: str, status: str = "completed",
+                   robot_id: str | None = None) -> Run:
+        """The latest run of ``routine`` with ``status`` (of ``robot_id`` when given);
+        :class:`StoreError` when none."""
+        for r in reversed(self.runs(robot_id)):
+            if r.routine == routine and r.status == status:
+                return r
+        of = f" of robot {robot_id}" if robot_id is not None else ""
+        raise StoreError(f"{self.address}: no {status} {routine} run{of}")
 
     # --------------------------------------------------------------- samples
     #: the measurement columns a sample and a reading share, and their values
@@ -469,12 +389,12 @@ class RunStore:
         the first sample of a point wins; its rejected readings are then not written).
         """
         ins = self._MEASURED.count(",") + 1
-        with self.con:
-            self.con.execute("BEGIN IMMEDIATE")
-            cur = self.con.execute(
-                f"""INSERT OR IGNORE INTO samples (run_id, point_index, pose_id, set_name,
+        with self.db.transaction():
+            cur = self.db.execute(
+                f"""INSERT INTO samples (run_id, point_index, pose_id, set_name,
                    target_json, attempts, joints_t, verdict, remeasures, {self._MEASURED})
-                   VALUES (?,?,?,?,?,?,?,?,?,{",".join("?" * ins)})""",
+                   VALUES (?,?,?,?,?,?,?,?,?,{",".join("?" * ins)})
+                   ON CONFLICT DO NOTHING""",
                 (run_id, int(s.point_index), s.pose_id, s.set_name,
                  json.dumps(s.target) if s.target is not None else None, int(s.attempts),
                  _f(s.joints_t), s.verdict, int(s.remeasures), *self._measured(s)),
@@ -488,35 +408,42 @@ class RunStore:
 
     def _add_reading(self, run_id: int, r: Reading) -> None:
         n = self._MEASURED.count(",") + 1
-        self.con.execute(
+        self.db.execute(
             f"INSERT INTO readings (run_id, point_index, reason, {self._MEASURED}) "
             f"VALUES (?,?,?,{','.join('?' * n)})",
             (run_id, int(r.sample.point_index), r.reason, *self._measured(r.sample)))
 
     def _replace_sample(self, run_id: int, s: Sample, rejected) -> None:
+        """Replace a point's sample by ``s`` (a re-measurement, taken later) and add the
+        readings it rejected; a no-op when the point already holds ``s`` (the same
+        commit repeated after a lost connection)."""
         cols = [c.strip() for c in self._MEASURED.split(",")]
-        cur = self.con.execute(
+        cur = self.db.execute(
             f"""UPDATE samples SET {", ".join(f"{c}=?" for c in cols)}, verdict=?,
-               remeasures=? WHERE run_id=? AND point_index=?""",
-            (*self._measured(s), s.verdict, int(s.remeasures), run_id, int(s.point_index)))
+               remeasures=? WHERE run_id=? AND point_index=? AND t<>?""",
+            (*self._measured(s), s.verdict, int(s.remeasures), run_id, int(s.point_index),
+             float(s.t)))
         if cur.rowcount != 1:
-            raise StoreError(f"{self.path}: run {run_id} has no point {s.point_index} to "
-                             "replace")
+            if self.db.execute("SELECT count(*) FROM samples WHERE run_id=? AND "
+                               "point_index=?", (run_id, int(s.point_index))).fetchone()[0]:
+                return  # already replaced by this very sample
+            raise StoreError(f"{self.address}: run {run_id} has no point {s.point_index} "
+                             "to replace")
         for r in rejected:
             self._add_reading(run_id, r)
 
     def done_indices(self, run_id: int) -> set[int]:
         """Point indices already stored for the run."""
-        rows = self.con.execute("SELECT point_index FROM samples WHERE run_id=?", (run_id,))
-        return {int(r[0]) for r in rows}
+        rows = self.db.execute("SELECT point_index FROM samples WHERE run_id=?", (run_id,))
+        return {int(r[0]) for r in rows.fetchall()}
 
     def n_samples(self, run_id: int) -> int:
-        return int(self.con.execute("SELECT count(*) FROM samples WHERE run_id=?",
-                                    (run_id,)).fetchone()[0])
+        return int(self.db.execute("SELECT count(*) FROM samples WHERE run_id=?",
+                                   (run_id,)).fetchone()[0])
 
     def samples(self, run_id: int) -> Samples:
         """All samples of a run ordered by point index (:class:`Samples`)."""
-        rows = self.con.execute(
+        rows = self.db.execute(
             """SELECT point_index, pose_id, set_name, q_json, x, y, z, sx, sy, sz, n, t,
                temp_c, pressure_hpa, humidity_pct, cmd_x, cmd_y, cmd_z, dir_json, target_json,
                reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz,
@@ -557,7 +484,7 @@ class RunStore:
 
     def readings(self, run_id: int) -> list[Reading]:
         """The readings of a run that were not accepted, by point index, in order taken."""
-        rows = self.con.execute(
+        rows = self.db.execute(
             f"""SELECT r.point_index, r.reason, s.pose_id, s.set_name, {
                 ", ".join(f"r.{c.strip()}" for c in self._MEASURED.split(","))}
                FROM readings r LEFT JOIN samples s
@@ -588,12 +515,13 @@ class RunStore:
         re-measurements agreed with each other but not with the model, ``unresolved``
         points whose readings agreed with neither.
         """
-        rows = self.con.execute(
-            "SELECT verdict, count(*), sum(remeasures), sum(remeasures > 0) FROM samples "
+        rows = self.db.execute(
+            "SELECT verdict, count(*), sum(remeasures), "
+            "sum(CASE WHEN remeasures > 0 THEN 1 ELSE 0 END) FROM samples "
             "WHERE run_id=? GROUP BY verdict", (run_id,)).fetchall()
         by = {v: int(c) for v, c, _, _ in rows}
-        n_rejected = int(self.con.execute("SELECT count(*) FROM readings WHERE run_id=?",
-                                          (run_id,)).fetchone()[0])
+        n_rejected = int(self.db.execute("SELECT count(*) FROM readings WHERE run_id=?",
+                                         (run_id,)).fetchone()[0])
         return {"judged": sum(c for v, c in by.items() if v not in (None, "warmup")),
                 "warmup": by.get("warmup", 0),
                 "suspects": sum(int(k or 0) for _, _, _, k in rows),
@@ -605,22 +533,63 @@ class RunStore:
     def add_interruption(self, run_id: int, point_index: int | None, kind: str,
                          message: str) -> None:
         """Record an interruption (fault, retry, pause, Ctrl-C, kill found on resume)."""
-        with self.con:
-            self.con.execute(
-                "INSERT INTO interruptions (run_id, point_index, t, kind, message) "
-                "VALUES (?,?,?,?,?)",
-                (run_id, point_index, time.time(), kind, message),
-            )
+        self.db.execute(
+            "INSERT INTO interruptions (run_id, point_index, t, kind, message) "
+            "VALUES (?,?,?,?,?)",
+            (run_id, point_index, time.time(), kind, message),
+        )
 
     def interruptions(self, run_id: int) -> list[tuple[int | None, float, str, str]]:
         """(point index, time, kind, message) of every interruption of the run, in order."""
-        return [tuple(r) for r in self.con.execute(
+        return [tuple(r) for r in self.db.execute(
             "SELECT point_index, t, kind, message FROM interruptions WHERE run_id=? ORDER BY id",
-            (run_id,))]
+            (run_id,)).fetchall()]
 
-    def latest_run(self, routine: str, status: str = "completed") -> Run:
-        """The latest run of ``routine`` with ``status``; :class:`StoreError` when none."""
-        for r in reversed(self.runs()):
-            if r.routine == routine and r.status == status:
-                return r
-        raise StoreError(f"{self.path}: no {status} {routine} run")
+    # ---------------------------------------------------------- calibrations
+    def add_calibration(self, robot_id: str, params: dict, *, t: float | None = None,
+                        source_file: str | None = None, source_run: int | None = None,
+                        software: str | None = None) -> tuple[int, bool]:
+        """Record a calibration of ``robot_id`` (``params``: the params.json document).
+
+        ``t`` when its data were measured (default: now). Idempotent: the same
+        parameters recorded again for the same robot are not stored twice. Returns (its
+        id, True when new).
+        """
+        if not robot_id:
+            raise ValueError("a calibration needs a robot id")
+        text = json.dumps(params, sort_keys=True)
+        digest = hashlib.sha256(text.encode()).hexdigest()
+        now = time.time()
+        with self.db.transaction():
+            row = self.db.execute(
+                "INSERT INTO calibrations (robot_id, t, recorded, params_json, params_sha256, "
+                "source_file, source_run, software) VALUES (?,?,?,?,?,?,?,?) "
+                "ON CONFLICT DO NOTHING RETURNING id",
+                (robot_id, now if t is None else float(t), now, text, digest, source_file,
+                 source_run, software or _software_version())).fetchone()
+            if row is not None:
+                return int(row[0]), True
+            row = self.db.execute("SELECT id FROM calibrations WHERE robot_id=? AND "
+                                  "params_sha256=?", (robot_id, digest)).fetchone()
+        return int(row[0]), False
+
+    def calibrations(self, robot_id: str) -> list[Calibration]:
+        """The calibrations of ``robot_id`` in time order."""
+        rows = self.db.execute(
+            "SELECT id, robot_id, t, recorded, params_json, source_file, source_run, software "
+            "FROM calibrations WHERE robot_id=? ORDER BY t, id", (robot_id,)).fetchall()
+        return [Calibration(*r) for r in rows]
+
+    def robots(self) -> list[tuple[str, int]]:
+        """(robot id, number of calibrations) of every robot with calibrations."""
+        rows = self.db.execute("SELECT robot_id, count(*) FROM calibrations GROUP BY robot_id "
+                               "ORDER BY robot_id").fetchall()
+        return [(r[0], int(r[1])) for r in rows]
+
+
+def _software_version() -> str:
+    """``cellcal X.Y.Z`` (:func:`daq.cli.software_version`), recorded with runs and
+    calibrations."""
+    from .cli import software_version
+
+    return software_version()

@@ -1,11 +1,17 @@
-"""The run store's SQLite schema and the upgrades between its versions.
+"""The run store's schema and the upgrades between its versions, for both databases.
 
-``PRAGMA user_version`` holds the version. A new file is created at version 1
+The database holds the version (SQLite's ``PRAGMA user_version``, a ``schema_version``
+table on PostgreSQL: :mod:`daq.store_dialect`). A new store is created at version 1
 (:data:`SCHEMA_V1`) and brought to :data:`SCHEMA_VERSION` by the same upgrade functions
-an old file goes through (:data:`UPGRADES`, each run in one transaction by
+an old one goes through (:data:`UPGRADES`, each run in one transaction by
 :class:`daq.store.RunStore`). An upgrade function is frozen once released: it writes
-plain SQL and JSON, never through today's classes, so an old file upgrades the same
+plain SQL and JSON, never through today's classes, so an old store upgrades the same
 way whatever the code around it has become.
+
+An upgrade gets a :class:`daq.store_dialect.Database` and writes SQLite's spelling
+(``?`` placeholders; ``INTEGER PRIMARY KEY AUTOINCREMENT``, ``INTEGER``, ``REAL``,
+``TEXT`` in ``CREATE TABLE`` and ``ALTER TABLE ... ADD COLUMN``); the PostgreSQL
+database translates it, so one upgrade runs on both.
 
 Versions
     1. runs and samples.
@@ -26,16 +32,22 @@ Versions
        running model with its threshold; the ``readings`` table keeps every reading that
        was not accepted, with its reason (and, as a sample, the tracker's reflector, face
        and covariance). Additive: older rows read as never judged.
+    7. who the robot is and its calibration history (additive): ``runs.robot_id`` and the
+       ``calibrations`` table (robot id, time, params.json, source file/run, software).
+
+The version list is :data:`UPGRADES` alone (:data:`SCHEMA_VERSION` is its length + 1): a
+new upgrade is one function appended there, named for what it adds, so upgrades made on
+parallel branches are renumbered by ordering that list.
 """
 
 from __future__ import annotations
 
 import json
-import sqlite3
 from collections.abc import Callable
+from typing import Any
 
-#: current schema version (PRAGMA user_version)
-SCHEMA_VERSION = 6
+#: what an upgrade gets: a daq.store_dialect.Database (anything with ``execute(sql, params)``)
+Connection = Any
 
 SCHEMA_V1 = """
 CREATE TABLE runs (
@@ -64,7 +76,7 @@ CREATE TABLE samples (
 """
 
 
-def _upgrade_1_to_2(con: sqlite3.Connection) -> None:
+def _upgrade_1_to_2(con: Connection) -> None:
     """v2: frame/summary/options per run; pressure, humidity, commanded TCP, approach
     directions and attempts per sample; the interruptions table."""
     for col in ("frame_json TEXT", "summary_json TEXT", "options_json TEXT"):
@@ -121,7 +133,7 @@ def context_from_v2(routine: str, model: str | None, robot_url: str | None,
     return ctx
 
 
-def _upgrade_2_to_3(con: sqlite3.Connection) -> None:
+def _upgrade_2_to_3(con: Connection) -> None:
     """v3: the loose ``options_json`` becomes a versioned run context (``context_json``)."""
     con.execute("ALTER TABLE runs ADD COLUMN context_json TEXT")
     rows = con.execute("SELECT id, routine, model, robot_url, tracker_url, seed, options_json "
@@ -138,13 +150,13 @@ _V4_SAMPLE_COLUMNS = ("reflector TEXT", "face INTEGER", "cov_xx REAL", "cov_xy R
                       "cov_xz REAL", "cov_yy REAL", "cov_yz REAL", "cov_zz REAL")
 
 
-def _upgrade_3_to_4(con: sqlite3.Connection) -> None:
+def _upgrade_3_to_4(con: Connection) -> None:
     """v4: per-sample tracker metadata (reflector, face, covariance); NULL in old rows."""
     for col in _V4_SAMPLE_COLUMNS:
         con.execute(f"ALTER TABLE samples ADD COLUMN {col}")
 
 
-def _upgrade_4_to_5(con: sqlite3.Connection) -> None:
+def _upgrade_4_to_5(con: Connection) -> None:
     """v5 (additive): the ``leases`` table; per run ``robot_identity``,
     ``tracker_identity`` (JSON) and ``source_run``; each run context gets the motion
     limits its moves were made under before v5: no floor (the executor checked none,
@@ -169,7 +181,7 @@ def _upgrade_4_to_5(con: sqlite3.Connection) -> None:
     )
 
 
-def _upgrade_5_to_6(con: sqlite3.Connection) -> None:
+def _upgrade_5_to_6(con: Connection) -> None:
     """v6 (additive): the verdict on each sample's reading and the readings not accepted."""
     for col in ("verdict TEXT", "remeasures INTEGER DEFAULT 0", "model_residual_mm REAL",
                 "model_threshold_mm REAL"):
@@ -193,7 +205,40 @@ def _upgrade_5_to_6(con: sqlite3.Connection) -> None:
     con.execute("CREATE INDEX readings_run ON readings(run_id, point_index)")
 
 
-#: UPGRADES[k] takes a database from version k+1 to k+2
-UPGRADES: list[Callable[[sqlite3.Connection], None]] = [_upgrade_1_to_2, _upgrade_2_to_3,
-                                                        _upgrade_3_to_4, _upgrade_4_to_5,
-                                                        _upgrade_5_to_6]
+def _upgrade_robot_history(con: Connection) -> None:
+    """v7 (additive): who the robot of a run is (``runs.robot_id``: the controller's
+    ``MODEL/SERIAL`` or a name given at the cell) and the ``calibrations`` table: one row
+    per calibration of a robot, its params.json as recorded (``params_sha256`` makes
+    recording the same one twice a no-op), when its data were measured (``t``) and
+    recorded, where they came from and which software fitted them."""
+    con.execute("ALTER TABLE runs ADD COLUMN robot_id TEXT")
+    con.execute("CREATE INDEX runs_robot ON runs(robot_id)")
+    con.execute(
+        """CREATE TABLE calibrations (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            robot_id TEXT NOT NULL,
+            t REAL NOT NULL,
+            recorded REAL NOT NULL,
+            params_json TEXT NOT NULL,
+            params_sha256 TEXT NOT NULL,
+            source_file TEXT,
+            source_run INTEGER,
+            software TEXT,
+            UNIQUE(robot_id, params_sha256)
+        )"""
+    )
+    con.execute("CREATE INDEX calibrations_robot ON calibrations(robot_id, t)")
+
+
+#: UPGRADES[k] takes a database from version k+1 to k+2 (the one list of versions)
+UPGRADES: list[Callable[[Connection], None]] = [
+    _upgrade_1_to_2,            # 2: frame, summary, interruptions
+    _upgrade_2_to_3,            # 3: run contexts
+    _upgrade_3_to_4,            # 4: reflector, face, covariance per sample
+    _upgrade_4_to_5,            # 5: leases, device identities
+    _upgrade_5_to_6,            # 6: re-measure (verdicts, readings)
+    _upgrade_robot_history,     # 7: runs.robot_id, calibrations
+]
+
+#: current schema version (SQLite's PRAGMA user_version, PostgreSQL's schema_version)
+SCHEMA_VERSION = len(UPGRADES) + 1

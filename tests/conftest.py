@@ -78,3 +78,36 @@ def no_leaks():
         problems.append(f"{len(sockets)} socket(s) left open")
     if problems:
         pytest.fail("leak: " + "; ".join(problems), pytrace=False)
+
+
+# ------------------------------------------------------------------ PostgreSQL
+@pytest.fixture(scope="session")
+def pg_server():
+    """A throwaway PostgreSQL server for the session (:mod:`tests.pg_server`); skipped only
+    when the server binaries are not installed."""
+    from tests.pg_server import INSTALL_HINT, PgServer, find_bindir
+
+    if find_bindir() is None:
+        pytest.skip(f"PostgreSQL server binaries (initdb, pg_ctl) not found: {INSTALL_HINT}")
+    with PgServer.start_new() as server:
+        yield server
+
+
+_db_counter = iter(range(10**6))
+
+
+@pytest.fixture
+def pg_url(pg_server):
+    """A new, empty database on the session's server (dropped afterwards): its URL."""
+    name = f"t{os.getpid()}_{next(_db_counter)}"
+    url = pg_server.create_database(name)
+    yield url
+    pg_server.drop_database(name)
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def store_address(request, tmp_path):
+    """A run store address of each backend: a new SQLite file, a new PostgreSQL database."""
+    if request.param == "sqlite":
+        return str(tmp_path / "cell.db")
+    return request.getfixturevalue("pg_url")

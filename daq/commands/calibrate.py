@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 
@@ -54,6 +55,13 @@ def register(sub) -> None:
                    "them, keep: fit every point, no test")
     p.add_argument("--ridge-plot", metavar="FILE.png",
                    help="with --solver ridge: save the L-curve, GCV and ridge trace here")
+    p.add_argument("--db", metavar="cell.db|URL",
+                   help="record the calibration (its params.json) in this run store, a SQLite "
+                   "file or a postgresql:// URL, for `cellcal history` (needs --robot-id "
+                   "unless the data name their robot)")
+    p.add_argument("--robot-id", metavar="NAME",
+                   help="the robot calibrated (default with --db: the robot_id the data were "
+                   "exported with)")
     p.set_defaults(func=run)
 
 
@@ -89,17 +97,69 @@ def calibrate(args):
 
 
 def run(args) -> int:
-    from calibration.params_io import fit_to_dict, params_by_name, solver_summary
-    from calibration.uncertainty import correlations, monte_carlo
-    from presentation.summaries import fit_summary
-
     ridge_plot = getattr(args, "ridge_plot", None)
     if ridge_plot and args.solver != "ridge":
         raise UsageError("--ridge-plot needs --solver ridge")
     n_mc = getattr(args, "monte_carlo", 0) or 0
     if n_mc and n_mc < 2:
         raise UsageError("--monte-carlo needs N >= 2")
-    fit, baseline = calibrate(args)
+    if getattr(args, "robot_id", None) and not getattr(args, "db", None):
+        raise UsageError("--robot-id needs --db (where the calibration is recorded)")
+    store = _open_history_store(args) if getattr(args, "db", None) else None
+    try:
+        fit, baseline = calibrate(args)
+        recorded = _record(store, args, fit) if store is not None else None
+    finally:
+        if store is not None:
+            store.close()
+    return _report(args, fit, baseline, ridge_plot, n_mc, recorded)
+
+
+def _open_history_store(args):
+    from ..store import StoreError, open_store
+
+    try:
+        return open_store(args.db)
+    except (StoreError, OSError) as e:
+        raise UsageError(str(e)) from None
+
+
+def _record(store, args, fit) -> dict | None:
+    """Record the calibration in the store: ``{"id", "robot_id", "new", "db"}``, or None
+    for a fit that did not converge (not recorded). Its time is when the data were
+    measured (the latest ``t_s``, when those are epoch times), else now."""
+    import numpy as np
+
+    from calibration.params_io import fit_to_dict
+
+    from ..store import StoreError
+
+    data = fit.data
+    robot_id = args.robot_id or data.meta.get("robot_id")
+    if not robot_id:
+        raise UsageError(f"{args.data}: the data name no robot: give --robot-id")
+    if not fit.converged:
+        return None
+    t = None
+    if data.t_s is not None and np.isfinite(data.t_s).any() and np.nanmax(data.t_s) > 1e9:
+        t = float(np.nanmax(data.t_s))  # epoch times (not seconds from a start)
+    source_run = None
+    if data.meta.get("run", "").isdigit():  # exported from a run: of this store?
+        with contextlib.suppress(StoreError):
+            run = store.run(int(data.meta["run"]))
+            if run.plan_hash == data.meta.get("plan_hash"):
+                source_run = run.id
+    cal_id, new = store.add_calibration(
+        robot_id, fit_to_dict(fit, args.effect_file, capture=data.capture), t=t,
+        source_file=str(Path(args.data).resolve()), source_run=source_run)
+    return {"id": cal_id, "robot_id": robot_id, "new": new, "db": store.address}
+
+
+def _report(args, fit, baseline, ridge_plot, n_mc, recorded) -> int:
+    from calibration.params_io import fit_to_dict, params_by_name, solver_summary
+    from calibration.uncertainty import correlations, monte_carlo
+    from presentation.summaries import fit_summary
+
     if ridge_plot:
         from presentation.ridge_plot import plot_ridge
 
@@ -129,9 +189,18 @@ def run(args) -> int:
             out["monte_carlo"] = mc_summary(mc, fit)
         if ridge_plot:
             out["ridge_plot"] = ridge_plot
+        if getattr(args, "db", None):
+            out["calibration"] = recorded
         print_json(out)
         return 0 if fit.converged else 1
     print_report(fit, baseline, args.out, mc, ridge_plot)
+    if getattr(args, "db", None):
+        print()
+        if recorded is None:
+            print(f"not recorded in {args.db}: the fit did not converge")
+        else:
+            print(f"{'recorded' if recorded['new'] else 'already recorded'} as calibration "
+                  f"{recorded['id']} of robot {recorded['robot_id']} in {recorded['db']}")
     return 0 if fit.converged else 1
 
 

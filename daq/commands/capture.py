@@ -39,6 +39,9 @@ EXEC_FLAGS = [
     ("--remeasure", "remeasure", int,
      "re-measure a reading out of line with the model fitted so far up to N times, moving "
      "away and back (default 2; 0: no model check)"),
+    ("--store-wait", "store_wait_s", float,
+     "a lost run store connection (PostgreSQL): wait this long for it, holding the robot, "
+     "before pausing the run, s (default 30)"),
 ]
 
 
@@ -48,9 +51,10 @@ def metavar(typ) -> str:
 
 
 def add_common(p, *, resume: bool = False) -> None:
-    p.add_argument("--db", required=True, metavar="cell.db",
-                   help="the run store (SQLite file; created when missing)" if not resume
-                   else "the run store (SQLite file)")
+    from .common import DB_HELP
+
+    p.add_argument("--db", required=True, metavar="cell.db|URL",
+                   help=DB_HELP + ("; a file is created when missing" if not resume else ""))
     p.add_argument("--robot", required=not resume, metavar="URL",
                    help="robot driver URL, e.g. modbus+tcp://127.0.0.1:15020?unit=1 (README: "
                    "At the cell)" + (" (default: the run's)" if resume else ""))
@@ -61,6 +65,9 @@ def add_common(p, *, resume: bool = False) -> None:
                    help="do not ask before moving devices that did not identify themselves "
                    "as simulators (any real controller, whatever its address)")
     p.add_argument("--json", action="store_true", help="print one JSON object, no progress")
+    p.add_argument("--robot-id", metavar="NAME", default=None,
+                   help="who the robot is, recorded with the run (default: the controller's "
+                   "MODEL/SERIAL when its protocol reports one)")
     p.add_argument("--synchronous", choices=("FULL", "NORMAL"), default="FULL",
                    help=argparse.SUPPRESS)
 
@@ -114,11 +121,12 @@ def register(sub) -> None:
         help="run a capture routine into the run store",
         description="Make a routine's plan, dry-run it against the model (joint limits, "
         "reach, floor), then move and measure point by point; every sample is committed to "
-        "the SQLite run store at once. Resume an interrupted run with `cellcal resume`. "
-        "`cellcal capture ROUTINE --help` describes a routine and its options.\n\n"
+        "the run store (a SQLite file or PostgreSQL) at once. Resume an interrupted run with "
+        "`cellcal resume`. `cellcal capture ROUTINE --help` describes a routine and its "
+        "options.\n\n"
         "Exit codes: 0 completed; 1 paused (protective stop, rejected command, retries "
-        "exhausted) or failed; 2 bad input or a plan refused by the dry run (the offending "
-        "points are named); 130 stopped with Ctrl-C (resumable).",
+        "exhausted, run store unreachable) or failed; 2 bad input or a plan refused by the "
+        "dry run (the offending points are named); 130 stopped with Ctrl-C (resumable).",
     )
     rsub = add_subcommands(p, "routine", "ROUTINE")
     for name, spec in ROUTINE_ARGS.items():
@@ -278,15 +286,21 @@ def check_line(c: dict) -> str:
 
 def run_and_report(command: str, as_json: bool, go) -> int:
     """``go(progress)`` (a service call returning a ``RunOutcome``) with a progress line;
-    prints the outcome and returns the exit code (1 when the devices cannot be reached)."""
+    prints the outcome and returns the exit code (1 when the devices or the run store cannot
+    be reached)."""
     from ..errors import ConnectFailed
     from ..progress import Progress
+    from ..store import StoreUnavailable
 
     progress = Progress(enabled=not as_json)
     try:
         outcome = go(progress)
     except ConnectFailed as e:
         print(f"cellcal {command}: cannot connect: {e}", file=sys.stderr)
+        return 1
+    except StoreUnavailable as e:
+        print(f"cellcal {command}: run store unreachable: {e}; `cellcal resume` once it is "
+              "back", file=sys.stderr)
         return 1
     finally:
         progress.close()
@@ -352,7 +366,7 @@ def request_from_args(args):
         floor_z_mm=limits.floor_z_mm, max_reach_mm=limits.max_reach_mm,
         frame_run=args.frame_run, executor=executor_options(flag_values(args, EXEC_FLAGS)),
         acquire=flag_values(args, spec.acquire_flags), motion=limits,
-        tracker=TrackerSetup(**tracker_setup(args)))
+        tracker=TrackerSetup(**tracker_setup(args)), robot_id=args.robot_id)
 
 
 def run(args) -> int:

@@ -164,12 +164,20 @@ def print_outliers(screen, context: str = "fit") -> None:
                            "angle deg"]))
 
 
-def open_store(path, synchronous: str = "FULL"):
-    """An existing run store; a missing file or an unreadable store is a UsageError (never
-    create an empty store for a mistyped path)."""
-    from ..store import RunStore, StoreError
+#: the ``--db`` help of every command that reads or writes a run store
+DB_HELP = ("run store: a SQLite file or a PostgreSQL URL postgresql://user@host[:port]/db "
+           "(password from PGPASSWORD or ~/.pgpass)")
+
+
+def open_store(address, synchronous: str = "FULL", *, read_only: bool = False):
+    """An existing run store (a file or a ``postgresql://`` URL); a missing or unreadable
+    store, or a server that cannot be reached, is a UsageError (never create an empty
+    store for a mistyped address)."""
+    from ..store import StoreError
+    from ..store import open_store as open_run_store
 
     try:
-        return RunStore.open_existing(path, synchronous=synchronous)
+        return open_run_store(address, create=False, read_only=read_only,
+                              synchronous=synchronous)
     except (StoreError, OSError) as e:
         raise UsageError(str(e)) from None

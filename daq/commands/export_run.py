@@ -34,6 +34,8 @@ from ..cli import UsageError, command_parser
 
 
 def register(sub) -> None:
+    from .common import DB_HELP
+
     p = command_parser(
         sub, "export", help="write a run's samples as a measurement CSV",
         description="Write a run's samples as a measurement CSV (docs/formats.md §1), read "
@@ -42,12 +44,12 @@ def register(sub) -> None:
         "known for every point), temp_c, t_s, sigma_mm, dir1..dirN (approach directions), "
         "set (when some rows are validation rows).\n\n"
         "The `# key: value` header carries the run's context: run, store, model, tool_mm "
-        "(the controller's TCP: the nominal tool of later fits), smr_radius_mm, "
+        "(the controller's TCP: the nominal tool of later fits), robot_id, smr_radius_mm, "
         "frame_run and tracker_T_base (the measurement frame), tracker_sigma_mm, URLs, "
         "software.")
     p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN",
                    help="run id (default: the latest)")
-    p.add_argument("--db", required=True, metavar="cell.db", help="the run store (SQLite file)")
+    p.add_argument("--db", required=True, metavar="cell.db|URL", help=DB_HELP)
     p.add_argument("--out", required=True, metavar="data.csv", help="CSV to write ('-': stdout)")
     p.add_argument("--postures", action="store_true",
                    help="a zero20 run: write the zero-point postures CSV (pose_id, plane, "

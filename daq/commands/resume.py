@@ -65,9 +65,10 @@ def run(args) -> int:
     executor_options(flag_values(args, EXEC_FLAGS))  # checked before anything else
     store = open_store(args.db, synchronous=args.synchronous)
     try:
-        with Leases(store.path) as leases:
+        with Leases(store) as leases:
             res = prepare_resume(store, args.run_id, robot_url=args.robot,
-                                 tracker_url=args.tracker, leases=leases)
+                                 tracker_url=args.tracker, leases=leases,
+                                 robot_id=args.robot_id)
             r = res.run
             if res.completed:
                 print(f"run {r.id} is already completed ({res.done}/{r.n_points} points)",

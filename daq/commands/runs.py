@@ -16,15 +16,19 @@ from ..cli import UsageError, command_parser
 
 
 def register(sub) -> None:
+    from .common import DB_HELP
+
     p = command_parser(
         sub, "runs", help="list the runs in a run store, or show one",
         description="List the runs of a run store (id, routine, status, points stored, "
-        "model, start time, interruptions, beam breaks, points skipped, why it stopped); "
+        "model, robot id, start time, interruptions, beam breaks, points skipped, points "
+        "re-measured, why it stopped; --robot-id: only that robot's); "
         "with RUN, show that run: its devices, context (tool, SMR, measurement frame, "
         "tracker checks, executor settings), summary and interruptions.")
     p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN",
                    help="show this run in detail, with its interruptions")
-    p.add_argument("--db", required=True, metavar="cell.db", help="the run store (SQLite file)")
+    p.add_argument("--db", required=True, metavar="cell.db|URL", help=DB_HELP)
+    p.add_argument("--robot-id", metavar="NAME", default=None, help="only this robot's runs")
     p.add_argument("--json", action="store_true",
                    help="print JSON (a list of runs, or one run with its context)")
     p.set_defaults(func=run)
@@ -40,6 +44,7 @@ def _time(t) -> str:
 def _run_dict(store, r) -> dict:
     return {"run": r.id, "routine": r.routine, "status": r.status, "reason": r.reason,
             "points": r.n_points, "samples": store.n_samples(r.id), "model": r.model,
+            "robot_id": r.robot_id,
             "robot": r.robot_url, "tracker": r.tracker_url, "robot_desc": r.robot_desc,
             "tracker_desc": r.tracker_desc, "software": r.software, "seed": r.seed,
             "started": r.started, "stopped": r.stopped, "plan_hash": r.plan_hash,
@@ -95,6 +100,8 @@ def print_run(store, r, interruptions) -> None:
             c.reflector, None if c.smr_radius_mm is None else f"radius {c.smr_radius_mm:g} mm")
             if x))
     print(f"{'robot':10s} {r.robot_url or '-'}" + (f"  ({r.robot_desc})" if r.robot_desc else ""))
+    if r.robot_id:
+        print(f"{'robot id':10s} {r.robot_id}")
     print(f"{'tracker':10s} {r.tracker_url or '-'}"
           + (f"  ({r.tracker_desc})" if r.tracker_desc else ""))
     elapsed = (f" ({r.stopped - r.started:.1f} s)" if r.started and r.stopped else "")
@@ -165,7 +172,7 @@ def run(args) -> int:
                     print(f"  {_time(x['t'])}  point {x['point']} ({x['pose_id']}): "
                           f"{x['reason']}")
             return 0
-        runs = store.runs()
+        runs = store.runs(args.robot_id)
         if args.json:
             print_json([_run_dict(store, r) for r in runs])
             return 0
@@ -173,12 +180,12 @@ def run(args) -> int:
         for r in runs:
             kinds = [k for _, _, k, _ in store.interruptions(r.id)]
             rows.append([str(r.id), r.routine, r.status, f"{store.n_samples(r.id)}/{r.n_points}",
-                         r.model or "-", _time(r.started), len(kinds), kinds.count("beam"),
-                         kinds.count("skipped"), store.remeasure_counts(r.id)["suspects"],
-                         (r.reason or "")[:60]])
-        print(table(rows, ["run", "routine", "status", "points", "model", "started",
+                         r.model or "-", r.robot_id or "-", _time(r.started), len(kinds),
+                         kinds.count("beam"), kinds.count("skipped"),
+                         store.remeasure_counts(r.id)["suspects"], (r.reason or "")[:60]])
+        print(table(rows, ["run", "routine", "status", "points", "model", "robot", "started",
                            "interruptions", "beam breaks", "skipped", "remeasured", "reason"],
-                    left=(0, 1, 2, 4, 5, 10)))
+                    left=(0, 1, 2, 4, 5, 6, 11)))
         return 0
     finally:
         store.close()

@@ -28,6 +28,7 @@ import math
 from pathlib import Path
 
 from ..cli import UsageError, command_parser
+from ..store_dialect import display_address
 from .common import fmt, open_store, print_json, table, wrap_errors
 
 #: tip scatter per axis of taught postures, mm (:data:`calibration.zero_point.DEFAULT_SIGMA_MM`,
@@ -62,10 +63,13 @@ def register(sub) -> None:
     )
     p.add_argument("postures", metavar="POSTURES.csv", nargs="?", default=None,
                    help="zero-point postures CSV (or --db)")
-    p.add_argument("--db", metavar="cell.db",
-                   help="read the postures from a zero20 run in this run store instead of a CSV")
+    p.add_argument("--db", metavar="cell.db|URL",
+                   help="read the postures from a zero20 run in this run store (a SQLite file "
+                   "or a postgresql:// URL) instead of a CSV")
     p.add_argument("--run", type=int, default=None, metavar="N",
                    help="with --db: the zero20 run (default: the latest completed one)")
+    p.add_argument("--robot-id", metavar="NAME", default=None,
+                   help="with --db: the latest completed zero20 run of this robot")
     p.add_argument("--model", default=None, metavar="NAME|PATH",
                    help="built-in model name or a model YAML file (default: the run's model, "
                    "or the CSV's `# model:` line)")
@@ -187,12 +191,12 @@ def run(args) -> int:
         raise UsageError("--tolerance-deg must be a positive number")
     if (args.postures is None) == (args.db is None):
         raise UsageError("give a postures CSV or --db cell.db (not both)")
-    if args.run is not None and args.db is None:
-        raise UsageError("--run needs --db")
+    if (args.run is not None or args.robot_id is not None) and args.db is None:
+        raise UsageError("--run and --robot-id need --db")
     notes = []
     if args.db is not None:
         model, postures = _from_store(args)
-        source = f"{args.db} run {postures.run_id}"
+        source = f"{display_address(args.db)} run {postures.run_id}"
     else:
         meta = read_meta(args.postures)
         name = args.model or meta.get("model")
@@ -277,7 +281,8 @@ def _from_store(args):
     try:
         with open_store(args.db) as store:
             # tips stay in the tracker frame when --params gives the base pose
-            postures, r = postures_from_run(store, args.run, to_base=not args.params)
+            postures, r = postures_from_run(store, args.run, to_base=not args.params,
+                                            robot_id=args.robot_id)
             data = dataset_from_run(store, r.id)  # approach directions, temperature
     except StoreError as e:
         raise UsageError(str(e)) from None

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import contextlib
+import os
+import select
 import signal
 import sqlite3
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -97,6 +100,40 @@ def run_plan(store: RunStore, plan, robot, tracker, model=None, options=None, ru
                            context=context).status
 
 
+def read_lines(proc, n, timeout):
+    """The first ``n`` non-empty lines ``proc`` prints on stdout (within ``timeout`` s)."""
+    lines, buf = [], b""
+    deadline = time.monotonic() + timeout
+    fd = proc.stdout.fileno()
+    while len(lines) < n:
+        left = deadline - time.monotonic()
+        assert left > 0, f"only got {lines}"
+        if select.select([fd], [], [], left)[0]:
+            chunk = os.read(fd, 4096)
+            assert chunk, "cellcal sim serve exited early"
+            buf += chunk
+            *done, buf = buf.split(b"\n")
+            lines += [d.decode().strip() for d in done if d.strip()]
+    return lines
+
+
+def count_samples(address) -> int:
+    """Samples stored in the run store at ``address`` (a file or a PostgreSQL URL), read
+    on a connection of its own; 0 while there is no store yet or the server is away."""
+    from daq.store_dialect import StoreError, connect
+
+    try:
+        db = connect(address, read_only=True, timeout_s=2.0)
+    except StoreError:
+        return 0
+    try:
+        return int(db.execute("SELECT count(*) FROM samples").fetchone()[0])
+    except (StoreError, sqlite3.OperationalError):
+        return 0
+    finally:
+        db.close()
+
+
 @contextlib.contextmanager
 def sim_serve(*args: str):
     """``cellcal sim serve ARGS`` as a subprocess (stdout piped; on free ports unless ARGS
@@ -117,14 +154,3 @@ def sim_serve(*args: str):
             serve.wait()
         serve.stdout.close()
 
-
-def count_samples(db) -> int:
-    """Samples stored in the run store ``db`` so far (read-only; 0 before it exists)."""
-    try:
-        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5)
-        try:
-            return int(con.execute("SELECT count(*) FROM samples").fetchone()[0])
-        finally:
-            con.close()
-    except sqlite3.OperationalError:
-        return 0

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
-import select
 import signal
 import subprocess
 import sys
@@ -28,6 +26,7 @@ from .capture_helpers import (
     base_only_truth,
     connected,
     count_samples,
+    read_lines,
     rough_cell,
     run_plan,
     served_cell,
@@ -96,35 +95,20 @@ def test_steps_export_calibrates(tmp_path, capsys):
     assert out["calib"]["rms_mm"] < 0.1
 
 
-def _read_lines(proc, n, timeout):
-    lines, buf = [], b""
-    deadline = time.monotonic() + timeout
-    fd = proc.stdout.fileno()
-    while len(lines) < n:
-        left = deadline - time.monotonic()
-        assert left > 0, f"only got {lines}"
-        if select.select([fd], [], [], left)[0]:
-            chunk = os.read(fd, 4096)
-            assert chunk, "cellcal sim serve exited early"
-            buf += chunk
-            *done, buf = buf.split(b"\n")
-            lines += [d.decode().strip() for d in done if d.strip()]
-    return lines
-
-
 @pytest.mark.slow
-def test_sigkill_three_times_then_resume(tmp_path):
-    db = tmp_path / "cell.db"
+def test_sigkill_three_times_then_resume(store_address):
+    """Over sockets into a SQLite file and into PostgreSQL: killed three times, resumed."""
+    db = store_address
     rng = np.random.default_rng(7)
     cli = [sys.executable, "-m", "daq"]
     with sim_serve("--no-pty", "--seed", "5") as serve:
-        urls = _read_lines(serve, 3, timeout=30)
+        urls = read_lines(serve, 3, timeout=30)
         robot, tracker = urls[1], urls[2]
         capture = [*cli, "capture", "poses", "--count", "150", "--seed", "2", "--model",
                    "ur10e", "--tool-mm", "0,0,60", "--no-floor", "--tracker-at", "2500,0,500",
                    "--robot", robot,
-                   "--tracker", tracker, "--db", str(db), "--json"]
-        resume = [*cli, "resume", "--db", str(db), "--json"]
+                   "--tracker", tracker, "--db", db, "--json"]
+        resume = [*cli, "resume", "--db", db, "--json"]
         kills = []
         for k in range(3):
             start = count_samples(db)

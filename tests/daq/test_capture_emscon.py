@@ -19,8 +19,7 @@ import pytest
 from calibration import load_csv, load_model
 from daq.store import RunStore
 
-from .capture_helpers import ROOT, sim_serve
-from .test_capture_e2e import _read_lines
+from .capture_helpers import ROOT, read_lines, sim_serve
 
 CLI = [sys.executable, "-m", "daq"]
 #: routine -> its flags, in the order they run into one store (frame first: the others
@@ -50,7 +49,7 @@ def _capture(routine: str, robot: str, tracker: str, db, *extra: str) -> dict:
 def test_every_routine_over_emscon_records_the_trackers_metadata(tmp_path):
     db = tmp_path / "cell.db"
     with sim_serve("--no-pty", "--no-rtde", "--seed", "4") as serve:
-        urls = _read_lines(serve, 4, timeout=30)
+        urls = read_lines(serve, 4, timeout=30)
         robot, emscon = urls[1], urls[3]
         assert emscon.startswith("emscon://127.0.0.1:")
         docs = {name: _capture(name, robot, emscon, db, *flags)
@@ -98,7 +97,7 @@ def test_every_routine_over_emscon_records_the_trackers_metadata(tmp_path):
 @pytest.mark.slow
 def test_capture_poses_over_emscon_matches_the_line_tracker(tmp_path):
     with sim_serve("--no-pty", "--no-rtde", "--seed", "4") as serve:
-        urls = _read_lines(serve, 4, timeout=30)
+        urls = read_lines(serve, 4, timeout=30)
         robot, line_tracker, emscon = urls[1], urls[2], urls[3]
         runs = {}
         for name, tracker in (("emscon", emscon), ("line", line_tracker)):
@@ -130,7 +129,7 @@ def test_sim_serve_switches_make_the_checks_refuse(tmp_path):
     db = tmp_path / "cell.db"
     with sim_serve("--no-pty", "--no-rtde", "--no-weather-station",
                    "--tracker-collimation-urad", "40") as serve:
-        urls = _read_lines(serve, 4, timeout=30)
+        urls = read_lines(serve, 4, timeout=30)
         base = [*CLI, "capture", "poses", "--count", "5", "--model", "ur10e", "--tool-mm",
                 "0,0,60", "--no-floor", "--robot", urls[1], "--tracker", urls[3], "--db",
                 str(db)]

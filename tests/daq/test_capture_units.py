@@ -1,10 +1,9 @@
-"""Plans, dry run, frame fits, store schema and upgrades, executor control flow, CLI safety."""
+"""Plans, dry run, frame fits, executor control flow, CLI safety."""
 
 from __future__ import annotations
 
 import io
 import json
-import sqlite3
 
 import numpy as np
 import pytest
@@ -20,10 +19,9 @@ from daq.plans import Plan, Target
 from daq.progress import Progress
 from daq.routines import make_plan
 from daq.routines.poses import observability
-from daq.run_context import ExecutorOptions, RunContext
+from daq.run_context import ExecutorOptions
 from daq.run_data import dataset_from_run
-from daq.store import RunStore, Sample, StoreError
-from daq.store_schema import SCHEMA_V1, SCHEMA_VERSION
+from daq.store import RunStore
 from drivers.protocols import DeviceIdentity
 from drivers.urls import open_robot, open_tracker
 
@@ -123,58 +121,7 @@ def test_measurement_frame_recovers_a_known_transform():
 
 
 # ---------------------------------------------------------------- store
-def _sample(i, n_joints=3):
-    return Sample(point_index=i, joints_rad=np.full(n_joints, 0.1 * i),
-                  tracker_p_smr=np.array([i, 2.0, 3.0]), std_mm=np.full(3, 0.01), n=500,
-                  t=1000.0 + i, pose_id=f"p{i}", temp_c=20.0,
-                  base_p_tcp_cmd=np.array([1.0, 2.0, 3.0]), dirs=np.array([1, 0, -1]))
-
-
-def test_store_is_idempotent_and_durable(tmp_path):
-    plan = make_plan("poses", TOYM, count=5, seed=0)
-    with RunStore(tmp_path / "s.db") as st:
-        assert st.version == SCHEMA_VERSION
-        assert st.con.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
-        assert st.con.execute("PRAGMA synchronous").fetchone()[0] == 2  # FULL
-        rid = st.create_run(plan, RunContext(routine="poses", robot_url="sim://robot", seed=0,
-                                             model="toy"))
-        assert st.add_sample(rid, _sample(0)) is True
-        assert st.add_sample(rid, _sample(0)) is False  # second write of a point is ignored
-        st.add_sample(rid, _sample(3))
-        st.add_interruption(rid, 3, "beam", "BEAM_BROKEN")
-        assert st.done_indices(rid) == {0, 3}
-    with RunStore(tmp_path / "s.db") as st:  # reopened: all there
-        assert st.n_samples(rid) == 2 and st.interruptions(rid)[0][2] == "beam"
-        assert st.run().id == rid and st.run().plan_hash == plan.hash
-        with pytest.raises(StoreError, match="no run 9"):
-            st.run(9)
-
-
-def test_upgrade_from_a_v1_store(tmp_path):
-    path = tmp_path / "v1.db"
-    con = sqlite3.connect(path)
-    con.executescript(SCHEMA_V1)
-    con.execute("INSERT INTO runs (routine, plan_json, plan_hash, n_points, status, model) "
-                "VALUES ('poses', '{}', 'abc', 2, 'completed', 'toyarm')")
-    con.execute("INSERT INTO samples (run_id, point_index, pose_id, q_json, x, y, z, sx, sy, sz, "
-                "n, t, temp_c) VALUES (1, 0, 'a', '[0.1, 0.2, 0.3]', 1, 2, 3, .01, .01, .01, "
-                "10, 5.0, 20.5)")
-    con.execute("PRAGMA user_version=1")
-    con.commit()
-    con.close()
-    with RunStore(path) as st:
-        assert st.version == SCHEMA_VERSION
-        assert st.run(1).routine == "poses" and st.run(1).frame is None
-        s = st.samples(1)
-        assert s.joints_rad.tolist() == [[0.1, 0.2, 0.3]] and np.isnan(s.base_p_tcp_cmd).all()
-        st.add_interruption(1, None, "test", "the new table exists")
-        assert st.interruptions(1)[0][2] == "test"
-    con = sqlite3.connect(path)
-    con.execute(f"PRAGMA user_version={SCHEMA_VERSION + 1}")
-    con.commit()
-    con.close()
-    with pytest.raises(StoreError, match="newer"):
-        RunStore(path)
+# the store's own tests: test_store.py (both backends)
 
 
 def test_export_loads_and_identifies(tmp_path):

@@ -125,11 +125,12 @@ def test_upgraded_store_exports_as_schema_2_did(v2_db, tmp_path, capsys):
     capsys.readouterr()
     assert main(["runs", "--db", str(v2_db), "--json"]) == 0
     runs = json.loads(capsys.readouterr().out)
-    # schema 4 added the re-measure counts (nothing judged, nothing re-measured)
+    # schema 6 added the re-measure counts (nothing judged, nothing re-measured)
     assert all(r.pop("remeasure") == {"judged": 0, "warmup": 0, "suspects": 0,
                                       "remeasurements": 0, "rejected": 0,
                                       "model_disagrees": 0, "unresolved": 0} for r in runs)
-    assert runs == json.loads((V2 / "runs.json").read_text())
+    # schema 7 added who the robot is: unknown here
+    assert runs == [{**r, "robot_id": None} for r in json.loads((V2 / "runs.json").read_text())]
 
 
 def test_paused_schema_2_run_resumes_with_its_context(v2_db, capsys):
@@ -173,7 +174,7 @@ def test_schema_3_gains_reflector_face_and_covariance(v3_db, tmp_path):
     n_cols = len(before[0])
     con.close()
     with RunStore(v3_db) as st:
-        assert st.version == SCHEMA_VERSION == 6
+        assert st.version == SCHEMA_VERSION
         s = st.samples(2)
         assert s.reflector == [None] * len(s) and np.all(s.face == 0)
         assert np.all(np.isnan(s.cov_mm2))
