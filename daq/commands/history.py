@@ -21,20 +21,28 @@ import fnmatch
 import math
 from pathlib import Path
 
-import numpy as np
-
-from calibration.history import DEFAULT_SIGMA, CalibrationSummary, parameter_histories
-
-from ..cli import UsageError
+from ..cli import UsageError, command_parser
 
 _SPARK = "▁▂▃▄▅▆▇█"
+#: flag a change larger than this many combined sigma (:data:`calibration.history.DEFAULT_SIGMA`,
+#: kept equal by tests/daq/test_cli_help.py)
+DEFAULT_SIGMA = 3.0
 
 
 def register(sub) -> None:
     from .common import DB_HELP
 
-    p = sub.add_parser("history", help="a robot's calibrations over time: drift and changes",
-                       description=__doc__.splitlines()[0].strip("`"))
+    p = command_parser(
+        sub, "history", help="a robot's calibrations over time: drift and changes",
+        description="A robot's calibrations, recorded with `cellcal calibrate ... --db STORE "
+        "--robot-id ROBOT`, over time: the calibrations (when their data were measured, "
+        "UTC; source; effects; RMS), one line per parameter (first and last value ± std, "
+        "net change, the largest change between consecutive calibrations in combined "
+        "standard uncertainties, a trend line), every change larger than --sigma combined "
+        "sigma (sqrt(σ1² + σ2²)), and the value over time of the parameters that changed "
+        "(or of those named with --param). The store is opened read-only (docs/history.md)."
+        "\n\nExit codes: 0 done (whether or not a change was flagged), 2 bad input (no "
+        "such store or robot).")
     p.add_argument("robot_id", metavar="ROBOT", help="the robot (as given with --robot-id)")
     p.add_argument("--db", required=True, metavar="cell.db|URL", help=DB_HELP)
     p.add_argument("--param", action="append", default=[], metavar="GLOB",
@@ -68,8 +76,10 @@ def _z(z: float) -> str:
     return f"{z:.1f}σ" if math.isfinite(z) else "-"
 
 
-def spark(values: np.ndarray) -> str:
+def spark(values) -> str:
     """The values as a line of block characters (lowest ▁, highest █)."""
+    import numpy as np
+
     lo, hi = float(np.min(values)), float(np.max(values))
     if not hi > lo:
         return _SPARK[3] * len(values)
@@ -131,6 +141,10 @@ def history_json(robot_id: str, cals, summaries, histories, threshold: float) ->
 
 
 def run(args) -> int:
+    import numpy as np
+
+    from calibration.history import CalibrationSummary, parameter_histories
+
     from .common import print_json, table
 
     if not (args.sigma > 0 and math.isfinite(args.sigma)):

@@ -57,10 +57,11 @@ def test_routine_options_are_the_routines_own():
 
 def test_parser_constants_agree_with_the_core():
     from calibration import DEFAULT_EFFECTS
+    from calibration.history import DEFAULT_SIGMA
     from calibration.outliers import MODES as OUTLIER_MODES
     from calibration.solvers import SOLVERS
     from calibration.zero_point import DEFAULT_SIGMA_MM
-    from daq.commands import choices, sim_serve, zero
+    from daq.commands import choices, history, sim_serve, zero
     from daq.commands.routine_args import ROUTINE_ARGS
     from daq.routines import ROUTINES, get
     from sim_drivers.serve import DEFAULT_PORTS
@@ -69,6 +70,7 @@ def test_parser_constants_agree_with_the_core():
     assert list(choices.SOLVERS) == list(SOLVERS)
     assert choices.OUTLIER_MODES == OUTLIER_MODES
     assert zero.DEFAULT_SIGMA_MM == DEFAULT_SIGMA_MM
+    assert history.DEFAULT_SIGMA == DEFAULT_SIGMA
     assert sim_serve.DEFAULT_PORTS == DEFAULT_PORTS
     assert list(ROUTINE_ARGS) == list(ROUTINES)
     for name, spec in ROUTINE_ARGS.items():  # the summary is the routine's docstring's

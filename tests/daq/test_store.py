@@ -12,7 +12,7 @@ import pytest
 from calibration import load_model
 from daq.routines import make_plan
 from daq.run_context import RunContext
-from daq.store import RunStore, Sample, StoreError, StoreUnavailable, open_store
+from daq.store import Reading, RunStore, Sample, StoreError, StoreUnavailable, open_store
 from daq.store_dialect import connect, display_address, translate
 from daq.store_schema import SCHEMA_V1, SCHEMA_VERSION, UPGRADES
 
@@ -91,7 +91,7 @@ def test_update_run_and_context(store_address):
             st.update_run(rid, status="completed")
 
 
-@pytest.mark.parametrize("version", [1, 3, 5])
+@pytest.mark.parametrize("version", [1, 3, 5, 6])
 def test_upgrades_an_older_store(store_address, version):
     _at_version(store_address, version)
     db = connect(store_address)
@@ -112,8 +112,12 @@ def test_upgrades_an_older_store(store_address, version):
         assert s.joints_rad.tolist() == [[0.1, 0.2, 0.3]] and np.isnan(s.base_p_tcp_cmd).all()
         st.add_interruption(1, None, "test", "the new table exists")
         assert st.interruptions(1)[0][2] == "test"
-        assert st.add_calibration("r", {"parameters": []})[1] is True  # schema 6's table
+        assert st.add_calibration("r", {"parameters": []})[1] is True  # schema 7's table
         assert "robot_id" in st.db.columns("runs")
+        # 5 -> 6 (re-measure): the verdict columns, the readings table; old rows unjudged
+        assert {"verdict", "remeasures", "model_residual_mm"} <= set(st.db.columns("samples"))
+        assert s.verdict == [None] and s.remeasures.tolist() == [0] and st.readings(1) == []
+        assert st.remeasure_counts(1)["suspects"] == 0
         # main's 3 -> 4 (tracker metadata) and 4 -> 5 (leases, identities) on either backend
         assert {"reflector", "face", "cov_zz"} <= set(st.db.columns("samples"))
         assert {"robot_identity", "tracker_identity", "source_run"} <= set(
@@ -173,6 +177,65 @@ def test_read_only_reads_and_refuses_writes(store_address):
     db.close()
     with pytest.raises(StoreError, match="with write access"):
         open_store(store_address, read_only=True)
+
+
+def test_tracker_metadata_identities_and_readings_round_trip(store_address):
+    """The columns and tables main added (schemas 4-6) on either backend: the tracker's
+    reflector, face and covariance per sample; the devices' identities and the source run
+    per run; the readings the re-measure policy did not accept, written with their
+    point's sample, and a re-measured point replaced in a later point's commit."""
+    plan = make_plan("poses", TOYM, count=6, seed=0)
+    cov = np.array([[4e-4, 1e-5, -2e-5], [1e-5, 3e-4, 0.0], [-2e-5, 0.0, 5e-4]])
+    ident = {"vendor": "sim", "model": "TOY", "serial": "7", "simulator": True}
+    with RunStore(store_address) as st:
+        rid = st.create_run(plan, robot_identity=ident, tracker_identity={"model": "T"},
+                            source_run=None)
+        other = st.create_run(plan, source_run=rid)
+        first = sample(0)
+        first.reflector, first.face, first.cov_mm2 = "RRR 1.5in", 2, cov
+        first.verdict, first.remeasures = "remeasured", 1
+        first.model_residual_mm, first.model_threshold_mm = 0.01, 0.09
+        bad = sample(0)
+        bad.tracker_p_smr = bad.tracker_p_smr + 2.0
+        bad.model_residual_mm, bad.model_threshold_mm = 2.0, 0.09
+        assert st.add_sample(rid, first, [Reading(bad, "2.000 mm from the model")])
+        # the same commit again (a lost connection): nothing doubled
+        assert not st.add_sample(rid, first, [Reading(bad, "2.000 mm from the model")])
+        warm = sample(1)
+        warm.verdict = "warmup"
+        assert st.add_sample(rid, warm)
+        # point 1 revisited while point 2 is done: its reading is replaced, the old one kept
+        again = sample(1)
+        again.t, again.verdict, again.remeasures = warm.t + 100.0, "remeasured", 1
+        again.tracker_p_smr = again.tracker_p_smr + 0.001
+        pair = (again, [Reading(warm, "revisited: 1.5 mm from the model")])
+        assert st.add_sample(rid, sample(2), revisited=[pair])
+        st.add_sample(rid, sample(2), revisited=[pair])  # repeated: a no-op
+        with pytest.raises(StoreError, match="no point 5 to replace"):
+            lost = sample(5)
+            st.add_sample(rid, sample(3), revisited=[(lost, [])])
+        assert st.done_indices(rid) == {0, 1, 2}  # the failed commit stored nothing
+    with open_store(store_address, create=False) as st:
+        r, o = st.run(rid), st.run(other)
+        assert r.robot_identity == ident and r.tracker_identity == {"model": "T"}
+        assert r.source_run is None and o.source_run == rid and o.robot_identity is None
+        s = st.samples(rid)
+        assert s.reflector == ["RRR 1.5in", None, None] and s.face.tolist() == [2, 0, 0]
+        np.testing.assert_array_equal(s.cov_mm2[0], cov)
+        assert np.isnan(s.cov_mm2[1:]).all()
+        assert s.verdict == ["remeasured", "remeasured", None]
+        assert s.remeasures.tolist() == [1, 1, 0]
+        assert s.t[1] == warm.t + 100.0 and s.tracker_p_smr[1, 0] == again.tracker_p_smr[0]
+        readings = st.readings(rid)
+        assert [(x.sample.point_index, x.reason) for x in readings] == [
+            (0, "2.000 mm from the model"), (1, "revisited: 1.5 mm from the model")]
+        assert readings[0].sample.model_residual_mm == 2.0
+        assert readings[0].sample.pose_id == "p0" and readings[1].sample.t == warm.t
+        np.testing.assert_array_equal(readings[0].sample.tracker_p_smr, bad.tracker_p_smr)
+        counts = st.remeasure_counts(rid)
+        assert counts == {"judged": 2, "warmup": 0, "suspects": 2, "remeasurements": 2,
+                          "rejected": 2, "model_disagrees": 0, "unresolved": 0}
+        assert all(type(v) is int for v in counts.values())
 
 
 def test_calibrations_are_kept_per_robot_in_time_order(store_address):
