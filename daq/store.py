@@ -1,5 +1,6 @@
-"""The durable run store: runs, samples, interruptions and calibrations, in one SQLite file
-(one per cell, the default) or in a PostgreSQL database (a plant's central store).
+"""The durable run store: runs, samples, the readings a capture did not accept,
+interruptions, leases (:mod:`daq.leases`) and calibrations, in one SQLite file (one per
+cell, the default) or in a PostgreSQL database (a plant's central store).
 
 :func:`open_store` (and :class:`RunStore` itself) picks the backend from the address
 (docs/formats.md §5): a ``postgresql://user@host/db`` URL is a server, anything else a
@@ -22,7 +23,9 @@ Idempotence
     ``samples`` has ``UNIQUE(run_id, point_index)`` and samples are inserted with
     ``ON CONFLICT DO NOTHING``: writing a point twice (a resumed run redoing a point
     whose commit did land, or a commit repeated after the server connection broke
-    during it) keeps the first one, so nothing is ever duplicated.
+    during it) keeps the first one, so nothing is ever duplicated. A point's rejected
+    readings are written only with its sample, and a re-measured point's replacement
+    is skipped when the point already holds it: a repeated commit doubles nothing.
 
 Lost connections
     A PostgreSQL server that goes away raises :class:`StoreUnavailable` (a

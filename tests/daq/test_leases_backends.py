@@ -28,7 +28,8 @@ def store(store_address):
 
 
 def test_one_owner_and_stale_owners_taken_over(store):
-    with Leases(store) as a, Leases(store, ttl_s=30.0) as b:
+    # by address (a path or a URL: its own connection) or by the open store
+    with Leases(store.address) as a, Leases(store, ttl_s=30.0) as b:
         assert a.acquire(run_key(1), "run 1") is None
         with pytest.raises(LeaseBusy, match=f"run 1 is in use by pid {os.getpid()}"):
             b.acquire(run_key(1), "run 1")

@@ -18,7 +18,7 @@ from calibration import load_model
 from daq.check import check_plan
 from daq.cli import main
 from daq.executor import Executor, StaleMeasurement
-from daq.leases import LeaseBusy, Leases, robot_key, run_key
+from daq.leases import Leases, robot_key, run_key
 from daq.motion_guard import MotionGuard, MotionLimits
 from daq.plans import Plan, Target
 from daq.remeasure import Judgement, Remeasure
@@ -105,48 +105,8 @@ def test_a_multi_turn_frame_circle_comes_back_by_a_joint_move():
 
 
 # ----------------------------------------------------------------- leases
-def test_leases_one_owner_stale_ones_taken_over(tmp_path):
-    db = tmp_path / "c.db"
-    RunStore(db).close()
-    with Leases(db) as a, Leases(db, ttl_s=30.0) as b:
-        assert a.acquire(run_key(1), "run 1") is None
-        with pytest.raises(LeaseBusy, match=f"run 1 is in use by pid {os.getpid()}"):
-            b.acquire(run_key(1), "run 1")
-        a.release(run_key(1))
-        assert b.acquire(run_key(1), "run 1") is None
-        with pytest.raises(LeaseBusy):
-            a.acquire(run_key(1), "run 1")
-    # a dead owner on this host, and a silent one elsewhere, are taken over
-    con = sqlite3.connect(db)
-    dead = _dead_pid()
-    con.execute("INSERT INTO leases VALUES ('run:7', ?, ?, 'tok', 0, ?, 'run 7')",
-                (dead, Leases(db).host, time.time()))
-    con.execute("INSERT INTO leases VALUES ('run:8', 1, 'elsewhere', 'tok', 0, ?, 'run 8')",
-                (time.time() - 100.0,))
-    con.execute("INSERT INTO leases VALUES ('run:9', 1, 'elsewhere', 'tok', 0, ?, 'run 9')",
-                (time.time(),))
-    con.commit()
-    con.close()
-    with Leases(db, ttl_s=30.0) as c:
-        assert c.acquire("run:7").pid == dead
-        assert c.acquire("run:8").host == "elsewhere"
-        with pytest.raises(LeaseBusy, match="pid 1 on elsewhere"):
-            c.acquire("run:9")
-        before = c._owner("run:7").heartbeat
-        time.sleep(0.01)
-        c.beat()
-        assert c._owner("run:7").heartbeat > before
-    with Leases(db) as d:  # released on exit
-        assert d._owner("run:7") is None and d._owner("run:9") is not None
-
-
-def _dead_pid() -> int:
-    import subprocess
-    import sys
-
-    p = subprocess.Popen([sys.executable, "-c", "pass"])
-    p.wait()
-    return p.pid
+# one owner, stale owners taken over, racing takers: tests/daq/test_leases_backends.py (on
+# a SQLite file and on PostgreSQL)
 
 
 def test_robot_keys_normalise_the_address():

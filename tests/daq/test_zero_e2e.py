@@ -58,8 +58,10 @@ def _zero(capsys, *args) -> tuple[int, dict]:
     return rc, json.loads(capsys.readouterr().out)
 
 
-def test_zero20_capture_then_zero_from_the_store(tmp_path, capsys):
-    db = tmp_path / "cell.db"
+def test_zero20_capture_then_zero_from_the_store(store_address, tmp_path, capsys):
+    """Into a SQLite file and into PostgreSQL (``--db postgresql://...``): capture, zero,
+    export and runs read the run from either store."""
+    db = store_address
     with served_cell(zero_truth, seed=3) as stack:
         assert _capture(stack, db, "--target-xyz", TARGET) == 0
         hidden = _hidden(stack.cell.truth)
@@ -96,6 +98,21 @@ def test_zero20_capture_then_zero_from_the_store(tmp_path, capsys):
     rc, doc_csv = _zero(capsys, str(csv), "--model", "ur10e")
     assert rc == 0
     np.testing.assert_allclose(doc_csv["offsets_deg"][1:5], got, atol=1e-6)
+    # the run knows its robot (the controller's MODEL/SERIAL): listed, exported, selected
+    capsys.readouterr()
+    assert main(["runs", "--db", db, "--json"]) == 0
+    (run,) = json.loads(capsys.readouterr().out)
+    robot_id = run["robot_id"]
+    assert robot_id and "/" in robot_id
+    assert main(["runs", "--db", db, "--robot-id", "another", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == []
+    data = tmp_path / "zero20.csv"
+    assert main(["export", "--db", db, "--out", str(data)]) == 0
+    assert f"# robot_id: {robot_id}\n" in data.read_text()
+    rc, doc_robot = _zero(capsys, "--db", db, "--robot-id", robot_id)
+    assert rc == 0 and doc_robot["offsets_deg"] == doc["offsets_deg"]
+    assert main(["zero", "--db", db, "--robot-id", "another"]) == 2
+    assert "no completed zero20 run of robot another" in capsys.readouterr().err
 
 
 def test_zero_db_refuses_what_it_cannot_use(tmp_path, capsys):
