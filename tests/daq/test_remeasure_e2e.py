@@ -109,8 +109,11 @@ def test_blunders_are_re_measured_and_the_export_calibrates_at_the_noise_floor(
     assert text.count(",rejected,") == len(rejected)
     capsys.readouterr()
     assert main(["runs", "--db", str(db)]) == 0
-    row = capsys.readouterr().out.splitlines()[2].split()  # ... started (date time), ...
-    assert row[10] == str(len(rejected))  # the remeasured column (after beam breaks, skipped)
+    # run, routine, status, points, model, robot, started (date time), interruptions, ...
+    lines = capsys.readouterr().out.splitlines()
+    row = lines[2].split()
+    assert lines[0].split()[11] == "remeasured"  # the header's "beam breaks" is two words
+    assert row[11] == str(len(rejected))  # the remeasured column (after beam breaks, skipped)
     print(f"\n{len(log)} blunders in {n_readings} readings: {len(caught)} re-measured "
           f"({n_warm - len(left)} of them revisited after the warm-up), {len(unresolved)} "
           f"unresolved, {len(left)} left in the accepted readings (warm-up; {len(named)} "
