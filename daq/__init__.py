@@ -15,6 +15,7 @@ Modules
     ``tracker_checks``  the tracker's checks before a run: reflector, air, ready gate, two faces
     ``store``           ``RunStore``: runs, samples (``Samples``), interruptions in SQLite
     ``store_schema``    the store's SQL schema and its upgrades between versions
+    ``store_open``      opening a file as a store: refusing what is not one, read-only
     ``run_data``        runs as calibration inputs: a data set, zero-point postures
     ``service``         plan, start and resume runs (the commands and the demo call it)
     ``progress``        the progress line of a capture on a terminal

@@ -77,6 +77,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sqlite3
 import threading
 import time
 from collections.abc import Callable
@@ -341,8 +342,10 @@ class Executor:
                     self._report(n_done)
             except _Pause as p:
                 kind = "sigint" if p.status == "stopped" else "pause"
-                store.add_interruption(rid, getattr(t, "index", None), kind, p.reason)
-                self._summarise()
+                with contextlib.suppress(sqlite3.Error):  # a full disk: the status first
+                    store.add_interruption(rid, getattr(t, "index", None), kind, p.reason)
+                with contextlib.suppress(sqlite3.Error):
+                    self._summarise()
                 store.set_status(rid, p.status, p.reason)
                 self.last_error = p.reason
                 self._report(n_done)
@@ -432,7 +435,12 @@ class Executor:
                     if not revisited:  # a re-measurement ends at the target
                         self._last_cmd_q = at_target
                 t0 = time.perf_counter()
-                stored = self.store.add_sample(self.run_id, sample, rejected, revisited)
+                try:
+                    stored = self.store.add_sample(self.run_id, sample, rejected, revisited)
+                except sqlite3.OperationalError as e:  # a full disk: nothing was stored
+                    self.store.release_reserve()  # room to record the pause and why
+                    raise _Pause("paused", f"the run store could not be written at point "
+                                 f"{t.index}: {e}; free space, then `cellcal resume`") from e
                 self.commit_s += time.perf_counter() - t0
                 self.n_committed += 1
                 if stored and self.remeasure is not None:

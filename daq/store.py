@@ -22,6 +22,15 @@ Schema versions
     older file applies the upgrades of :mod:`daq.store_schema` in order, each in one
     transaction; a newer file is refused.
 
+Opening read-only and refusing what is not a store
+    ``read_only=True`` (the commands that only read: ``runs``, ``export``, ``zero --db``)
+    opens the file with SQLite's ``mode=ro``: no WAL switch, nothing written, so a
+    read-only file or folder works and the file stays byte for byte the same; an older
+    schema is upgraded in a copy in memory. Any open refuses, with one line
+    (:class:`StoreError`), a file that is not an SQLite database, a damaged (truncated,
+    overwritten) one, an SQLite database of another program (tables that are not a run
+    store's; it is never written to) and a store of a newer schema.
+
 Every run stores its plan and its typed context (:class:`daq.run_context.RunContext`).
 Reading turns a run's samples into calibration inputs: :mod:`daq.run_data`.
 
@@ -40,16 +49,13 @@ from pathlib import Path
 import numpy as np
 
 from .run_context import RunContext
-from .store_schema import SCHEMA_V1, SCHEMA_VERSION, UPGRADES
+from .store_open import StoreError, check_store_file, connect_read_only, describe_error
+from .store_schema import RESERVE_BYTES, SCHEMA_V1, SCHEMA_VERSION, UPGRADES
 
 #: run statuses: ``running`` (or killed while running), ``paused`` (protective stop,
 #: retries exhausted: resumable), ``stopped`` (Ctrl-C: resumable), ``completed``,
 #: ``failed`` (refused or broken: resumable once the cause is fixed)
 STATUSES = ("running", "paused", "stopped", "completed", "failed")
-
-
-class StoreError(Exception):
-    """The store cannot be used (newer schema, unknown run...)."""
 
 
 @dataclass
@@ -254,27 +260,65 @@ class RunStore:
         SQLite's ``synchronous`` pragma (see the module docstring).
     """
 
-    def __init__(self, path: str | Path, synchronous: str = "FULL") -> None:
+    def __init__(self, path: str | Path, synchronous: str = "FULL", *,
+                 read_only: bool = False) -> None:
         if synchronous.upper() not in ("FULL", "NORMAL"):
             raise ValueError(f"synchronous must be FULL or NORMAL, got {synchronous!r}")
         self.path = Path(path)
-        self.con = sqlite3.connect(str(self.path), timeout=30.0, isolation_level=None)
+        self.read_only = read_only
+        check_store_file(self.path, must_exist=read_only)
         try:
-            self.con.execute("PRAGMA journal_mode=WAL")
-            self.con.execute(f"PRAGMA synchronous={synchronous.upper()}")
-            self.con.execute("PRAGMA foreign_keys=ON")
+            if read_only:
+                self.con = connect_read_only(self.path)
+            else:
+                self.con = sqlite3.connect(str(self.path), timeout=30.0, isolation_level=None)
+        except sqlite3.Error as e:
+            raise StoreError(f"{self.path}: cannot open the run store: {e}") from None
+        try:
+            self._check_tables()
+            if not read_only:
+                self.con.execute("PRAGMA journal_mode=WAL")
+                self.con.execute(f"PRAGMA synchronous={synchronous.upper()}")
+                self.con.execute("PRAGMA foreign_keys=ON")
             self._migrate()
+            if not self.read_only:
+                self._refill_reserve()
+        except sqlite3.DatabaseError as e:
+            self.con.close()
+            raise StoreError(f"{self.path}: {describe_error(e)}") from None
         except BaseException:
             self.con.close()
             raise
 
     @classmethod
-    def open_existing(cls, path: str | Path, synchronous: str = "FULL") -> RunStore:
+    def open_existing(cls, path: str | Path, synchronous: str = "FULL", *,
+                      read_only: bool = False) -> RunStore:
         """An existing store; :class:`StoreError` when there is no such file (never create
-        an empty store for a mistyped path)."""
-        if not Path(path).exists():
-            raise StoreError(f"{path}: no such run store")
-        return cls(path, synchronous=synchronous)
+        an empty store for a mistyped path) or it is no run store."""
+        check_store_file(Path(path), must_exist=True)
+        return cls(path, synchronous=synchronous, read_only=read_only)
+
+    def _check_tables(self) -> None:
+        """Refuse an SQLite file of another program (before anything is written to it)."""
+        tables = {r[0] for r in self.con.execute(
+            "SELECT name FROM sqlite_master WHERE type='table' AND name NOT LIKE 'sqlite_%'")}
+        if not tables:
+            if self.read_only:
+                raise StoreError(f"{self.path}: an empty database, not a cellcal run store "
+                                 "(no runs)")
+            return
+        if not {"runs", "samples"} <= tables:
+            shown = ", ".join(sorted(tables)[:5])
+            raise StoreError(f"{self.path}: not a cellcal run store (an SQLite database with "
+                             f"the tables {shown}); give the run store of a capture")
+        v = self.version
+        if v > SCHEMA_VERSION:
+            raise StoreError(f"{self.path}: schema version {v} is newer than this cellcal "
+                             f"({SCHEMA_VERSION}); update cellcal to read it")
+        if self.read_only:  # a damaged file shows on a full read, not always on open
+            bad = self.con.execute("PRAGMA quick_check").fetchone()[0]
+            if bad != "ok":
+                raise StoreError(f"{self.path}: damaged run store (SQLite: {bad})")
 
     # ------------------------------------------------------------ lifecycle
     def close(self) -> None:
@@ -292,19 +336,19 @@ class RunStore:
 
     def _migrate(self) -> None:
         v = self.version
+        if self.read_only and v < SCHEMA_VERSION:
+            self._upgrade_in_memory()
+            v = self.version
         if v == 0:
             has = self.con.execute(
                 "SELECT count(*) FROM sqlite_master WHERE type='table' AND name='runs'"
             ).fetchone()[0]
             if has:
-                raise StoreError(f"{self.path}: has a runs table but no schema version")
+                raise StoreError(f"{self.path}: not a cellcal run store (a runs table but no "
+                                 "schema version)")
             # one script, one transaction: a new file is either complete v1 or empty
             self.con.executescript(f"BEGIN; {SCHEMA_V1} PRAGMA user_version=1; COMMIT;")
             v = 1
-        if v > SCHEMA_VERSION:
-            raise StoreError(
-                f"{self.path}: schema version {v} is newer than this cellcal ({SCHEMA_VERSION})"
-            )
         while v < SCHEMA_VERSION:
             self.con.execute("BEGIN IMMEDIATE")
             try:
@@ -315,6 +359,37 @@ class RunStore:
                 self.con.execute("ROLLBACK")
                 raise
             v += 1
+
+    # ------------------------------------------------------------- reserve
+    def release_reserve(self) -> bool:
+        """Give up the reserve of free space (the disk is full): the pages it held let the
+        run's status and the reason still be written. True when there was one."""
+        try:
+            with self.con:
+                cur = self.con.execute("DELETE FROM reserve")
+            return cur.rowcount > 0
+        except sqlite3.Error:
+            return False
+
+    def _refill_reserve(self) -> None:
+        """Put the reserve back when it was given up and there is space again."""
+        try:
+            with self.con:
+                if self.con.execute("SELECT count(*) FROM reserve").fetchone()[0] == 0:
+                    self.con.execute("INSERT INTO reserve (id, pad) VALUES (1, zeroblob(?))",
+                                     (RESERVE_BYTES,))
+        except sqlite3.OperationalError:  # still no space: the capture will say so
+            pass
+
+    def _upgrade_in_memory(self) -> None:
+        """An older schema opened read-only: work on an upgraded copy in memory."""
+        if self.version == 0:
+            raise StoreError(f"{self.path}: not a cellcal run store (no schema version)")
+        mem = sqlite3.connect(":memory:", isolation_level=None)
+        self.con.backup(mem)
+        self.con.close()
+        self.con = mem
+        self.read_only = False  # the copy may be upgraded; the file is left alone
 
     # ------------------------------------------------------------------ runs
     def create_run(

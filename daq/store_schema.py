@@ -26,6 +26,9 @@ Versions
        running model with its threshold; the ``readings`` table keeps every reading that
        was not accepted, with its reason (and, as a sample, the tracker's reflector, face
        and covariance). Additive: older rows read as never judged.
+    7. the ``reserve`` table: one row of zeros (:data:`RESERVE_BYTES`) the store gives up
+       when the disk is full, so that the run can still be marked paused with the reason
+       (:meth:`daq.store.RunStore.release_reserve`).
 """
 
 from __future__ import annotations
@@ -35,7 +38,9 @@ import sqlite3
 from collections.abc import Callable
 
 #: current schema version (PRAGMA user_version)
-SCHEMA_VERSION = 6
+SCHEMA_VERSION = 7
+#: the free space the store keeps in reserve for a full disk (bytes)
+RESERVE_BYTES = 1 << 20
 
 SCHEMA_V1 = """
 CREATE TABLE runs (
@@ -193,7 +198,13 @@ def _upgrade_5_to_6(con: sqlite3.Connection) -> None:
     con.execute("CREATE INDEX readings_run ON readings(run_id, point_index)")
 
 
+def _upgrade_6_to_7(con: sqlite3.Connection) -> None:
+    """v7: a reserve of space for a full disk (additive: one new table and its row)."""
+    con.execute("CREATE TABLE reserve (id INTEGER PRIMARY KEY, pad BLOB NOT NULL)")
+    con.execute("INSERT INTO reserve (id, pad) VALUES (1, zeroblob(?))", (RESERVE_BYTES,))
+
+
 #: UPGRADES[k] takes a database from version k+1 to k+2
 UPGRADES: list[Callable[[sqlite3.Connection], None]] = [_upgrade_1_to_2, _upgrade_2_to_3,
                                                         _upgrade_3_to_4, _upgrade_4_to_5,
-                                                        _upgrade_5_to_6]
+                                                        _upgrade_5_to_6, _upgrade_6_to_7]

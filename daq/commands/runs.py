@@ -13,6 +13,7 @@ import datetime as dt
 import math
 
 from ..cli import UsageError, command_parser
+from .common import positive_int
 
 
 def register(sub) -> None:
@@ -22,7 +23,7 @@ def register(sub) -> None:
         "model, start time, interruptions, beam breaks, points skipped, why it stopped); "
         "with RUN, show that run: its devices, context (tool, SMR, measurement frame, "
         "tracker checks, executor settings), summary and interruptions.")
-    p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN",
+    p.add_argument("run_id", nargs="?", type=positive_int, default=None, metavar="RUN",
                    help="show this run in detail, with its interruptions")
     p.add_argument("--db", required=True, metavar="cell.db", help="the run store (SQLite file)")
     p.add_argument("--json", action="store_true",
@@ -133,10 +134,10 @@ def print_run(store, r, interruptions) -> None:
 
 def run(args) -> int:
     from ..store import StoreError
-    from .common import open_store, print_json, table
+    from .common import open_store, print_json, store_errors, table
 
-    store = open_store(args.db)
-    try:
+    store = open_store(args.db, read_only=True)
+    with store, store_errors(args.db):
         if args.run_id is not None:
             try:
                 r = store.run(args.run_id)
@@ -180,5 +181,3 @@ def run(args) -> int:
                            "interruptions", "beam breaks", "skipped", "remeasured", "reason"],
                     left=(0, 1, 2, 4, 5, 10)))
         return 0
-    finally:
-        store.close()

@@ -15,6 +15,7 @@ import sys
 import threading
 
 from ..cli import UsageError, add_subcommands, command_parser
+from .common import nonneg_float, seed_int
 
 #: the default ports (also in :data:`sim_drivers.serve.DEFAULT_PORTS`, kept equal by
 #: tests/daq/test_cli_help.py): Modbus robot, line robot, line tracker, emScon tracker
@@ -39,7 +40,8 @@ def register(sub) -> None:
         "Ports: Modbus robot 15020, line robot 15021, tracker 15700, emScon 15701 by "
         "default; --port-base N serves them on N, N+1, N+2, N+3; a port flag sets one (0: "
         "any free port). A port in use is an error (exit 2) unless --any-port.")
-    s.add_argument("--seed", type=int, default=0, help="random seed of the cell (default 0)")
+    s.add_argument("--seed", type=seed_int, default=0,
+                   help="random seed of the cell (default 0)")
     s.add_argument("--model", default="ur10e", metavar="NAME|PATH",
                    help="the true robot: a model name or YAML with realistic hidden errors "
                         "(default ur10e), or 'toy' for a 3-joint stand-in arm")
@@ -55,7 +57,7 @@ def register(sub) -> None:
     s.add_argument("--faults", default=None, metavar="SPEC",
                    help="fault spec, e.g. 'beam=0.05,slow=0.02,drop@3,delay=2'; "
                    "'blunder=0.03': 3 %% of tracker readings off by 0.5-5 mm")
-    s.add_argument("--time-scale", type=float, default=0.0, metavar="S",
+    s.add_argument("--time-scale", type=nonneg_float, default=0.0, metavar="S",
                    help="wall seconds per simulated second (default 0: instantaneous)")
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (default loopback)")
     s.add_argument("--port-base", type=int, default=None, metavar="N",
@@ -114,6 +116,14 @@ def run(args) -> int:
 
     from .routine_args import floats
 
+    if args.hidden and args.model != "toy":
+        from calibration import EffectError, load_model, parse_effects
+
+        model = load_model(args.model)  # a bad model: ModelError, exit 2
+        try:
+            parse_effects(args.hidden, model)
+        except EffectError as e:
+            raise UsageError(f"--hidden {args.hidden!r}: {e}") from None
     config = ServeConfig(seed=args.seed, hidden=args.hidden, faults=args.faults,
                          time_scale=args.time_scale, host=args.host, ports=ports(args),
                          pty=not args.no_pty, rtde=not args.no_rtde, any_port=args.any_port)

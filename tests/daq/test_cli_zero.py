@@ -85,7 +85,7 @@ def test_zero_bad_input_exits_2(postures, tmp_path, capsys):
     model = tmp_path / "m.yaml"
     model.write_text(load_model("ur10e").to_yaml())
     assert main(["zero", str(path), "--model", str(model), "--out", str(model)]) == 2
-    assert "is an input file" in capsys.readouterr().err
+    assert "is an input of this command" in capsys.readouterr().err
     assert main(["zero", str(path), "--model", "ur10e", "--out", str(tmp_path / "p.json")]) == 2
     assert main(["zero", str(path), "--model", "ur10e", "--sigma", "-1"]) == 2
 
