@@ -168,12 +168,7 @@ def _Loaded(*pairs: str) -> tuple[type, ...]:  # noqa: N802 - used as an excepti
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as e:  # a usage error (argparse printed it): the exit code, returned
-        if e.code in (0, None):
-            raise  # --help
-        return e.code if isinstance(e.code, int) else 2
+    args = parser.parse_args(argv)  # a usage error: argparse prints it and exits with 2
     if args.func is None:  # `cellcal`, `cellcal sim`, `cellcal capture`: the help
         args.help_parser.print_help()
         return 0

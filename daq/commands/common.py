@@ -39,7 +39,8 @@ def _number_type(kind, lo=None, hi=None, lo_open=False, what="a number"):
         if lo is not None and (v <= lo if lo_open else v < lo):
             raise argparse.ArgumentTypeError(f"{text} is not {what}")
         if hi is not None and v > hi:
-            raise argparse.ArgumentTypeError(f"{text} is not {what} (at most {hi:g})")
+            raise argparse.ArgumentTypeError(
+                f"{text} is not {what}" + ("" if lo is not None else f" (at most {hi:g})"))
         return v
     parse.__name__ = what  # argparse names the type in its messages
     return parse

@@ -122,8 +122,8 @@ def test_a_full_disk_pauses_the_run_with_the_reason_and_loses_nothing(tmp_path):
     toy = load_model(TOY)
     inproc.reset_cells()
     plan = make_plan("poses", toy, count=80, seed=6)
-    robot = open_robot("sim://robot?seed=14&name=full")
-    tracker = open_tracker("sim://tracker?seed=14&name=full")
+    robot = open_robot(f"sim://robot?model={TOY}&seed=14&name=full&reflector=360")
+    tracker = open_tracker(f"sim://tracker?model={TOY}&seed=14&name=full&reflector=360")
     robot.connect()
     tracker.connect()
     opts = ExecutorOptions(measure_s=0.01, backoff_s=0.0)
@@ -149,9 +149,9 @@ def test_a_full_disk_pauses_the_run_with_the_reason_and_loses_nothing(tmp_path):
         inproc.reset_cells()
 
 
-def test_upgrade_3_to_4_adds_the_reserve_and_keeps_every_run(tmp_path):
-    """Schema 4 is additive: a schema-3 store gains the reserve table (one row of
-    RESERVE_BYTES zeros); runs, samples and contexts stay as they were."""
+def test_upgrade_to_7_adds_the_reserve_and_keeps_every_run(tmp_path):
+    """Schema 7 is additive: a schema-3 store upgraded to today gains the reserve table
+    (one row of RESERVE_BYTES zeros); runs and samples stay as they were."""
     from daq.store_schema import RESERVE_BYTES, UPGRADES
 
     p = tmp_path / "v3.db"
@@ -159,12 +159,12 @@ def test_upgrade_3_to_4_adds_the_reserve_and_keeps_every_run(tmp_path):
     con = sqlite3.connect(p, isolation_level=None)
     UPGRADES[1](con)  # 2 -> 3, as a schema-3 cellcal left it
     con.execute("PRAGMA user_version=3")
-    before = con.execute("SELECT id, routine, status, context_json FROM runs").fetchall()
+    before = con.execute("SELECT id, routine, status, plan_hash FROM runs").fetchall()
     n_samples = con.execute("SELECT count(*) FROM samples").fetchone()[0]
     con.close()
     with RunStore(p) as st:
-        assert st.version == SCHEMA_VERSION == 4
-        assert st.con.execute("SELECT id, routine, status, context_json FROM runs"
+        assert st.version == SCHEMA_VERSION
+        assert st.con.execute("SELECT id, routine, status, plan_hash FROM runs"
                               ).fetchall() == before
         assert st.con.execute("SELECT count(*) FROM samples").fetchone()[0] == n_samples
         assert st.con.execute("SELECT length(pad) FROM reserve").fetchall() == [

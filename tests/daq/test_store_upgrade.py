@@ -173,7 +173,7 @@ def test_schema_3_gains_reflector_face_and_covariance(v3_db, tmp_path):
     n_cols = len(before[0])
     con.close()
     with RunStore(v3_db) as st:
-        assert st.version == SCHEMA_VERSION == 6
+        assert st.version == SCHEMA_VERSION
         s = st.samples(2)
         assert s.reflector == [None] * len(s) and np.all(s.face == 0)
         assert np.all(np.isnan(s.cov_mm2))
