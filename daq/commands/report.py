@@ -66,8 +66,6 @@ def run(args) -> int:
     check_outputs({"--out": args.out},
                   input_paths(args, "data", "params", "model", "effect_file"))
     model, data = load_inputs(args)
-    if args.params and not Path(args.params).is_file():
-        raise UsageError(f"{args.params}: no such file")
     em, _, notes = current_model(args, model)
     for n in notes + check_data(em, data):
         print_note(n)

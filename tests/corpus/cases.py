@@ -180,6 +180,12 @@ REGISTER_MAP = {
     "negative": r"command", "string": r"speed", "overlap": r"overlap", "bits": r"busy",
     "word_order": r"word_order", "binary": NOT_TEXT + r"|yaml|mapping", "n_joints": r"n_joints",
 }
+CELL = {
+    "empty_list": r"mapping", "syntax": r"yaml", "unknown_key": r"trackre|unknown",
+    "zero_axis": r"axis", "unknown_reflector": r"reflector|bogus",
+    "nan_position": r"position|finite|nan", "two_shapes": r"shape|box|cylinder",
+    "dup_key": r"twice", "binary": NOT_TEXT + r"|yaml|mapping", "latin1": NOT_TEXT,
+}
 EFFECT_FILE = {
     "syntax": r"syntax|could not load", "raises": r"boom|could not load",
     "no_effect": r"no effect|defines no", "replaces_builtin": r"built-in|geometric",
@@ -367,6 +373,28 @@ def build_cases() -> list[Case]:
         ("no_folder", ["--export-model", "nofolder/m.yaml"], NO_FOLDER),
         ("same_out_twice", ["--out", "o.csv", "--export-model", "o.csv"], r"twice|same|both"),
     ])
+    cases += _out_cases("compensate", gcomp, [
+        ("urdf_is_params", ["--export-urdf", "params.json"], IS_INPUT),
+        ("ur_yaml_is_targets", ["--export-ur-yaml", "targets.csv"], IS_INPUT),
+        ("dh_is_store", ["--export-dh", "cell.db"], IS_STORE),
+        ("urdf_no_folder", ["--export-urdf", "nofolder/c.urdf"], NO_FOLDER),
+        ("dh_directory", ["--export-dh", "adir"], DIRECTORY, [mkdir("adir")]),
+        ("urdf_and_dh_same", ["--export-urdf", "o.x", "--export-dh", "o.x"],
+         r"twice|same|both"),
+    ])
+    # ---- the automatic diagnosis: its numbers and its params.json output
+    auto = ["diagnose", "good.csv", "--model", "ur5", "--auto"]
+    cases += _number_cases("diagnose", auto, [
+        ("--max-steps", ["0", "-1", "x"]), ("--budget-s", ["nan", "-1", "0"])])
+    cases += _out_cases("diagnose", auto, [
+        ("auto_is_data", ["--out", "good.csv"], IS_INPUT),
+        ("auto_is_params", ["--params", "params.json", "--out", "params.json"], IS_INPUT),
+        ("auto_is_store", ["--out", "cell.db"], IS_STORE),
+        ("auto_no_folder", ["--out", "nofolder/p.json"], NO_FOLDER),
+    ])
+    cases += _number_cases("report", ["report", "good.csv", "--model", "ur5", "--auto",
+                                      "--out", "r.html"],
+                           [("--max-steps", ["0"]), ("--budget-s", ["nan", "-1"])])
     # a params.json recording a user effect: loading it needs --effect-file, same hash
     cases += _effect_record_cases()
 
@@ -527,6 +555,17 @@ def build_cases() -> list[Case]:
                           f"(?=.*{re.escape(fname)})(?=.*(?:{REGISTER_MAP[name]}))",
                           [write(fname, body)]))
 
+    # ---- capture: the cell YAML and the tracker position (refused before any motion)
+    for name, body in I.cell_variants().items():
+        fname = f"c_{name}.yaml"
+        cases.append(Case("capture", f"cell:{name}", [*good_cap, "--cell", fname], 2,
+                          f"(?=.*{re.escape(fname)})(?=.*(?:{CELL[name]}))",
+                          [write(fname, body)]))
+    cases += _path_cases("capture", [*good_cap, "--cell", "{CELL}"], "{CELL}", "cell.yaml")[:3]
+    cases += _number_cases("capture", good_cap, [
+        ("--tracker-at", ["nan,0,0", "1,2", "a,b,c", "1e400,0,0"]),
+        ("--count", ["0", "-1", "x"]), ("--smr-radius-mm", ["-1", "nan"])])
+
     # ---- resume: the run store
     cases += _store_cases("resume", ["resume", "--db", "{DB}"], ok=False)
 
@@ -536,7 +575,14 @@ def build_cases() -> list[Case]:
                           ["sim", "serve", "--no-pty", "--no-rtde", "--model", f"x_{name}.yaml"],
                           2, MODEL[name][1], [write(f"x_{name}.yaml", model_v[name])],
                           mode="subprocess", slow=True))
+    for name in ("syntax", "zero_axis", "binary"):
+        fname = f"c_{name}.yaml"
+        cases.append(Case("sim", f"cell:{name}",
+                          ["sim", "serve", "--no-pty", "--no-rtde", "--cell", fname], 2,
+                          CELL[name], [write(fname, I.cell_variants()[name])],
+                          mode="subprocess", slow=True))
     cases += _number_cases("sim", ["sim", "serve", "--no-pty", "--no-rtde"], [
+        ("--tracker-at", ["nan,0,0", "1,2"]), ("--tracker-warmup-s", ["-1", "nan"]),
         ("--time-scale", ["nan", "-1"]), ("--seed", ["-1"]), ("--hidden", ["bogus"])])
     for c in cases:
         if (c.command == "sim" and c.name.startswith("num:")) or "100000000" in c.argv:

@@ -379,6 +379,25 @@ def register_map_variants() -> dict[str, str | bytes]:
     }
 
 
+# ------------------------------------------------------------------------ cell YAML
+
+
+def cell_variants() -> dict[str, str | bytes]:
+    return {
+        "empty_list": "- 1\n",
+        "syntax": "tracker: [\n",
+        "unknown_key": "trackre: {position: [2500, 0, 500]}\n",
+        "zero_axis": "smr: {axis: [0, 0, 0]}\n",
+        "unknown_reflector": "smr: {reflector: bogus}\n",
+        "nan_position": "tracker: {position: [.nan, 0, 500]}\n",
+        "two_shapes": ("fixtures:\n  - name: t\n    box: {centre: [0, 0, 0], size: [1, 1, 1]}\n"
+                       "    cylinder: {start: [0, 0, 0], end: [0, 0, 1], radius: 1}\n"),
+        "dup_key": "tracker: {position: [2500, 0, 500]}\ntracker: {position: [0, 0, 0]}\n",
+        "binary": _rand_bytes(512, 7),
+        "latin1": "smr: {reflector: 'r\u00e9flecteur'}\n".encode("latin-1"),
+    }
+
+
 # ---------------------------------------------------------------------- effect files
 
 

@@ -45,7 +45,9 @@ def test_demo_command(tmp_path, capsys):
 
 
 def test_demo_rejects_bad_options(tmp_path, capsys):
-    assert main(["demo", "--out", str(tmp_path), "--poses", "10"]) == 2
+    with pytest.raises(SystemExit) as e:  # refused by the parser: at least 50
+        main(["demo", "--out", str(tmp_path), "--poses", "10"])
+    assert e.value.code == 2 and "--poses: 10 is not an integer 50" in capsys.readouterr().err
     assert main(["demo", "--out", str(tmp_path), "--hidden", "wobble:1"]) == 2
     assert "unknown effect family" in capsys.readouterr().err
 
