@@ -11,8 +11,10 @@ kinematics      run_chain: forward kinematics vectorised over poses, exact Jacob
 transforms      rotations and rigid transforms on arrays; fit_rigid / fit_rotation (Kabsch)
 inverse         batched damped-Newton inverse kinematics (ChainFK, solve_ik)
 gravity         gravity torques at every joint from the mass model
+files           reading inputs strictly and writing outputs atomically (one helper each)
 dataset         Dataset and the measurement CSV (docs/formats.md §1), CsvTable for every table
 capture_meta    CaptureMeta: the capture context a measurement file carries (tool, frame, run)
+data_quality    data too poor to identify a model: refused (InsufficientData), not fitted
 effects/        the physical causes of error (geometric, base, tool, compliance, ...)
 error_model     ErrorModel: a model plus effects; perturb (the one apply chain), evaluate
 identifiability which parameters a data set determines (QR with column pivoting)

@@ -21,6 +21,7 @@ radians for the numerical code (:mod:`calibration.visibility`).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 import yaml
@@ -40,7 +41,9 @@ REFLECTOR_ACCEPTANCE_DEG = {
     "360": 180.0,  # a 360-degree reflector: no facing limit
 }
 
-Vec3 = tuple[float, float, float]
+#: a finite coordinate, mm (or an angle, deg): within a kilometre of the robot
+Coord = Annotated[float, Field(allow_inf_nan=False, ge=-1e6, le=1e6)]
+Vec3 = tuple[Coord, Coord, Coord]
 
 
 class CellError(ValueError):
@@ -81,7 +84,7 @@ class Cylinder(_Strict):
 
     start: Vec3
     end: Vec3
-    radius: float = Field(gt=0.0)
+    radius: float = Field(gt=0.0, le=1e6, allow_inf_nan=False)
 
     @model_validator(mode="after")
     def _length(self) -> Cylinder:
@@ -116,7 +119,7 @@ class Smr(_Strict):
 
     axis: Vec3 = (0.0, 0.0, 1.0)
     reflector: str = "RRR 1.5in"
-    acceptance_deg: float | None = Field(default=None, gt=0.0, le=180.0)
+    acceptance_deg: float | None = Field(default=None, gt=0.0, le=180.0, allow_inf_nan=False)
 
     @field_validator("axis")
     @classmethod
@@ -148,8 +151,8 @@ class Margins(_Strict):
     """What a plan keeps in hand: the SMR faces the tracker within the half-angle minus
     ``facing_deg``, and the beam passes every link and fixture by ``clearance_mm``."""
 
-    facing_deg: float = Field(default=5.0, ge=0.0)
-    clearance_mm: float = Field(default=20.0, ge=0.0)
+    facing_deg: float = Field(default=5.0, ge=0.0, le=180.0, allow_inf_nan=False)
+    clearance_mm: float = Field(default=20.0, ge=0.0, le=1e4, allow_inf_nan=False)
 
 
 class CellSpec(_Strict):
@@ -198,11 +201,8 @@ def cell_from_dict(data, source: str = "<cell>") -> CellSpec:
 
 def load_cell(path: str | Path) -> CellSpec:
     """Read a cell YAML file (FORMATS.md §7)."""
-    path = Path(path)
-    if not path.is_file():
-        raise CellError(f"{path}: no such cell file")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as e:
-        raise CellError(f"{path}: not valid YAML: {e}") from None
-    return cell_from_dict(data, str(path))
+    from .files import read_text
+    from .robot_model import parse_yaml
+
+    text = read_text(path, CellError, "cell file", 10 << 20)
+    return cell_from_dict(parse_yaml(text, str(path), CellError), str(path))

@@ -244,16 +244,21 @@ def load_targets(path, model) -> Targets:
     direction each joint will approach the target from, -1/0/+1, all or none: for a model
     with backlash), ``temp_c``, ``payload_kg``. Strict like the measurement CSV: errors
     name file, line and column."""
-    from .dataset import CsvTable, DataError
+    from .dataset import MAX_LENGTH_MM, OPTIONAL_RANGES, PLAUSIBLE_LENGTH, CsvTable, DataError
 
     t = CsvTable(path)
     N = model.n_joints
     t.require(["x", "y", "z"])
     has_q = t.all_or_none([f"q{j + 1}" for j in range(N)], "joint columns")
     xyz = np.column_stack([t.numeric(c) for c in "xyz"])
+    for k, c in enumerate("xyz"):
+        t.within(c, xyz[:, k], -MAX_LENGTH_MM, MAX_LENGTH_MM, PLAUSIBLE_LENGTH)
     q = np.radians(t.joints_deg(model)) if has_q else None
     pose_id = t.ids("pose_id")
     columns = {c: t.numeric(c) for c in ("temp_c", "payload_kg") if c in t}
+    for c, v in columns.items():
+        lo, hi, what = OPTIONAL_RANGES[c]
+        t.within(c, v, lo, hi, what)
     dir_cols = [f"dir{j + 1}" for j in range(N)]
     if t.all_or_none(dir_cols, "direction columns"):
         dirs = np.column_stack([t.numeric(c) for c in dir_cols])

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .capture_meta import CaptureMeta
+from .files import read_text, write_atomic
 from .robot_model import RobotModel
 
 
@@ -207,7 +208,7 @@ class Dataset:
             w.writerow(row)
         text = buf.getvalue()
         if path is not None:
-            Path(path).write_text(text)
+            write_atomic(path, text)
         return text
 
 
@@ -216,6 +217,23 @@ _OPTIONAL_FLOAT = ("temp_c", "t_s", "payload_kg", "sigma_mm", "pressure_hpa", "h
 #: the tracker's own columns, written after ``sigma_mm``
 _TRACKER_COLUMNS = ("pressure_hpa", "humidity_pct", "reflector", "face")
 
+#: lengths beyond 1 km are no measurement of a robot cell
+MAX_LENGTH_MM = 1e6
+PLAUSIBLE_LENGTH = "a plausible length (|value| <= 1e6 mm)"
+#: plausible ranges of the optional columns: (low, high, expected form)
+OPTIONAL_RANGES = {
+    "temp_c": (-100.0, 200.0, "a plausible temperature (-100 to 200 °C)"),
+    "payload_kg": (0.0, 10000.0, "a payload mass (0 to 10000 kg)"),
+    "sigma_mm": (0.0, 1000.0, "a plausible tracker uncertainty (0 to 1000 mm)"),
+}
+
+
+#: the largest CSV file read (bytes) and the longest field (characters)
+MAX_CSV_BYTES = 500 << 20
+MAX_FIELD_CHARS = 1000
+#: the metadata lines read_meta looks at, at most
+_META_LINES = 200
+
 
 def read_meta(path: str | Path) -> dict[str, str]:
     """The ``# key: value`` metadata at the top of a CSV file (before the header), without
@@ -223,8 +241,13 @@ def read_meta(path: str | Path) -> dict[str, str]:
     An unreadable file gives ``{}`` (reading it for real says why)."""
     meta: dict[str, str] = {}
     try:
+        if not Path(path).is_file():  # a folder, /dev/zero, a FIFO: reading it says why
+            return {}
         with open(path, encoding="utf-8") as fh:
-            for line in fh:
+            for _ in range(_META_LINES):
+                line = fh.readline(MAX_FIELD_CHARS * 4)
+                if not line:
+                    break
                 stripped = line.strip()
                 if not stripped:
                     continue
@@ -241,13 +264,9 @@ def read_meta(path: str | Path) -> dict[str, str]:
 
 def _read_rows(path: Path, source: str):
     """Metadata, header, its line number and the data rows as (line_no, fields)."""
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise DataError(f"{source}: no such file") from None
-    except UnicodeDecodeError as e:
-        raise DataError(f"{source}: not a text file ({e})") from None
+    text = read_text(path, DataError, "CSV file", MAX_CSV_BYTES)
     meta: dict[str, str] = {}
+    meta_line: dict[str, int] = {}
     header = None
     header_line = 0
     rows = []
@@ -260,18 +279,42 @@ def _read_rows(path: Path, source: str):
             body = stripped[1:].strip()
             if in_preamble and ":" in body:
                 k, v = body.split(":", 1)
-                meta[k.strip()] = v.strip()
+                k = k.strip()
+                if k in meta and meta[k] != v.strip():
+                    raise DataError(f"{source}: line {line_no}: metadata {k} given twice "
+                                    f"(line {meta_line[k]}: {meta[k]!r}, here: {v.strip()!r})")
+                meta[k], meta_line[k] = v.strip(), line_no
             continue
         in_preamble = False
-        fields = next(csv.reader([line]))
+        try:
+            fields = next(csv.reader([line]))
+        except csv.Error as e:
+            raise DataError(f"{source}: line {line_no}: {e}") from None
+        for f in fields:
+            if len(f) > MAX_FIELD_CHARS:
+                raise DataError(f"{source}: line {line_no}: a field of {len(f)} characters "
+                                f"(at most {MAX_FIELD_CHARS}): not a measurement CSV")
         if header is None:
             header = [f.strip() for f in fields]
             header_line = line_no
+            _check_separator(header, source, line_no)
             continue
         rows.append((line_no, [f.strip() for f in fields]))
     if header is None:
-        raise DataError(f"{source}: no header row")
+        raise DataError(f"{source}: empty: no header row (comma-separated values with a "
+                        "header, FORMATS.md §1)")
     return meta, header, header_line, rows
+
+
+def _check_separator(header: list[str], source: str, line_no: int) -> None:
+    """Refuse a header that is one field holding semicolons or tabs (another separator)."""
+    if len(header) != 1:
+        return
+    for sep, name in ((";", "semicolons (';')"), ("\t", "tabs")):
+        if sep in header[0]:
+            raise DataError(f"{source}: line {line_no}: the fields are separated by {name}; "
+                            "cellcal reads comma-separated values with '.' as the decimal "
+                            "point (FORMATS.md §1)")
 
 
 def _float(source, line_no, col, text) -> float:
@@ -355,6 +398,14 @@ class CsvTable:
             out[r] = _float(self.source, line_no, name, f[k])
         return out
 
+    def within(self, name: str, values: np.ndarray, lo: float, hi: float, what: str) -> None:
+        """Refuse a value of column ``name`` outside [lo, hi] (``what``: the expected form)."""
+        bad = (values < lo) | (values > hi)
+        if bad.any():
+            r = int(np.argmax(bad))
+            raise DataError(f"{self.source}: line {self.lines[r]}, column {name}: {values[r]:g} "
+                            f"is not {what}")
+
     def ids(self, name: str = "pose_id") -> list[str]:
         """Unique, non-empty labels from a column (``1..n`` when the column is absent)."""
         if name not in self.col:
@@ -418,11 +469,16 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
               f"the model has {N} joints: q1..q{N}, and x, y, z are required")
     q = t.joints_deg(model, check_limits)
     xyz = np.column_stack([t.numeric(c) for c in "xyz"])
+    for k, c in enumerate("xyz"):
+        t.within(c, xyz[:, k], -MAX_LENGTH_MM, MAX_LENGTH_MM, PLAUSIBLE_LENGTH)
     pose_id = t.ids("pose_id")
     cmd_cols = ["cmd_x", "cmd_y", "cmd_z"]
     if any(c in t for c in cmd_cols) and not all(c in t for c in cmd_cols):
         raise t.error("cmd_x, cmd_y, cmd_z must come together")
     cmd = np.column_stack([t.numeric(c) for c in cmd_cols]) if "cmd_x" in t else None
+    if cmd is not None:
+        for k, c in enumerate(cmd_cols):
+            t.within(c, cmd[:, k], -MAX_LENGTH_MM, MAX_LENGTH_MM, PLAUSIBLE_LENGTH)
     opt = {name: t.numeric(name) if name in t else None for name in _OPTIONAL_FLOAT}
     for name, bad, rule in (("sigma_mm", lambda v: v <= 0, "must be positive"),
                             ("pressure_hpa", lambda v: v <= 0, "must be positive"),
@@ -444,6 +500,9 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
             raise DataError(f"{source}: line {t.lines[r]}, column face: {face[r]:g} is neither "
                             "1 nor 2")
         face = face.astype(int)
+    for name, (lo, hi, what) in OPTIONAL_RANGES.items():
+        if opt[name] is not None:
+            t.within(name, opt[name], lo, hi, what)
 
     dirs = None
     dir_cols = [f"dir{j + 1}" for j in range(N)]

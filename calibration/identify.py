@@ -19,6 +19,9 @@ from .outliers import MODES as OUTLIER_MODES
 from .outliers import BlunderScreen, screen_fit
 from .solvers import SOLVERS, Problem
 
+#: a free parameter correlated at least this much with another is weakly identified
+WEAK_CORRELATION = 0.999
+
 
 def error_stats(residuals: np.ndarray) -> dict:
     """Statistics of 3-D error magnitudes: n, rms, mean, max, 95th percentile (mm)."""
@@ -115,8 +118,33 @@ class Fit:
         order = np.argsort(-np.abs(vals))[:k]
         return [(names[iu[0][i]], names[iu[1][i]], float(vals[i])) for i in order]
 
+    def weakly_identified(self, r_max: float = WEAK_CORRELATION) -> dict[str, str]:
+        """Free parameters the data hardly determine, with the reason: a standard
+        uncertainty as large as the value (the data cannot tell it from zero), or a
+        correlation |r| >= ``r_max`` with another parameter (the data cannot tell the
+        two apart)."""
+        names = [n for n, f in zip(self.names, self.free, strict=True) if f]
+        idx = np.flatnonzero(self.free)
+        out: dict[str, str] = {}
+        if not names:
+            return out
+        R = np.abs(self.correlation())
+        np.fill_diagonal(R, 0.0)
+        for i, k in enumerate(idx):
+            why = []
+            if not self.std[k] < abs(self.values[k]):
+                why.append("std >= |value|")
+            j = int(np.argmax(R[i])) if len(names) > 1 else -1
+            if j >= 0 and R[i, j] >= r_max:
+                why.append(f"|r| = {R[i, j]:.4f} with {names[j]}")
+            if why:
+                out[names[i]] = "; ".join(why)
+        return out
+
     def parameter_rows(self) -> list[dict]:
-        """One dict per parameter in display units (deg for angles), for files and tables."""
+        """One dict per parameter in display units (deg for angles), for files and tables;
+        ``weak`` says why an identifiable parameter is only weakly determined (else None)."""
+        weak = self.weakly_identified()
         rows = []
         for k, name in enumerate(self.names):
             unit, f = display_unit(self.error_model.units[k])
@@ -127,6 +155,7 @@ class Fit:
                     "std": float(self.std[k] * f) if self.free[k] else None,
                     "unit": unit,
                     "identifiable": bool(self.free[k]),
+                    "weak": weak.get(name),
                 }
             )
         return rows
@@ -158,6 +187,37 @@ def covariance(J: np.ndarray, r: np.ndarray, free: np.ndarray, sigma: float | No
             inv = np.linalg.pinv(A)
         cov[np.ix_(free, free)] = s2 * inv / np.outer(d, d)
     return cov, float(np.sqrt(s2))
+
+
+def structural_identifiability(error_model: ErrorModel, calib: Dataset, rtol: float = 1e-3
+                               ) -> tuple[Bound, np.ndarray, Identifiability]:
+    """Which parameters the calibration poses ``calib`` (prepared) determine.
+
+    Returns the bound data, the start parameters at the nominal geometry and the
+    identifiability analysis there (pinned parameters of the effects fixed too).
+    Identifiability is structural: judged at the nominal geometry, where exact
+    redundancies (parallel axes) are exact, not at a warm start that blurs them.
+    """
+    bound: Bound = error_model.bind(calib)
+    x_nominal = error_model.initial(bound)
+    _, J0 = error_model.evaluate(x_nominal, bound, jacobian=True)
+    families = [error_model.effect_of(k).family for k in range(error_model.n_params)]
+    ident = analyse(
+        J0.reshape(-1, error_model.n_params),
+        error_model.names,
+        np.asarray(error_model.scales),
+        families,
+        rtol=rtol,
+        n_poses=calib.n,
+        penalised=penalised_groups(error_model),
+    )
+    for e, st in zip(error_model.effects, bound.states, strict=True):
+        for local, why in e.pinned(st).items():
+            name = f"{e.prefix}.{local}"
+            k = error_model.index(name)
+            ident.free[k] = False
+            ident.fixed[name] = why
+    return bound, x_nominal, ident
 
 
 def identify(
@@ -223,28 +283,8 @@ def _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
         held = valid if held is None else held.concat(valid)
     if calib.n == 0:
         raise ValueError(f"{data.source}: no calibration rows")
-    bound: Bound = error_model.bind(calib)
-    x_nominal = error_model.initial(bound)
+    bound, x_nominal, ident = structural_identifiability(error_model, calib, rtol)
     x_start = x_nominal if x0 is None else np.asarray(x0, float).copy()
-    # identifiability is structural: judge it at the nominal geometry, where exact
-    # redundancies (parallel axes) are exact, not at a warm start that blurs them
-    _, J0 = error_model.evaluate(x_nominal, bound, jacobian=True)
-    families = [error_model.effect_of(k).family for k in range(error_model.n_params)]
-    ident = analyse(
-        J0.reshape(-1, error_model.n_params),
-        error_model.names,
-        np.asarray(error_model.scales),
-        families,
-        rtol=rtol,
-        n_poses=calib.n,
-        penalised=penalised_groups(error_model),
-    )
-    for e, st in zip(error_model.effects, bound.states, strict=True):
-        for local, why in e.pinned(st).items():
-            name = f"{e.prefix}.{local}"
-            k = error_model.index(name)
-            ident.free[k] = False
-            ident.fixed[name] = why
     for name in fixed or []:
         k = error_model.index(name)
         if ident.free[k]:

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .error_model import ErrorModel
+from .files import write_atomic
 from .robot_model import RobotModel
 from .ur_conf import deltas_from_table, format_calibration_conf, model_from_table
 
@@ -52,7 +53,7 @@ def calibrated_model(error_model: ErrorModel, x: np.ndarray, name: str | None = 
 def write_model_yaml(model: RobotModel, path: str | Path, notes: list[str] = ()) -> None:
     """Write a model YAML with a comment header (the notes)."""
     head = "".join(f"# {n}\n" for n in ["calibrated model exported by cellcal", *notes])
-    Path(path).write_text(head + model.to_yaml())
+    write_atomic(path, head + model.to_yaml())
 
 
 def ur_deltas(error_model: ErrorModel, x: np.ndarray, nominal: RobotModel | None = None):
@@ -78,5 +79,5 @@ def write_ur_conf(error_model: ErrorModel, x: np.ndarray, path: str | Path,
                   nominal: RobotModel | None = None) -> list[str]:
     deltas, notes = ur_deltas(error_model, x, nominal)
     head = "".join(f"# {n}\n" for n in notes)
-    Path(path).write_text(head + format_calibration_conf(deltas))
+    write_atomic(path, head + format_calibration_conf(deltas))
     return notes

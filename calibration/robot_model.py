@@ -5,17 +5,85 @@ radian views (``dh_table()``, ``limits_rad()``) for the numerical code. A prisma
 (``type: prismatic``) holds its limits in mm where a revolute one holds degrees (see
 :mod:`calibration.kinematics`). ``load_model`` also reads a URDF's serial chain
 (``robot.urdf#root:tip``, :mod:`calibration.urdf_model`).
+
+The schema is strict: every number must be a finite number (not ``true``, not a
+string, not ``.nan``) of a plausible magnitude (a link shorter than 20 m, an angle
+within ±360°, limits within ±3600° (a prismatic joint's within ±100 m), masses
+0-10 000 kg, gravity within ±100 m/s²); a key given twice, an unknown key or a file
+that is not UTF-8 is refused. Errors name the file and the field, in one line.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
+import math
+import re
 from importlib import resources
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+
+from .files import read_text
+
+#: the largest model YAML read (bytes)
+MAX_MODEL_BYTES = 1 << 20
+
+
+#: a number YAML 1.1 reads as a string (``1e300``: an exponent without a dot)
+_EXP_NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
+
+
+def number_only(v):
+    """Only numbers: YAML's true/false and strings are refused (no silent coercion); a
+    number YAML 1.1 leaves as a string (``1e3``) is read as the number it is."""
+    if isinstance(v, str) and _EXP_NUMBER.match(v.strip()):
+        return float(v)
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        shown = str(v).lower() if isinstance(v, bool) else repr(v)
+        raise ValueError(f"{shown[:40]} is not a number")
+    return v
+
+
+def _bounded(limit: float, unit: str, what: str):
+    """A finite float with |value| <= limit."""
+    def check(v: float) -> float:
+        if not math.isfinite(v):
+            raise ValueError(f"{v} is not a finite number")
+        if abs(v) > limit:
+            raise ValueError(f"{v:g} {unit} is not a plausible {what} "
+                             f"(|value| <= {limit:g} {unit})")
+        return v
+    return Annotated[float, BeforeValidator(number_only), AfterValidator(check)]
+
+
+Length = _bounded(20000.0, "mm", "length")
+Angle = _bounded(360.0, "deg", "angle")
+Limit = 3600.0  # deg: |limit| of a revolute joint
+#: a joint limit: deg, or mm for a prismatic joint (JointRow checks the revolute bound)
+Travel = _bounded(100000.0, "deg or mm", "joint limit")
+Offset = _bounded(10000.0, "mm", "offset")
+Acceleration = _bounded(100.0, "m/s^2", "acceleration")
+Mass = Annotated[float, BeforeValidator(number_only),
+                 AfterValidator(lambda v: _mass(v))]
+
+
+def _mass(v: float) -> float:
+    if not (math.isfinite(v) and 0.0 <= v <= 10000.0):
+        raise ValueError(f"{v:g} kg is not a mass (0 to 10000 kg)")
+    return v
 
 #: columns of the per-joint parameter table, in this order
 DH_COLUMNS = ("theta_offset", "d", "a", "alpha", "beta")
@@ -31,22 +99,26 @@ class JointRow(BaseModel):
     """One row of the DH/MDH table (mm, deg); in an mdh row a, alpha are a_{i-1}, alpha_{i-1}."""
 
     model_config = ConfigDict(extra="forbid")
-    a: float
-    alpha: float
-    d: float
-    theta_offset: float = 0.0
-    beta: float = 0.0
-    min: float = Field(description="lower joint limit, deg (prismatic: mm)")
-    max: float = Field(description="upper joint limit, deg (prismatic: mm)")
+    a: Length
+    alpha: Angle
+    d: Length
+    theta_offset: Angle = 0.0
+    beta: Angle = 0.0
+    min: Travel = Field(description="lower joint limit, deg (prismatic: mm)")
+    max: Travel = Field(description="upper joint limit, deg (prismatic: mm)")
     type: Literal["revolute", "prismatic"] | None = Field(
         default=None, description="joint type; absent = revolute")
     link_radius: float | None = Field(
-        default=None, ge=0.0,
+        default=None, ge=0.0, le=5000.0,
         description="radius of the link this row moves, as capsules around its d and a "
         "segments, mm (the tracker's line of sight); absent: 0, the link is not checked")
 
     @model_validator(mode="after")
     def _limits(self) -> JointRow:
+        if self.type != "prismatic" and max(abs(self.min), abs(self.max)) > Limit:
+            bad = self.min if abs(self.min) > Limit else self.max
+            raise ValueError(f"{bad:g} deg is not a plausible joint limit (|value| <= "
+                             f"{Limit:g} deg)")
         if self.min > self.max:
             raise ValueError(f"min ({self.min}) > max ({self.max})")
         return self
@@ -56,8 +128,8 @@ class MassPoint(BaseModel):
     """A mass (kg) with its centre (mm) in some frame."""
 
     model_config = ConfigDict(extra="forbid")
-    mass_kg: float = Field(ge=0.0)
-    com: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mass_kg: Mass
+    com: tuple[Offset, Offset, Offset] = (0.0, 0.0, 0.0)
 
 
 class UrdfSource(BaseModel):
@@ -81,13 +153,13 @@ class RobotModel(BaseModel):
     """A robot's nominal kinematics and (optionally) its mass model, as in the model YAML."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
-    name: str
+    name: str = Field(min_length=1, max_length=200, pattern=r"^[^\n\r]*$")
     convention: Literal["dh", "mdh"]
-    joints: list[JointRow] = Field(min_length=1)
-    tool: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    joints: list[JointRow] = Field(min_length=1, max_length=20)
+    tool: tuple[Offset, Offset, Offset] = (0.0, 0.0, 0.0)
     payload: MassPoint | None = None
     links: list[MassPoint] | None = None
-    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    gravity: tuple[Acceleration, Acceleration, Acceleration] = (0.0, 0.0, -9.81)
     urdf: UrdfSource | None = None
 
     @field_validator("links")
@@ -146,6 +218,13 @@ class RobotModel(BaseModel):
         last = self.n_joints - 1
         return [i for i in rows if i != (last if self.convention == "dh" else 0)]
 
+    def definition_hash(self) -> str:
+        """sha256 of the model's canonical JSON: two models with the same hash have the same
+        kinematics, limits and masses (recorded in params.json, checked on reading)."""
+        canon = json.dumps(self.model_dump(mode="json", exclude_none=True), sort_keys=True,
+                           separators=(",", ":"))
+        return hashlib.sha256(canon.encode()).hexdigest()
+
     def with_changes(self, **changes) -> RobotModel:
         """A copy with some top-level fields replaced (validated)."""
         data = self.model_dump()
@@ -174,28 +253,63 @@ def builtin_models() -> list[str]:
     return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
 
 
-def _format_validation(err: ValidationError, source: str) -> str:
-    lines = []
-    for e in err.errors():
+def format_validation(err: ValidationError, source: str, limit: int = 3) -> str:
+    """A pydantic error as one line: ``source: field.path: message; ...`` (the first
+    ``limit`` problems, and how many more)."""
+    parts = []
+    errors = err.errors()
+    for e in errors[:limit]:
         loc = ".".join(str(x) for x in e["loc"]) or "(top level)"
         msg = e["msg"].removeprefix("Value error, ")
         if e["type"] == "missing":
             msg = "missing field"
         elif e["type"] == "extra_forbidden":
             msg = "unknown field"
-        lines.append(f"{source}: {loc}: {msg}")
-    return "\n".join(lines)
+        parts.append(f"{loc}: {msg}")
+    more = f" (and {len(errors) - limit} more)" if len(errors) > limit else ""
+    return f"{source}: " + "; ".join(parts) + more
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """YAML's safe loader, refusing a mapping key given twice (YAML keeps the last one)."""
+
+
+def _mapping(loader: _UniqueKeyLoader, node: yaml.MappingNode, deep: bool = False) -> dict:
+    seen = set()
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if key in seen:
+            line = key_node.start_mark.line + 1
+            raise yaml.constructor.ConstructorError(
+                None, None, f"key {key!r} given twice (line {line})", key_node.start_mark)
+        seen.add(key)
+    return loader.construct_mapping(node, deep=deep)
+
+
+_UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping)
+
+
+def parse_yaml(text: str, source: str, error: type[Exception]):
+    """YAML text to Python data (safe, duplicate keys refused); ``error`` in one line."""
+    try:
+        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f"line {mark.line + 1}: " if mark is not None else ""
+        what = getattr(e, "problem", None) or str(e)
+        raise error(f"{source}: not valid YAML: {where}{' '.join(str(what).split())}") from None
 
 
 def validate_file_mapping(cls, data, source: str, error: type[ValueError], what: str):
     """``cls.model_validate(data)`` for the mapping read from a file: ``error`` naming
     ``source`` and the field (``what``: "a model file", for the message)."""
     if not isinstance(data, dict):
-        raise error(f"{source}: {what} must be a mapping, got {type(data).__name__}")
+        got = "an empty file" if data is None else type(data).__name__
+        raise error(f"{source}: {what} must be a mapping (docs/formats.md), got {got}")
     try:
         return cls.model_validate(data)
     except ValidationError as e:
-        raise error(_format_validation(e, source)) from None
+        raise error(format_validation(e, source)) from None
 
 
 def model_from_dict(data: dict, source: str = "<model>") -> RobotModel:
@@ -212,10 +326,8 @@ def load_model(name_or_path: str | Path) -> RobotModel:
     if is_urdf_spec(text_source):
         return load_urdf_model(text_source)
     path = Path(text_source)
-    if path.suffix in (".yaml", ".yml") or path.exists():
-        if not path.is_file():
-            raise ModelError(f"{path}: no such model file")
-        text = path.read_text()
+    if path.suffix in (".yaml", ".yml") or path.exists() or "/" in text_source:
+        text = read_text(path, ModelError, "model file", MAX_MODEL_BYTES)
     else:
         names = builtin_models()
         if text_source not in names:
@@ -225,8 +337,4 @@ def load_model(name_or_path: str | Path) -> RobotModel:
             )
         text = (resources.files("calibration") / "models" / f"{text_source}.yaml").read_text()
         text_source = f"built-in model {text_source}"
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        raise ModelError(f"{text_source}: not valid YAML: {e}") from None
-    return model_from_dict(data, text_source)
+    return model_from_dict(parse_yaml(text, text_source, ModelError), text_source)

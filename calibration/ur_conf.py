@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .files import write_atomic
 from .kinematics import ALPHA, BETA, THETA, A, D
 from .robot_model import RobotModel
 
@@ -215,4 +216,4 @@ def format_calibration_conf(deltas: dict) -> str:
 
 
 def write_calibration_conf(deltas: dict, path: str | Path) -> None:
-    Path(path).write_text(format_calibration_conf(deltas))
+    write_atomic(path, format_calibration_conf(deltas))

@@ -32,7 +32,7 @@ from .diagnosis import Diagnosis, diagnose
 from .effects import DEFAULT_EFFECTS
 from .error_model import ErrorModel
 from .identify import Fit, fit_at, identify
-from .params_io import ParamsError, load_params, read_auto_steps
+from .params_io import ParamsError, read_auto_steps, read_params
 from .robot_model import RobotModel
 
 #: the "uncalibrated" reference: nominal kinematics, with only the base (where the robot
@@ -65,15 +65,23 @@ def current_fit(model: RobotModel, data: Dataset, effects: str = DEFAULT_EFFECTS
     solver : identification method
 
     Raises :class:`~calibration.params_io.ParamsError` when the parameters' model has
-    another number of joints than ``model``; the loaders' own errors pass through.
+    other joints or another convention than ``model``; the loaders' own errors pass
+    through.
     """
     if params is None:
         return identify(ErrorModel(model, effects), data, solver)
-    em, x = load_params(params)[:2] if isinstance(params, (str, Path)) else params
-    if em.model.n_joints != model.n_joints:
-        raise ParamsError(f"{params}: model has {em.model.n_joints} joints, "
-                          f"the data {model.n_joints}")
-    return fit_at(em, data, x)
+    notes: list[str] = []
+    if isinstance(params, (str, Path)):
+        loaded = read_params(params, model=model)
+        em, x, notes = loaded.error_model, loaded.values, loaded.notes
+    else:
+        em, x = params
+        if em.model.n_joints != model.n_joints:
+            raise ParamsError(f"parameters of a model with {em.model.n_joints} joints, "
+                              f"the data's {model.name} has {model.n_joints}")
+    fit = fit_at(em, data, x)
+    fit.notes.extend(notes)
+    return fit
 
 
 @dataclass

@@ -17,6 +17,7 @@ Modules
     ``store_records``   the store's records: ``Run``, ``Sample``, ``Samples``, ``Calibration``
     ``store_dialect``   the two databases (SQLite, PostgreSQL) behind one small interface
     ``store_schema``    the store's SQL schema and its upgrades between versions
+    ``store_open``      opening a file as a store: refusing what is not one, read-only
     ``run_data``        runs as calibration inputs: a data set, zero-point postures
     ``service``         plan, start and resume runs (the commands and the demo call it)
     ``progress``        the progress line of a capture on a terminal

@@ -20,6 +20,7 @@ from pathlib import Path
 from calibration import load_csv
 from calibration.auto_diagnosis import auto_diagnose
 from calibration.diagnosis import diagnose
+from calibration.files import write_atomic
 from calibration.params_io import save_params
 from calibration.workflow import UNCALIBRATED_LABEL, AutoStory, staged_fit
 from drivers.urls import open_robot, open_tracker
@@ -41,6 +42,52 @@ DEMO_EFFECTS = ("compliance:3", "compliance:2", "harmonic:1", "backlash:2", "sca
 #: where the demo's user says the tracker stands (mm, robot base frame): roughly where the
 #: simulated cell puts it (:data:`~sim_drivers.model_truth.DEFAULT_TRACKER_AT_MM`)
 TRACKER_AT_MM = (2500.0, 0.0, 500.0)
+
+#: the files the demo writes in its folder (with SQLite's side files of the store); it
+#: writes no others and replaces these only in a folder it made (see check_demo_folder)
+DEMO_FILES = ("cell.db", "cell.db-wal", "cell.db-shm", "cell.db-journal", "capture.csv",
+              "params.json", "report.html", "demo.json")
+#: marks demo.json as the demo's manifest
+MANIFEST_KEY = "cellcal_demo"
+
+
+class DemoFolderError(ValueError):
+    """The demo's output folder holds files the demo did not write (exit 2)."""
+
+
+def _manifest(folder: Path) -> dict | None:
+    """The demo's manifest (demo.json) in ``folder``, or None when there is none."""
+    try:
+        doc = json.loads((folder / "demo.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) and isinstance(doc.get("files"), dict) else None
+
+
+def check_demo_folder(out: Path, force: bool = False) -> None:
+    """Refuse an output folder the demo would damage.
+
+    A folder holding files the demo did not write (no demo manifest, or files besides
+    :data:`DEMO_FILES`) is refused unless ``force``; even then a run store the demo did
+    not create (``cell.db`` without the demo's manifest) is never deleted."""
+    if out.exists() and not out.is_dir():
+        raise DemoFolderError(f"--out {out}: a file, not a folder; give a new or empty folder")
+    if not out.exists():
+        return
+    entries = sorted(p.name for p in out.iterdir())
+    manifest = _manifest(out)
+    foreign = [e for e in entries if manifest is None or e not in DEMO_FILES]
+    if foreign and not force:
+        shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5
+                                          else "")
+        raise DemoFolderError(
+            f"--out {out} holds files the demo did not write ({shown}); give a new or empty "
+            "folder, or --force to write the demo's files (capture.csv, params.json, "
+            "report.html, ...) there anyway")
+    if manifest is None and (out / "cell.db").exists():
+        raise DemoFolderError(
+            f"--out {out}: cell.db there is a run store the demo did not create; the demo "
+            "never deletes one, even with --force: give another folder")
 
 
 @dataclass
@@ -70,16 +117,25 @@ def pick_hidden(seed: int) -> str:
 
 def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | None = None,
              poses: int = 300, valid: int = 150, progress: bool = True,
-             stream=None) -> DemoResult:
-    """Run the demo; returns what it measured. ``stream`` receives the step-by-step text."""
+             stream=None, force: bool = False) -> DemoResult:
+    """Run the demo; returns what it measured. ``stream`` receives the step-by-step text.
+
+    :class:`DemoFolderError` for a folder holding other files (see
+    :func:`check_demo_folder`; ``force`` writes there anyway, never over a foreign store).
+    """
     stream = stream or sys.stdout
     t_start = time.perf_counter()
     out = Path(out)
+    check_demo_folder(out, force)
     out.mkdir(parents=True, exist_ok=True)
     hidden = hidden or pick_hidden(seed)
     db_path, csv_path = out / "cell.db", out / "capture.csv"
     params_path, report_path = out / "params.json", out / "report.html"
-    db_path.unlink(missing_ok=True)
+    # the manifest first: the store about to be made is the demo's, whatever happens next
+    write_atomic(out / "demo.json", json.dumps(
+        {MANIFEST_KEY: 1, "status": "running", "files": {"store": str(db_path)}}) + "\n")
+    for name in ("cell.db", "cell.db-wal", "cell.db-shm", "cell.db-journal"):
+        (out / name).unlink(missing_ok=True)
 
     def say(text: str = "") -> None:
         print(text, file=stream, flush=True)
@@ -165,7 +221,8 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     result.seconds = time.perf_counter() - t_start
     result.files = {"store": str(db_path), "csv": str(csv_path), "params": str(params_path),
                     "report": str(report_path)}
-    (out / "demo.json").write_text(json.dumps(result.to_json(), indent=1) + "\n")
+    write_atomic(out / "demo.json",
+                 json.dumps({MANIFEST_KEY: 1, **result.to_json()}, indent=1) + "\n")
     say()
     say(before_after(result))
     return result

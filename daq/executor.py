@@ -84,6 +84,7 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sqlite3
 import threading
 import time
 from collections.abc import Callable
@@ -491,6 +492,10 @@ class Executor:
                 self.commit_s += time.perf_counter() - t0
                 self.n_committed += 1
                 break
+            except sqlite3.OperationalError as e:  # a full disk: nothing was stored
+                self.store.release_reserve()  # room to record the pause and why
+                raise _Pause("paused", f"the run store could not be written at point "
+                             f"{t.index}: {e}; free space, then `cellcal resume`") from e
             except StoreUnavailable as e:
                 if lost is None:
                     lost, t_lost = e, time.monotonic()
@@ -529,9 +534,11 @@ class Executor:
             try:
                 if retry:
                     self.store.reconnect()
-                self.store.add_interruption(self.run_id, index, kind, reason)
+                with contextlib.suppress(sqlite3.Error):  # a full disk: the status first
+                    self.store.add_interruption(self.run_id, index, kind, reason)
                 if summarise:
-                    self._summarise()
+                    with contextlib.suppress(sqlite3.Error):
+                        self._summarise()
                 self.store.set_status(self.run_id, status, reason)
                 return
             except StoreUnavailable:

@@ -45,6 +45,17 @@ the robot's identity (``robot_id``). Reading turns a run's samples into calibrat
 inputs: :mod:`daq.run_data`. Calibrations (a params.json per robot and time) are read
 by ``cellcal history``.
 
+Opening read-only and refusing what is not a store
+    ``read_only=True`` (the commands that only read: ``runs``, ``export``, ``zero --db``)
+    opens a file with SQLite's ``mode=ro``: no WAL switch, nothing written, so a
+    read-only file or folder works and the file stays byte for byte the same; an older
+    schema is upgraded in a copy in memory. Any open refuses, with one line
+    (:class:`StoreError`), a file that is not an SQLite database, a damaged (truncated,
+    overwritten) one, an SQLite database of another program (tables that are not a run
+    store's; it is never written to) and a store of a newer schema. On PostgreSQL a
+    read-only open sets ``default_transaction_read_only``; its database may hold other
+    programs' tables.
+
 Units: joints rad (stored as JSON lists), lengths mm, covariances mm², times epoch s,
 temperature °C, pressure hPa, humidity %.
 """
@@ -53,6 +64,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import sqlite3
 import time
 from pathlib import Path
 
@@ -66,11 +78,13 @@ from .store_dialect import (
     connect,
     display_address,
 )
+from .store_open import describe_error
 from .store_records import STATUSES, Calibration, Reading, Run, Sample, Samples
-from .store_schema import SCHEMA_V1, SCHEMA_VERSION, UPGRADES
+from .store_schema import RESERVE_BYTES, SCHEMA_V1, SCHEMA_VERSION, UPGRADES
 
 __all__ = ["STATUSES", "Calibration", "Reading", "Run", "RunStore", "Sample", "Samples",
            "StoreError", "StoreUnavailable", "open_store"]
+
 
 def _f(v) -> float | None:
     return None if v is None else float(v)
@@ -135,7 +149,12 @@ class RunStore:
         #: the address as printed (a URL without its password)
         self.address = display_address(address)
         try:
+            self._check_tables()
             self._migrate(create=create)
+            self._refill_reserve()
+        except sqlite3.DatabaseError as e:
+            self.db.close()
+            raise StoreError(f"{self.address}: {describe_error(e)}") from None
         except BaseException:
             self.db.close()
             raise
@@ -161,6 +180,32 @@ class RunStore:
     def kind(self) -> str:
         """``sqlite`` or ``postgresql``."""
         return self.db.kind
+
+    def _check_tables(self) -> None:
+        """Refuse an SQLite file of another program (before anything is written to it), a
+        newer schema, and a damaged file opened read-only. (A PostgreSQL database may hold
+        other programs' tables besides the store's.)"""
+        if self.db.kind != "sqlite":
+            return
+        tables = {r[0] for r in self.db.execute(
+            "SELECT name FROM sqlite_master WHERE type='table' AND name NOT LIKE 'sqlite_%'")}
+        if not tables:
+            if self.db.read_only:
+                raise StoreError(f"{self.path}: an empty database, not a cellcal run store "
+                                 "(no runs)")
+            return
+        if not {"runs", "samples"} <= tables:
+            shown = ", ".join(sorted(tables)[:5])
+            raise StoreError(f"{self.path}: not a cellcal run store (an SQLite database with "
+                             f"the tables {shown}); give the run store of a capture")
+        v = self.version
+        if v > SCHEMA_VERSION:
+            raise StoreError(f"{self.path}: schema version {v} is newer than this cellcal "
+                             f"({SCHEMA_VERSION}); update cellcal to read it")
+        if self.db.read_only:  # a damaged file shows on a full read, not always on open
+            bad = self.db.execute("PRAGMA quick_check").fetchone()[0]
+            if bad != "ok":
+                raise StoreError(f"{self.path}: damaged run store (SQLite: {bad})")
 
     # ------------------------------------------------------------ lifecycle
     def close(self) -> None:
@@ -198,11 +243,13 @@ class RunStore:
         if v > SCHEMA_VERSION:
             raise StoreError(f"{self.address}: schema version {v} is newer than this "
                              f"cellcal ({SCHEMA_VERSION})")
-        if db.read_only:
-            if v < SCHEMA_VERSION:
+        if db.read_only and v < SCHEMA_VERSION:
+            if db.kind != "sqlite":
                 raise StoreError(f"{self.address}: schema version {v}, this cellcal reads "
                                  f"{SCHEMA_VERSION}: open it once with write access (any "
                                  "capture, runs or export) to upgrade it")
+            self._upgrade_in_memory()  # the file is left alone
+        if db.read_only:
             return
         while v < SCHEMA_VERSION:
             # one step per transaction, under the store's write lock; the version is read
@@ -224,6 +271,44 @@ class RunStore:
         if v > SCHEMA_VERSION:
             raise StoreError(f"{self.address}: schema version {v} is newer than this "
                              f"cellcal ({SCHEMA_VERSION})")
+
+    # ------------------------------------------------------------- reserve
+    def release_reserve(self) -> bool:
+        """Give up the reserve of free space (a full disk: SQLite): the pages it held let
+        the run's status and the reason still be written. True when there was one (a
+        PostgreSQL store keeps none: its server's disk is the server's)."""
+        if self.db.kind != "sqlite" or self.db.read_only:
+            return False
+        try:
+            with self.db.transaction():
+                cur = self.db.execute("DELETE FROM reserve")
+            return cur.rowcount > 0
+        except sqlite3.Error:
+            return False
+
+    def _refill_reserve(self) -> None:
+        """Put the reserve back when it was given up and there is space again."""
+        if self.db.kind != "sqlite" or self.db.read_only:
+            return
+        try:
+            with self.db.transaction():
+                if self.db.execute("SELECT count(*) FROM reserve").fetchone()[0] == 0:
+                    self.db.execute("INSERT INTO reserve (id, pad) VALUES (1, zeroblob(?))",
+                                    (RESERVE_BYTES,))
+        except sqlite3.OperationalError:  # still no space: the capture will say so
+            pass
+
+    def _upgrade_in_memory(self) -> None:
+        """An older schema opened read-only (SQLite): work on an upgraded copy in memory;
+        the file is left alone."""
+        if self.version == 0:
+            raise StoreError(f"{self.address}: not a cellcal run store (no schema version)")
+        mem = sqlite3.connect(":memory:", isolation_level=None, check_same_thread=False)
+        self.db.con.backup(mem)
+        self.db.con.close()
+        self.db.con = mem
+        self.db.read_only = False  # the copy may be upgraded
+        self.db.reconnect = lambda: None  # nothing to reconnect to: the copy is the store
 
     # ------------------------------------------------------------------ runs
     def create_run(
@@ -560,7 +645,9 @@ class RunStore:
         """
         if not robot_id:
             raise ValueError("a calibration needs a robot id")
-        text = json.dumps(params, sort_keys=True)
+        from calibration.files import json_ready
+
+        text = json.dumps(json_ready(params), sort_keys=True, allow_nan=False)
         digest = hashlib.sha256(text.encode()).hexdigest()
         now = time.time()
         with self.db.transaction():

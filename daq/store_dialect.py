@@ -62,7 +62,7 @@ import sqlite3
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, Protocol
-from urllib.parse import quote, urlsplit, urlunsplit
+from urllib.parse import urlsplit, urlunsplit
 
 #: address schemes of a PostgreSQL server
 PG_SCHEMES = ("postgresql", "postgres")
@@ -160,9 +160,10 @@ def connect(address, *, create: bool = True, read_only: bool = False,
     if is_server_address(address):
         return PostgresDatabase(address, read_only=read_only, synchronous=synchronous.upper(),
                                 timeout_s=timeout_s)
+    from .store_open import check_store_file
+
     path = Path(address)
-    if (not create or read_only) and not path.exists():
-        raise StoreError(f"{address}: no such run store")
+    check_store_file(path, must_exist=not create or read_only)
     return SqliteDatabase(path, read_only=read_only, synchronous=synchronous.upper(),
                           timeout_s=max(timeout_s, 30.0))
 
@@ -193,24 +194,24 @@ class SqliteDatabase:
         self.con = self._open()
 
     def _open(self) -> sqlite3.Connection:
+        from .store_open import connect_read_only, describe_error
+
         try:
-            if self.read_only:
-                uri = f"file:{quote(str(self.path.resolve()))}?mode=ro"
-                con = sqlite3.connect(uri, uri=True, timeout=self._timeout_s,
-                                      isolation_level=None, check_same_thread=False)
+            if self.read_only:  # nothing written, not even side files (store_open)
+                con = connect_read_only(self.path, self._timeout_s)
             else:
                 con = sqlite3.connect(str(self.path), timeout=self._timeout_s,
                                       isolation_level=None, check_same_thread=False)
         except sqlite3.Error as e:
-            raise StoreError(f"{self.address}: {e}") from None
+            raise StoreError(f"{self.address}: cannot open the run store: {e}") from None
         try:
             if not self.read_only:
                 con.execute("PRAGMA journal_mode=WAL")
-            con.execute(f"PRAGMA synchronous={self._synchronous}")
+                con.execute(f"PRAGMA synchronous={self._synchronous}")
             con.execute("PRAGMA foreign_keys=ON")
         except sqlite3.DatabaseError as e:
             con.close()
-            raise StoreError(f"{self.address}: not a run store ({e})") from None
+            raise StoreError(f"{self.address}: {describe_error(e)}") from None
         return con
 
     def execute(self, sql: str, params: Sequence = ()):

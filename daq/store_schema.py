@@ -34,6 +34,9 @@ Versions
        and covariance). Additive: older rows read as never judged.
     7. who the robot is and its calibration history (additive): ``runs.robot_id`` and the
        ``calibrations`` table (robot id, time, params.json, source file/run, software).
+    8. the ``reserve`` table: one row of zeros (:data:`RESERVE_BYTES`) a SQLite store gives
+       up when the disk is full, so that the run can still be marked paused with the
+       reason (:meth:`daq.store.RunStore.release_reserve`); empty on PostgreSQL.
 
 The version list is :data:`UPGRADES` alone (:data:`SCHEMA_VERSION` is its length + 1): a
 new upgrade is one function appended there, named for what it adds, so upgrades made on
@@ -48,6 +51,8 @@ from typing import Any
 
 #: what an upgrade gets: a daq.store_dialect.Database (anything with ``execute(sql, params)``)
 Connection = Any
+#: the free space a SQLite store keeps in reserve for a full disk (bytes)
+RESERVE_BYTES = 1 << 20
 
 SCHEMA_V1 = """
 CREATE TABLE runs (
@@ -230,6 +235,14 @@ def _upgrade_robot_history(con: Connection) -> None:
     con.execute("CREATE INDEX calibrations_robot ON calibrations(robot_id, t)")
 
 
+def _upgrade_reserve(con: Connection) -> None:
+    """v8 (additive): a reserve of space for a full disk: one new table, and on SQLite its
+    one row of zeros (a PostgreSQL server's disk is not the store's to manage)."""
+    con.execute("CREATE TABLE reserve (id INTEGER PRIMARY KEY, pad BLOB NOT NULL)")
+    if getattr(con, "kind", "sqlite") == "sqlite":
+        con.execute("INSERT INTO reserve (id, pad) VALUES (1, zeroblob(?))", (RESERVE_BYTES,))
+
+
 #: UPGRADES[k] takes a database from version k+1 to k+2 (the one list of versions)
 UPGRADES: list[Callable[[Connection], None]] = [
     _upgrade_1_to_2,            # 2: frame, summary, interruptions
@@ -238,6 +251,7 @@ UPGRADES: list[Callable[[Connection], None]] = [
     _upgrade_4_to_5,            # 5: leases, device identities
     _upgrade_5_to_6,            # 6: re-measure (verdicts, readings)
     _upgrade_robot_history,     # 7: runs.robot_id, calibrations
+    _upgrade_reserve,           # 8: the reserve for a full disk
 ]
 
 #: current schema version (SQLite's PRAGMA user_version, PostgreSQL's schema_version)

@@ -26,7 +26,7 @@ from typing import ClassVar, Literal
 
 import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
@@ -170,14 +170,38 @@ class RegisterMap(BaseModel):
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> RegisterMap:
-        """Load a map from YAML (keys as the fields of this model; missing keys default)."""
+        """Load a map from YAML (keys as the fields of this model; missing keys default).
+
+        ValueError in one line naming the file and the field (``register map m.yaml:
+        speed: Input should be a valid integer``)."""
         try:
-            data = yaml.safe_load(Path(path).read_text()) or {}
-        except (OSError, yaml.YAMLError) as e:
-            raise ValueError(f"register map {path}: {e}") from e
+            if not Path(path).is_file():
+                raise ValueError("no such file" if not Path(path).exists() else
+                                 "not a regular file")
+            raw = Path(path).read_bytes()
+            if len(raw) > 1 << 20:
+                raise ValueError("larger than 1 MB: not a register map")
+            data = yaml.safe_load(raw.decode("utf-8-sig")) or {}
+        except UnicodeDecodeError:
+            raise ValueError(f"register map {path}: not UTF-8 text") from None
+        except yaml.YAMLError as e:
+            raise ValueError(f"register map {path}: not valid YAML: "
+                             f"{' '.join(str(e).split())}") from None
+        except (OSError, ValueError) as e:
+            raise ValueError(f"register map {path}: {e}") from None
         if not isinstance(data, dict):
-            raise ValueError(f"register map {path}: expected a mapping")
-        return cls.model_validate(data)
+            raise ValueError(f"register map {path}: expected a mapping of field: address")
+        try:
+            return cls.model_validate(data)
+        except ValidationError as e:
+            parts = []
+            for err in e.errors()[:3]:
+                loc = ".".join(str(x) for x in err["loc"]) or "(map)"
+                msg = err["msg"].removeprefix("Value error, ")
+                if err["type"] == "extra_forbidden":
+                    msg = "unknown field"
+                parts.append(f"{loc}: {msg}")
+            raise ValueError(f"register map {path}: " + "; ".join(parts)) from None
 
     # -------------------------------------------------------- float helpers
     def pack_floats(self, values) -> list[int]:

@@ -20,8 +20,6 @@ from __future__ import annotations
 import base64
 import html
 import math
-import os
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +27,7 @@ from pathlib import Path
 from calibration.dataset import Dataset
 from calibration.diagnosis import Diagnosis
 from calibration.effects import DEFAULT_EFFECTS
+from calibration.files import write_atomic
 from calibration.identify import Fit
 from calibration.robot_model import RobotModel
 from calibration.workflow import AutoStory, ParamsSource, staged_fit
@@ -99,25 +98,9 @@ class Report:
     provenance: Provenance | None = None
 
     def write(self, path: str | Path) -> Path:
-        """Write the page through a temporary file in the same folder (an existing page is
-        replaced only by a whole new one)."""
-        path = Path(path)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(self.html)
-            os.chmod(tmp, 0o666 & ~_umask())  # as an ordinary new file (mkstemp makes 0600)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-        return path
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
+        """Write the page atomically (an interrupted write leaves the old page whole)."""
+        write_atomic(path, self.html)
+        return Path(path)
 
 
 # ---- computing the stages ------------------------------------------------------------

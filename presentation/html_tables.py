@@ -116,6 +116,8 @@ def params_table(stage: Stage, new_effects: list[str] | set[str]) -> str:
     rows = []
     for r in fit.parameter_rows():
         status = "identifiable" if r["identifiable"] else "fixed: " + fixed.get(r["name"], "")
+        if r["weak"]:
+            status = f"weakly identified: {r['weak']}"
         value, std = _value_std(r["value"], r["std"])
         ratio = ""
         if r["std"]:
@@ -136,7 +138,8 @@ def params_table(stage: Stage, new_effects: list[str] | set[str]) -> str:
         f"{ident.observability_index:.3g}); solver {html.escape(fit.solver)}"
         f"{'' if fit.converged else ' — did not converge: ' + html.escape(fit.reason)}. "
         "Values in display units (angles in degrees) with their standard uncertainty; "
-        "|value|/σ below 2 means the data cannot tell the parameter from zero. "
+        "|value|/σ below 2 means the data cannot tell the parameter from zero; weakly "
+        "identified: σ at least |value|, or |r| >= 0.999 with another parameter. "
         + ("Highlighted: the parameters of the effects the story added. " if new else "")
         + "Fixed parameters are held at their start value, with the reason.</caption>"
         "<tr><th>parameter</th><th>value</th><th>σ</th><th>|value|/σ</th><th>unit</th>"

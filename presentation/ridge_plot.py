@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from calibration.files import atomic_output
 from calibration.solvers.ridge import gcv
 
 
@@ -47,5 +48,6 @@ def plot_ridge(info: dict, path, title: str = "") -> None:
     fig.suptitle(title or f"ridge: condition number {info['condition_number']:.3g} "
                  f"({info['condition_class']})")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    with atomic_output(path) as tmp:  # the old plot stays whole if saving fails
+        fig.savefig(tmp, dpi=100)
     plt.close(fig)

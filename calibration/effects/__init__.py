@@ -14,12 +14,14 @@ table      table:J, a smooth correction table for joint errors no formula captur
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
 import inspect
 import re
 import sys
 from pathlib import Path
 
+from ..files import check_regular_file
 from ..robot_model import RobotModel
 from .base import Effect, EffectError, JointEffect, display_unit
 from .geometric import BUILTIN, Base, Geometric, Tool
@@ -42,6 +44,7 @@ __all__ = [
     "JointEffect",
     "Tool",
     "display_unit",
+    "effect_source",
     "load_effect_file",
     "parse_effect",
     "parse_effects",
@@ -49,14 +52,35 @@ __all__ = [
 ]
 
 
+#: the families cellcal ships: a user effect replaces one only when it says so
+BUILTIN_FAMILIES = frozenset(REGISTRY)
+
+
 def register(cls: type[Effect]) -> type[Effect]:
-    """Make a family available by name (usable as a class decorator)."""
+    """Make a family available by name (usable as a class decorator).
+
+    A class may not take over a built-in family's name unless it declares
+    ``replaces_builtin = True`` (a user's file must not silently change what
+    ``geometric`` means)."""
     if not cls.family or not re.fullmatch(r"[a-z][a-z_]*", cls.family):
-        raise EffectError(f"{cls.__name__}: family must be lower-case letters/underscores")
+        raise EffectError(f"{cls.__name__}: family {cls.family!r} must be lower-case "
+                          "letters/underscores")
     if cls.stage not in ("joint", "table", "length", "tool", "base", "measure"):
         raise EffectError(f"{cls.__name__}: unknown stage {cls.stage!r}")
+    current = REGISTRY.get(cls.family)
+    if (cls.family in BUILTIN_FAMILIES and current is not cls
+            and current.__module__.startswith(__name__)
+            and not getattr(cls, "replaces_builtin", False)):
+        raise EffectError(f"{cls.__name__}: family {cls.family!r} is a built-in effect; a user "
+                          "effect replaces it only if it says so (class attribute "
+                          "replaces_builtin = True)")
     REGISTRY[cls.family] = cls
     return cls
+
+
+def effect_source(cls: type[Effect]) -> tuple[str, str] | None:
+    """(file name, sha256) of the user file that defined ``cls``; None for a built-in."""
+    return getattr(cls, "_cellcal_source", None)
 
 
 def parse_effect(name: str, model: RobotModel) -> Effect:
@@ -94,18 +118,29 @@ def parse_effects(spec: str | list[str], model: RobotModel) -> list[Effect]:
 
 
 def load_effect_file(path: str | Path) -> list[type[Effect]]:
-    """Import a user's Python file and register every Effect subclass it defines."""
-    path = Path(path)
-    if not path.is_file():
-        raise EffectError(f"{path}: no such effect file")
+    """Import a user's Python file and register every Effect subclass it defines.
+
+    This runs the file's code: call it only for a file the user named (``--effect-file``),
+    never for a path read from a data file. Each class remembers the file's name and
+    sha256 (:func:`effect_source`), so params.json can record them and check them on
+    reading."""
+    path = check_regular_file(path, EffectError, "effect file")
+    source = path.read_bytes()
+    digest = hashlib.sha256(source).hexdigest()
     mod_name = f"cellcal_user_effect_{path.stem}"
     spec = importlib.util.spec_from_file_location(mod_name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[mod_name] = module
+    no_bytecode = sys.dont_write_bytecode
+    sys.dont_write_bytecode = True  # no __pycache__ left in the user's folder
     try:
         spec.loader.exec_module(module)
     except Exception as e:  # a user's file: report whatever it raised
-        raise EffectError(f"{path}: could not load: {type(e).__name__}: {e}") from e
+        sys.modules.pop(mod_name, None)
+        detail = " ".join(str(e).split())
+        raise EffectError(f"{path}: could not load: {type(e).__name__}: {detail}") from None
+    finally:
+        sys.dont_write_bytecode = no_bytecode
     found = [
         obj
         for obj in vars(module).values()
@@ -117,5 +152,9 @@ def load_effect_file(path: str | Path) -> list[type[Effect]]:
     if not found:
         raise EffectError(f"{path}: defines no Effect subclass with a family name")
     for cls in found:
-        register(cls)
+        try:
+            register(cls)
+        except EffectError as e:
+            raise EffectError(f"{path}: {e}") from None
+        cls._cellcal_source = (path.name, digest)
     return found

@@ -12,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..dataset import CsvTable, DataError, Dataset
+from ..dataset import MAX_LENGTH_MM, PLAUSIBLE_LENGTH, CsvTable, DataError, Dataset
+from ..files import write_atomic
 from ..robot_model import RobotModel
 
 
@@ -104,7 +105,7 @@ class Postures:
             lines.append(",".join(row))
         text = "\n".join(lines) + "\n"
         if path is not None:
-            Path(path).write_text(text)
+            write_atomic(path, text)
         return text
 
 
@@ -127,6 +128,9 @@ def load_postures(path: str | Path, model: RobotModel, *, check_limits: bool = T
                             "3 or 4")
     pose_id = t.ids("pose_id")
     tips = np.column_stack([t.numeric(c) for c in "xyz"]) if measured else None
+    if tips is not None:
+        for k, c in enumerate("xyz"):
+            t.within(c, tips[:, k], -MAX_LENGTH_MM, MAX_LENGTH_MM, PLAUSIBLE_LENGTH)
     frame = t.meta.get("xyz_frame", "base").strip().lower()
     if frame not in ("base", "tracker"):
         raise DataError(f"{t.source}: xyz_frame: {frame!r} is not base or tracker")

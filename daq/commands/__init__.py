@@ -2,7 +2,9 @@
 inputs and prints; none passes the argparse namespace on.
 
 Modules (sub-command in brackets)
-    ``common``            shared helpers: loading inputs with user-facing errors, printing
+    ``common``            shared helpers: loading inputs with user-facing errors, the guards
+                          on outputs (never an input, never a run store) and on numbers,
+                          printing
     ``choices``           the parser's defaults and choices (equal to the core's, import-free)
     ``demo``              [demo] the whole workflow on the simulated cell
     ``capture``           [capture ROUTINE] plan, dry-run and run a routine into the store

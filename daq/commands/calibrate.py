@@ -3,17 +3,23 @@
 from __future__ import annotations
 
 import contextlib
-import json
 from pathlib import Path
 
 from ..cli import UsageError, command_parser
 from .choices import DEFAULT_EFFECTS, OUTLIER_MODES, SOLVERS, solver_help
 from .common import (
     add_model_args,
+    bounded_int,
+    check_data,
+    check_outputs,
+    error_model_of,
     fmt,
+    input_paths,
     load_inputs,
     print_json,
+    print_note,
     print_outliers,
+    seed_int,
     table,
     tool_text,
     wrap_errors,
@@ -43,9 +49,9 @@ def register(sub) -> None:
     p.add_argument("--params", metavar="params.json",
                    help="start from these parameters (those of the same name)")
     p.add_argument("--out", metavar="params.json", help="write the parameters here")
-    p.add_argument("--seed", type=int, default=None,
+    p.add_argument("--seed", type=seed_int, default=None,
                    help="random seed of the besa/sa solvers and of --monte-carlo (default 0)")
-    p.add_argument("--monte-carlo", type=int, default=0, metavar="N",
+    p.add_argument("--monte-carlo", type=bounded_int(0, 100_000), default=0, metavar="N",
                    help="re-identify N times from the calibrated model plus instrument noise "
                    "(sigma from the data or --sigma) and report the parameter spread and the "
                    "position uncertainty over the workspace")
@@ -65,24 +71,36 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def check_calibrate_outputs(args) -> None:
+    """--out and --ridge-plot: never an input, a run store, a directory (exit 2)."""
+    check_outputs({"--out": args.out, "--ridge-plot": getattr(args, "ridge_plot", None)},
+                  input_paths(args, "data", "valid", "params", "model", "effect_file"))
+
+
 def calibrate(args):
     """Run a calibration from parsed arguments; returns (fit, baseline fit)."""
     import numpy as np
 
-    from calibration import ErrorModel, identify, load_csv
-    from calibration.params_io import load_params
+    from calibration import identify, load_csv
+    from calibration.params_io import read_params
     from calibration.workflow import fit_uncalibrated
 
     model, data = load_inputs(args)
-    em = wrap_errors(lambda: ErrorModel(model, args.effects))
+    em = error_model_of(model, args.effects)
     valid = wrap_errors(lambda: load_csv(args.valid, model)) if args.valid else None
     x0 = None
+    notes = []
     if args.params:
-        em_p, x_p, _ = wrap_errors(lambda: load_params(args.params))
+        start = read_params(args.params, model=model)
+        notes += start.notes
+    notes += check_data(em, data)
+    if args.params:
         x0 = em.initial(em.bind(data.calib() if data.is_valid.any() else data))
-        for k, name in enumerate(em_p.names):
+        for k, name in enumerate(start.error_model.names):
             if name in em.names:
-                x0[em.index(name)] = x_p[k]
+                x0[em.index(name)] = start.values[k]
+    for n in notes:
+        print_note(n)
     opts = {}
     if getattr(args, "seed", None) is not None and args.solver in ("besa", "sa", "besa+lm"):
         opts["seed"] = args.seed
@@ -105,6 +123,7 @@ def run(args) -> int:
         raise UsageError("--monte-carlo needs N >= 2")
     if getattr(args, "robot_id", None) and not getattr(args, "db", None):
         raise UsageError("--robot-id needs --db (where the calibration is recorded)")
+    check_calibrate_outputs(args)
     store = _open_history_store(args) if getattr(args, "db", None) else None
     try:
         fit, baseline = calibrate(args)
@@ -156,7 +175,7 @@ def _record(store, args, fit) -> dict | None:
 
 
 def _report(args, fit, baseline, ridge_plot, n_mc, recorded) -> int:
-    from calibration.params_io import fit_to_dict, params_by_name, solver_summary
+    from calibration.params_io import params_by_name, save_params, solver_summary
     from calibration.uncertainty import correlations, monte_carlo
     from presentation.summaries import fit_summary
 
@@ -169,14 +188,12 @@ def _report(args, fit, baseline, ridge_plot, n_mc, recorded) -> int:
         seed = args.seed if getattr(args, "seed", None) is not None else 0
         mc = monte_carlo(fit, n_mc, seed=seed)
     if args.out:
-        Path(args.out).write_text(
-            json.dumps(fit_to_dict(fit, args.effect_file, capture=fit.data.capture),
-                       indent=1) + "\n"
-        )
+        save_params(fit, args.out, args.effect_file, capture=fit.data.capture)
     if args.json:
         out = fit_summary(fit)
         out["params_file"] = args.out
         out["params"] = params_by_name(fit)
+        out["weakly_identified"] = fit.weakly_identified()
         out["outliers"] = fit.outliers.to_json() if fit.outliers else []
         if fit.outliers:
             out["outlier_check"] = fit.outliers.check_json()
@@ -254,8 +271,13 @@ def print_report(fit, baseline, out_path=None, mc=None, ridge_plot=None) -> None
     rows = []
     for r in fit.parameter_rows():
         std = "fixed" if not r["identifiable"] else fmt(r["std"], 4)
-        rows.append([r["name"], fmt(r["value"], 4), std, r["unit"]])
-    print(table(rows, ["parameter", "value", "std", "unit"]))
+        rows.append([r["name"], fmt(r["value"], 4), std, r["unit"],
+                     f"weak: {r['weak']}" if r["weak"] else ""])
+    print(table(rows, ["parameter", "value", "std", "unit", "note"], left=(0, 4)))
+    weak = fit.weakly_identified()
+    if weak:
+        print(f"weakly identified: {len(weak)} parameter(s) whose std is as large as the "
+              "value or that the data cannot tell from another (|r| >= 0.999)")
     if ident.fixed:
         print()
         print("fixed at their start value (the data cannot determine them):")

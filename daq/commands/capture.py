@@ -369,10 +369,23 @@ def request_from_args(args):
         tracker=TrackerSetup(**tracker_setup(args)), robot_id=args.robot_id)
 
 
+def check_urls(robot: str | None, tracker: str | None) -> None:
+    """Refuse a malformed robot or tracker URL before anything is opened or created."""
+    from drivers.urls import check_url
+
+    try:
+        for url, kind in ((robot, "robot"), (tracker, "tracker")):
+            if url is not None:
+                check_url(url, kind)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+
+
 def run(args) -> int:
     from ..service import plan_run, start_run
     from ..store import RunStore, StoreError
 
+    check_urls(args.robot, args.tracker)
     try:
         request = request_from_args(args)
     except ValueError as e:

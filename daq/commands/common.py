@@ -1,13 +1,21 @@
-"""Helpers shared by the sub-commands: loading inputs with user-facing errors, printing.
+"""Helpers shared by the sub-commands: loading inputs with user-facing errors, the guards
+on outputs and on numbers, printing.
 
-Import-light (the parser is built without the calibration core, :mod:`daq.cli`): the
-core is imported inside the functions that load data.
+Guards
+    :func:`check_outputs` refuses an output path that is one of the command's inputs, a
+    run store (any SQLite file), a directory, in a missing folder, or named twice; every
+    write then goes through :func:`calibration.files.write_atomic`. The argparse types
+    (:func:`positive_float`, :func:`nonneg_int`, ...) refuse NaN, infinities and
+    out-of-range numbers with a message naming the flag (exit 2).
 """
 
 from __future__ import annotations
 
+import argparse
+import contextlib
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -19,6 +27,105 @@ MODEL_HELP = ("built-in model name (see `cellcal models`) or a model YAML file (
               "the model the CSV's `# model:` line names, as `cellcal export` writes it)")
 
 
+# ------------------------------------------------------------------ number arguments
+def _number_type(kind, lo=None, hi=None, lo_open=False, what="a number"):
+    def parse(text: str):
+        try:
+            v = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        if isinstance(v, float) and not math.isfinite(v):
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what} (finite)")
+        if lo is not None and (v <= lo if lo_open else v < lo):
+            raise argparse.ArgumentTypeError(f"{text} is not {what}")
+        if hi is not None and v > hi:
+            raise argparse.ArgumentTypeError(
+                f"{text} is not {what}" + ("" if lo is not None else f" (at most {hi:g})"))
+        return v
+    parse.__name__ = what  # argparse names the type in its messages
+    return parse
+
+
+#: argparse types: finite numbers within their range (messages name the expected form)
+positive_float = _number_type(float, 0.0, None, True, "a positive number")
+nonneg_float = _number_type(float, 0.0, None, False, "a number >= 0")
+finite_float = _number_type(float, None, None, False, "a finite number")
+nonneg_int = _number_type(int, 0, None, False, "an integer >= 0")
+positive_int = _number_type(int, 1, None, False, "an integer >= 1")
+seed_int = _number_type(int, 0, 2**63 - 1, False, "a seed (an integer 0 .. 2**63-1)")
+
+
+def bounded_int(lo: int, hi: int):
+    """An argparse type: an integer in [lo, hi]."""
+    return _number_type(int, lo, hi, False, f"an integer {lo} .. {hi}")
+
+
+def bounded_float(lo: float, hi: float):
+    """An argparse type: a finite number in [lo, hi]."""
+    return _number_type(float, lo, hi, False, f"a number {lo:g} .. {hi:g}")
+
+
+# ------------------------------------------------------------------------- outputs
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def check_outputs(outputs: dict[str, str | None], inputs=(), *, stdout: bool = False) -> None:
+    """Refuse output paths that would destroy something (UsageError, exit 2).
+
+    ``outputs`` maps a flag (``--out``) to its path (None: not given); ``inputs`` are the
+    command's input paths (None and non-paths such as built-in model names are skipped).
+    Refused: an output that is an input, any SQLite file (a run store is never
+    overwritten), a directory, a path in a missing folder, a folder not writable, and one
+    path given for two outputs. ``stdout``: ``-`` means standard output.
+    """
+    from calibration.files import is_sqlite_file
+
+    seen: dict[str, str] = {}
+    ins = [Path(i) for i in inputs if i]
+    for flag, out in outputs.items():
+        if out is None or (stdout and out == "-"):
+            continue
+        p = Path(out)
+        if p.is_dir():
+            raise UsageError(f"{flag} {out}: is a directory; give a file name")
+        folder = p.parent
+        if not folder.is_dir():
+            raise UsageError(f"{flag} {out}: the folder {folder} does not exist (no such "
+                             "directory)")
+        for i in ins:
+            if _same_file(p, i) or p.resolve() == i.resolve():
+                raise UsageError(f"{flag} {out} is an input of this command; write to a new "
+                                 "file (cellcal never overwrites its inputs)")
+        if is_sqlite_file(p):
+            raise UsageError(f"{flag} {out}: is a run store (an SQLite database); cellcal "
+                             "never overwrites one: give a new file name")
+        if p.exists() and not p.is_file():
+            continue  # /dev/null, /dev/stdout, a FIFO: written directly
+        if not os.access(folder, os.W_OK):
+            raise UsageError(f"{flag} {out}: the folder {folder} is not writable")
+        key = str(p.resolve())
+        if key in seen:
+            raise UsageError(f"{seen[key]} and {flag} name the same file {out}; give two "
+                             "different files")
+        seen[key] = flag
+
+
+def input_paths(args, *names: str) -> list[str]:
+    """The values of these argparse attributes that name existing files (lists flattened;
+    a built-in model name is no path)."""
+    out = []
+    for n in names:
+        v = getattr(args, n, None)
+        for item in v if isinstance(v, list) else [v]:
+            if item and isinstance(item, str) and Path(item).exists():
+                out.append(item)
+    return out
+
+
 def add_model_args(p, data: bool = True) -> None:
     if data:
         p.add_argument("data", metavar="DATA.csv",
@@ -28,7 +135,7 @@ def add_model_args(p, data: bool = True) -> None:
     p.add_argument("--model", default=None, metavar="NAME|PATH", help=MODEL_HELP)
     p.add_argument("--effect-file", action="append", default=[], metavar="FILE.py",
                    help="load user-defined effects from a Python file (repeatable)")
-    p.add_argument("--sigma", type=float, default=None, metavar="MM",
+    p.add_argument("--sigma", type=positive_float, default=None, metavar="MM",
                    help="tracker standard uncertainty per axis, mm (default: from the CSV's "
                    "sigma_mm column or `# tracker_sigma_mm:` line)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of tables")
@@ -80,8 +187,6 @@ def load_inputs(args):
     if data is not None:
         model = data.capture.with_tool(model)
     if data is not None and args.sigma is not None:
-        if not (args.sigma > 0 and math.isfinite(args.sigma)):
-            raise UsageError("--sigma must be a positive number of mm")
         data.sigma_mm = None
         data.meta["tracker_sigma_mm"] = repr(args.sigma)
     return model, data
@@ -97,6 +202,40 @@ def tool_text(model, data, params: str | None = None) -> str:
     else:
         where = "model"
     return "tool " + ", ".join(f"{v:g}" for v in model.tool) + f" mm ({where})"
+def error_model_of(model, spec: str, flag: str = "--effects"):
+    """``ErrorModel(model, spec)``; a bad effect list is a UsageError naming the flag."""
+    from calibration import ErrorModel
+    from calibration.effects import EffectError
+
+    try:
+        return ErrorModel(model, spec)
+    except EffectError as e:
+        raise UsageError(f"{flag} {spec!r}: {e}") from None
+
+
+def current_model(args, model):
+    """The current model of diagnose/report: (error model, params source for
+    :func:`calibration.workflow.current_fit` or None, notes). ``--params`` is read
+    strictly and checked against ``--model``; else ``--effects`` on the model."""
+    from calibration.params_io import read_params
+
+    if getattr(args, "params", None):
+        p = read_params(args.params, model=model)
+        return p.error_model, (p.error_model, p.values), p.notes
+    return error_model_of(model, args.effects), None, []
+
+
+def check_data(error_model, data) -> list[str]:
+    """Refuse data too poor to identify ``error_model`` (InsufficientData: exit 3); the
+    notes on marginal data otherwise."""
+    from calibration.data_quality import check_for_fit
+
+    return check_for_fit(error_model, data).notes
+
+
+def print_note(text: str) -> None:
+    """A remark for the user on stderr (stdout stays for results and JSON)."""
+    print(f"note: {text}", file=sys.stderr)
 
 
 def wrap_errors(fn, *exc):
@@ -112,6 +251,8 @@ def wrap_errors(fn, *exc):
 
 
 def print_json(obj) -> None:
+    from calibration.files import json_ready
+
     def default(o):
         if hasattr(o, "tolist"):
             return o.tolist()
@@ -119,16 +260,7 @@ def print_json(obj) -> None:
             return str(o)
         raise TypeError(type(o).__name__)
 
-    def clean(o):
-        if isinstance(o, float) and not math.isfinite(o):
-            return None
-        if isinstance(o, dict):
-            return {k: clean(v) for k, v in o.items()}
-        if isinstance(o, (list, tuple)):
-            return [clean(v) for v in o]
-        return o
-
-    json.dump(clean(obj), sys.stdout, default=default)
+    json.dump(json_ready(obj), sys.stdout, default=default)
     sys.stdout.write("\n")
 
 
@@ -164,6 +296,17 @@ def print_outliers(screen, context: str = "fit") -> None:
                            "angle deg"]))
 
 
+@contextlib.contextmanager
+def store_errors(path):
+    """Turn an SQLite error while reading a store (damage found late) into a UsageError."""
+    import sqlite3
+
+    try:
+        yield
+    except sqlite3.DatabaseError as e:
+        raise UsageError(f"{path}: damaged run store (SQLite: {e})") from None
+
+
 #: the ``--db`` help of every command that reads or writes a run store
 DB_HELP = ("run store: a SQLite file or a PostgreSQL URL postgresql://user@host[:port]/db "
            "(password from PGPASSWORD or ~/.pgpass)")
@@ -172,7 +315,8 @@ DB_HELP = ("run store: a SQLite file or a PostgreSQL URL postgresql://user@host[
 def open_store(address, synchronous: str = "FULL", *, read_only: bool = False):
     """An existing run store (a file or a ``postgresql://`` URL); a missing or unreadable
     store, or a server that cannot be reached, is a UsageError (never create an empty
-    store for a mistyped address)."""
+    store for a mistyped address). ``read_only``: for commands that only read (no WAL
+    switch, no upgrade written, works on a read-only file)."""
     from ..store import StoreError
     from ..store import open_store as open_run_store
 

@@ -7,11 +7,10 @@ import csv
 import io
 import math
 import sys
-from pathlib import Path
 
 from ..cli import UsageError, command_parser
-from .common import fmt, print_json, wrap_errors
-from .compensate_exports import add_export_args, output_paths, run_exports
+from .common import check_outputs, fmt, input_paths, print_json, wrap_errors
+from .compensate_exports import OUTPUTS, add_export_args, output_paths, run_exports
 
 
 def register(sub) -> None:
@@ -33,6 +32,9 @@ def register(sub) -> None:
                    help="target points (omit to only export)")
     p.add_argument("--params", required=True, metavar="params.json",
                    help="the calibration (`cellcal calibrate --out`)")
+    p.add_argument("--effect-file", action="append", default=[], metavar="FILE.py",
+                   help="load user-defined effects from a Python file (needed when the "
+                   "calibration used one; repeatable)")
     p.add_argument("--out", metavar="compensated.csv",
                    help="write the compensated targets (default: print them)")
     p.add_argument("--start", metavar="Q1,..,QN",
@@ -82,18 +84,23 @@ def _parse_start(text, n):
 
 def run(args) -> int:
     from calibration.compensation import compensate, load_targets
+    from calibration.effects import load_effect_file
+    from calibration.files import write_atomic
     from calibration.model_export import calibrated_model, write_model_yaml, write_ur_conf
     from calibration.params_io import capture_of, load_params
 
-    em, x, _ = wrap_errors(lambda: load_params(args.params))
-    model = em.model
-    inputs = {Path(p).resolve() for p in (args.params, args.targets) if p}
-    for out in (args.out, args.export_model, args.export_ur, *output_paths(args)):
-        if out and Path(out).resolve() in inputs:
-            raise UsageError(f"{out} is an input file; write a new file instead")
     if not args.targets and not (args.export_model or args.export_ur or output_paths(args)):
         raise UsageError("give TARGETS.csv, --export-model, --export-ur, --export-urdf, "
                          "--export-ur-yaml or --export-dh")
+    check_outputs({"--out": args.out, "--export-model": args.export_model,
+                   "--export-ur": args.export_ur,
+                   **{"--" + dest.replace("_", "-"): getattr(args, dest, None)
+                      for dest, _ in OUTPUTS}},
+                  input_paths(args, "params", "targets", "effect_file"))
+    for f in args.effect_file:
+        wrap_errors(lambda f=f: load_effect_file(f))
+    em, x, _ = wrap_errors(lambda: load_params(args.params))
+    model = em.model
     capture = capture_of(args.params)
     doc = {"params_file": args.params, "model": model.name, "tool_mm": list(model.tool),
            "capture": capture.to_json() if capture.known else None,
@@ -124,7 +131,7 @@ def run(args) -> int:
                        keep_orientation=not args.position_only, columns=t.columns)
         text = _csv(t, c)
         if args.out:
-            Path(args.out).write_text(text)
+            write_atomic(args.out, text)
         doc.update({
             "n_targets": len(t.base_p_tcp),
             "n_reached": int(c.success.sum()),

@@ -6,9 +6,13 @@ from ..cli import command_parser
 from .common import (
     add_current_model_args,
     add_model_args,
+    check_data,
+    current_model,
     fmt,
     load_inputs,
+    positive_int,
     print_json,
+    print_note,
     print_outliers,
     table,
     tool_text,
@@ -28,7 +32,7 @@ def register(sub) -> None:
     )
     add_model_args(p)
     add_current_model_args(p, "use these parameters (and their model) instead of fitting")
-    p.add_argument("--top", type=int, default=12, metavar="N",
+    p.add_argument("--top", type=positive_int, default=12, metavar="N",
                    help="rows of the ranking to print (default 12)")
     add_auto_args(p)
     p.set_defaults(func=run)
@@ -40,7 +44,10 @@ def run(args) -> int:
 
     check_auto_args(args)
     model, data = load_inputs(args)
-    fit = wrap_errors(lambda: current_fit(model, data, args.effects, args.params, args.solver))
+    em, params, notes = current_model(args, model)
+    for n in notes + check_data(em, data):
+        print_note(n)
+    fit = wrap_errors(lambda: current_fit(model, data, args.effects, params, args.solver))
     if args.auto:
         return run_auto(args, fit, data)
     diag = diagnose(fit, data)

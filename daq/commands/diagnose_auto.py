@@ -5,11 +5,19 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..cli import UsageError
-from .common import fmt, print_json, print_outliers, table
+from .common import (
+    check_outputs,
+    fmt,
+    input_paths,
+    positive_float,
+    positive_int,
+    print_json,
+    print_outliers,
+    table,
+)
 
 if TYPE_CHECKING:  # the calibration core is imported when a run needs it (fast --help)
     from calibration.auto_diagnosis import AutoDiagnosis, AutoStep
@@ -21,9 +29,9 @@ def add_auto_args(p) -> None:
                    help="add the best candidate, refit, and repeat while the held-out error "
                    "(validation rows, else cross-validation) falls by more than its "
                    "standard error; print the steps and why it stopped")
-    g.add_argument("--max-steps", type=int, default=12, metavar="N",
+    g.add_argument("--max-steps", type=positive_int, default=12, metavar="N",
                    help="with --auto: add at most N effects (default 12)")
-    g.add_argument("--budget-s", type=float, default=None, metavar="S",
+    g.add_argument("--budget-s", type=positive_float, default=None, metavar="S",
                    help="with --auto: stop after S seconds, keeping the steps accepted")
     g.add_argument("--out", metavar="params.json",
                    help="with --auto: write the final model's parameters here (as calibrate)")
@@ -40,13 +48,8 @@ def check_auto_args(args) -> None:
         raise UsageError("--max-steps must be at least 1")
     if args.budget_s is not None and not (args.budget_s > 0 and math.isfinite(args.budget_s)):
         raise UsageError("--budget-s must be a positive number of seconds")
-    if args.out:
-        out = Path(args.out).resolve()
-        inputs = [Path(f).resolve() for f in (args.data, args.params) if f]
-        if out in inputs:
-            raise UsageError(f"--out {args.out} would overwrite an input file")
-        if not out.parent.is_dir():
-            raise UsageError(f"--out {args.out}: no such directory {out.parent}")
+    check_outputs({"--out": args.out},
+                  input_paths(args, "data", "params", "model", "effect_file"))
 
 
 def run_auto(args, fit, data) -> int:

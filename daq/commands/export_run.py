@@ -31,6 +31,7 @@ from __future__ import annotations
 import sys
 
 from ..cli import UsageError, command_parser
+from .common import check_outputs, positive_int
 
 
 def register(sub) -> None:
@@ -47,7 +48,7 @@ def register(sub) -> None:
         "(the controller's TCP: the nominal tool of later fits), robot_id, smr_radius_mm, "
         "frame_run and tracker_T_base (the measurement frame), tracker_sigma_mm, URLs, "
         "software.")
-    p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN",
+    p.add_argument("run_id", nargs="?", type=positive_int, default=None, metavar="RUN",
                    help="run id (default: the latest)")
     p.add_argument("--db", required=True, metavar="cell.db|URL", help=DB_HELP)
     p.add_argument("--out", required=True, metavar="data.csv", help="CSV to write ('-': stdout)")
@@ -65,10 +66,11 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..run_data import dataset_from_run
     from ..store import StoreError
-    from .common import open_store
+    from .common import open_store, store_errors
 
-    store = open_store(args.db)
-    try:
+    check_outputs({"--out": args.out}, [args.db], stdout=True)
+    store = open_store(args.db, read_only=True)
+    with store, store_errors(args.db):
         if args.postures:
             return _postures(store, args)
         try:
@@ -97,8 +99,6 @@ def run(args) -> int:
                          "neither with each other nor with the model)")
             print(f"run {r.id}: {what} written to {args.out}{note}", file=sys.stderr)
         return 0
-    finally:
-        store.close()
 
 
 def _postures(store, args) -> int:

@@ -9,7 +9,18 @@ import math
 from pathlib import Path
 
 from ..cli import UsageError, command_parser
-from .common import add_current_model_args, add_model_args, load_inputs, print_json, wrap_errors
+from .common import (
+    add_current_model_args,
+    add_model_args,
+    check_data,
+    check_outputs,
+    current_model,
+    input_paths,
+    load_inputs,
+    print_json,
+    print_note,
+    wrap_errors,
+)
 
 
 def register(sub) -> None:
@@ -52,13 +63,12 @@ def run(args) -> int:
     if args.budget_s is not None and not (args.budget_s > 0 and math.isfinite(args.budget_s)):
         raise UsageError("--budget-s must be a positive number of seconds")
     out = Path(args.out)
-    if not out.parent.is_dir():
-        raise UsageError(f"{out.parent}: no such directory for --out")
-    if out.resolve() in [Path(f).resolve() for f in (args.data, args.params) if f]:
-        raise UsageError(f"--out {args.out} would overwrite an input file")
+    check_outputs({"--out": args.out},
+                  input_paths(args, "data", "params", "model", "effect_file"))
     model, data = load_inputs(args)
-    if args.params and not Path(args.params).is_file():
-        raise UsageError(f"{args.params}: no such file")
+    em, _, notes = current_model(args, model)
+    for n in notes + check_data(em, data):
+        print_note(n)
     prov = wrap_errors(lambda: Provenance.of(model.name, args.data, data, args.params),
                        OSError)
     rep = wrap_errors(lambda: build_report(data, model, args.effects, args.params,

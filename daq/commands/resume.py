@@ -21,6 +21,7 @@ from .capture import (
     EXEC_FLAGS,
     add_common,
     add_tracker_flags,
+    check_urls,
     confirm_motion,
     executor_options,
     flag_values,
@@ -28,6 +29,7 @@ from .capture import (
     run_and_report,
     tracker_setup,
 )
+from .common import positive_int
 from .routine_args import ROUTINE_ARGS
 
 #: every routine's acquisition flags (given, they apply to a run of that routine)
@@ -43,7 +45,7 @@ def register(sub) -> None:
         "with --robot/--tracker when given. A run found still running (its process was "
         "killed) gets a `killed` interruption first. Flags given override the stored "
         "settings for this session. Exit codes as `cellcal capture`.")
-    p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN",
+    p.add_argument("run_id", nargs="?", type=positive_int, default=None, metavar="RUN",
                    help="the run to continue (default: the latest run of the store)")
     add_common(p, resume=True)
     add_tracker_flags(p, resume=True)
@@ -63,6 +65,7 @@ def run(args) -> int:
     from .common import open_store
 
     executor_options(flag_values(args, EXEC_FLAGS))  # checked before anything else
+    check_urls(args.robot, args.tracker)
     store = open_store(args.db, synchronous=args.synchronous)
     try:
         with Leases(store) as leases:

@@ -13,6 +13,7 @@ import datetime as dt
 import math
 
 from ..cli import UsageError, command_parser
+from .common import positive_int
 
 
 def register(sub) -> None:
@@ -25,7 +26,7 @@ def register(sub) -> None:
         "re-measured, why it stopped; --robot-id: only that robot's); "
         "with RUN, show that run: its devices, context (tool, SMR, measurement frame, "
         "tracker checks, executor settings), summary and interruptions.")
-    p.add_argument("run_id", nargs="?", type=int, default=None, metavar="RUN",
+    p.add_argument("run_id", nargs="?", type=positive_int, default=None, metavar="RUN",
                    help="show this run in detail, with its interruptions")
     p.add_argument("--db", required=True, metavar="cell.db|URL", help=DB_HELP)
     p.add_argument("--robot-id", metavar="NAME", default=None, help="only this robot's runs")
@@ -140,10 +141,10 @@ def print_run(store, r, interruptions) -> None:
 
 def run(args) -> int:
     from ..store import StoreError
-    from .common import open_store, print_json, table
+    from .common import open_store, print_json, store_errors, table
 
-    store = open_store(args.db)
-    try:
+    store = open_store(args.db, read_only=True)
+    with store, store_errors(args.db):
         if args.run_id is not None:
             try:
                 r = store.run(args.run_id)
@@ -187,5 +188,3 @@ def run(args) -> int:
                            "interruptions", "beam breaks", "skipped", "remeasured", "reason"],
                     left=(0, 1, 2, 4, 5, 6, 11)))
         return 0
-    finally:
-        store.close()

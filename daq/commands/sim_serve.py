@@ -15,6 +15,7 @@ import sys
 import threading
 
 from ..cli import UsageError, add_subcommands, command_parser
+from .common import bounded_float, bounded_int, nonneg_float, seed_int
 
 #: the default ports (also in :data:`sim_drivers.serve.DEFAULT_PORTS`, kept equal by
 #: tests/daq/test_cli_help.py): Modbus robot, line robot, line tracker, emScon tracker
@@ -39,7 +40,8 @@ def register(sub) -> None:
         "Ports: Modbus robot 15020, line robot 15021, tracker 15700, emScon 15701 by "
         "default; --port-base N serves them on N, N+1, N+2, N+3; a port flag sets one (0: "
         "any free port). A port in use is an error (exit 2) unless --any-port.")
-    s.add_argument("--seed", type=int, default=0, help="random seed of the cell (default 0)")
+    s.add_argument("--seed", type=seed_int, default=0,
+                   help="random seed of the cell (default 0)")
     s.add_argument("--model", default="ur10e", metavar="NAME|PATH",
                    help="the true robot: a model name or YAML with realistic hidden errors "
                         "(default ur10e), or 'toy' for a 3-joint stand-in arm")
@@ -55,14 +57,14 @@ def register(sub) -> None:
     s.add_argument("--faults", default=None, metavar="SPEC",
                    help="fault spec, e.g. 'beam=0.05,slow=0.02,drop@3,delay=2'; "
                    "'blunder=0.03': 3 %% of tracker readings off by 0.5-5 mm")
-    s.add_argument("--time-scale", type=float, default=0.0, metavar="S",
+    s.add_argument("--time-scale", type=nonneg_float, default=0.0, metavar="S",
                    help="wall seconds per simulated second (default 0: instantaneous)")
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (default loopback)")
-    s.add_argument("--port-base", type=int, default=None, metavar="N",
+    s.add_argument("--port-base", type=bounded_int(0, 65532), default=None, metavar="N",
                    help="serve on ports N (Modbus robot), N+1 (line robot), N+2 (tracker), "
                    "N+3 (emScon); 0: any free ports")
     for name, flag in _PORT_FLAGS.items():
-        s.add_argument(flag, type=int, default=None, metavar="PORT",
+        s.add_argument(flag, type=bounded_int(0, 65535), default=None, metavar="PORT",
                        help=f"port of the {name.replace('_', ' ')} server (default "
                        f"{DEFAULT_PORTS[name]}; 0: any free port)")
     s.add_argument("--any-port", action="store_true",
@@ -73,9 +75,10 @@ def register(sub) -> None:
                    help="no RTDE receive server on port 30004 (ur://, read-only)")
     s.add_argument("--no-weather-station", action="store_true",
                    help="the tracker has no weather station (give it the air: capture --meteo)")
-    s.add_argument("--tracker-collimation-urad", type=float, default=0.0, metavar="URAD",
+    s.add_argument("--tracker-collimation-urad", type=bounded_float(-1e4, 1e4), default=0.0,
+                   metavar="URAD",
                    help="the tracker's two-face (collimation) error, µrad (default 0)")
-    s.add_argument("--tracker-warmup-s", type=float, default=0.0, metavar="S",
+    s.add_argument("--tracker-warmup-s", type=nonneg_float, default=0.0, metavar="S",
                    help="simulated seconds until the tracker is warmed up (default 0)")
     s.set_defaults(func=run)
 
@@ -106,14 +109,19 @@ def export_line(urls: list[str]) -> str:
 
 
 def run(args) -> int:
-    from sim_drivers.serve import ServeConfig, SimStack
-
-    if args.time_scale < 0:
-        raise UsageError(f"--time-scale must be >= 0, got {args.time_scale}")
     from calibration.cell import load_cell
+    from sim_drivers.serve import ServeConfig, SimStack
 
     from .routine_args import floats
 
+    if args.hidden and args.model != "toy":
+        from calibration import EffectError, load_model, parse_effects
+
+        model = load_model(args.model)  # a bad model: ModelError, exit 2
+        try:
+            parse_effects(args.hidden, model)
+        except EffectError as e:
+            raise UsageError(f"--hidden {args.hidden!r}: {e}") from None
     config = ServeConfig(seed=args.seed, hidden=args.hidden, faults=args.faults,
                          time_scale=args.time_scale, host=args.host, ports=ports(args),
                          pty=not args.no_pty, rtde=not args.no_rtde, any_port=args.any_port)
@@ -134,8 +142,6 @@ def run(args) -> int:
         def factory(seed, hidden):
             return ModelTruth.from_spec(args.model, hidden, seed, tracker_at=at, smr_axis=axis)
 
-    if args.tracker_warmup_s < 0:
-        raise UsageError(f"--tracker-warmup-s must be >= 0, got {args.tracker_warmup_s}")
     try:
         stack = SimStack(config, truth_factory=factory, cell=cell,
                          weather_station=not args.no_weather_station,

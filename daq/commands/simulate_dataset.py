@@ -6,7 +6,19 @@ import json
 
 from ..cli import UsageError, command_parser
 from .choices import DEFAULT_EFFECTS
-from .common import load_inputs, wrap_errors
+from .common import (
+    bounded_float,
+    bounded_int,
+    check_outputs,
+    error_model_of,
+    input_paths,
+    load_inputs,
+    positive_float,
+    seed_int,
+)
+
+#: the most poses one simulated CSV holds
+MAX_POSES = 1_000_000
 
 
 def register(sub) -> None:
@@ -23,15 +35,17 @@ def register(sub) -> None:
                    help="load user-defined effects from a Python file (repeatable)")
     p.add_argument("--hidden", default="", metavar="EFFECTS",
                    help="extra hidden effects besides geometric,base,tool (e.g. compliance:2)")
-    p.add_argument("--poses", type=int, default=300, help="calibration poses (default 300)")
-    p.add_argument("--valid", type=int, default=300, help="validation poses (default 300)")
-    p.add_argument("--sigma", type=float, default=0.015, metavar="MM",
+    p.add_argument("--poses", type=bounded_int(1, MAX_POSES), default=300, metavar="N",
+                   help="calibration poses (default 300)")
+    p.add_argument("--valid", type=bounded_int(0, MAX_POSES), default=300, metavar="N",
+                   help="validation poses (default 300)")
+    p.add_argument("--sigma", type=positive_float, default=0.015, metavar="MM",
                    help="tracker noise per axis, mm (default 0.015)")
-    p.add_argument("--blunders", type=float, default=0.0, metavar="RATE",
+    p.add_argument("--blunders", type=bounded_float(0.0, 1.0), default=0.0, metavar="RATE",
                    help="probability that a calibration reading is a blunder: displaced by "
                    "0.5-5 mm along the line of sight or in a random direction (default 0; "
                    "validation rows stay clean; which ones goes to --truth)")
-    p.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
+    p.add_argument("--seed", type=seed_int, default=1, help="random seed (default 1)")
     p.add_argument("--out", required=True, metavar="FILE.csv", help="the CSV to write")
     p.add_argument("--truth", metavar="FILE.json", help="write the hidden parameters here")
     p.set_defaults(func=run, data=None, json=False)
@@ -40,19 +54,17 @@ def register(sub) -> None:
 def run(args) -> int:
     import numpy as np
 
-    from calibration import ErrorModel
     from calibration.effects import display_unit
+    from calibration.files import write_atomic
     from calibration.simulate import add_blunders, random_joints, realistic_truth, simulate
 
+    check_outputs({"--out": args.out, "--truth": args.truth},
+                  input_paths(args, "model", "effect_file"))
     model, _ = load_inputs(args)
-    if args.poses < 1 or args.valid < 0:
-        raise UsageError("--poses must be >= 1 and --valid >= 0")
-    if not args.sigma > 0:
-        raise UsageError("--sigma must be positive")
-    if not 0.0 <= args.blunders <= 1.0:
-        raise UsageError("--blunders must be a probability in [0, 1]")
+    if args.poses + args.valid > MAX_POSES:
+        raise UsageError(f"--poses plus --valid must be at most {MAX_POSES}")
     spec = DEFAULT_EFFECTS + ("," + args.hidden if args.hidden else "")
-    em = wrap_errors(lambda: ErrorModel(model, spec))
+    em = error_model_of(model, spec, "--hidden")
     rng = np.random.default_rng(args.seed)
     x = realistic_truth(em, rng)
     n = args.poses + args.valid
@@ -74,8 +86,7 @@ def run(args) -> int:
         truth = {"effects": em.labels, "parameters": rows}
         if blunders is not None:
             truth["blunders"] = blunders.to_json()
-        with open(args.truth, "w") as fh:
-            json.dump(truth, fh, indent=1)
+        write_atomic(args.truth, json.dumps(truth, indent=1))
     print(f"wrote {args.out}: {args.poses} calibration + {args.valid} validation poses of a "
           f"simulated {model.name} ({','.join(em.labels)} hidden), tracker sigma {args.sigma} mm"
           + (f"; {len(blunders.index)} blunders" if blunders is not None else ""))

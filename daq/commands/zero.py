@@ -29,7 +29,19 @@ from pathlib import Path
 
 from ..cli import UsageError, command_parser
 from ..store_dialect import display_address
-from .common import fmt, open_store, print_json, table, wrap_errors
+from .common import (
+    check_outputs,
+    fmt,
+    input_paths,
+    open_store,
+    positive_float,
+    positive_int,
+    print_json,
+    print_note,
+    seed_int,
+    table,
+    wrap_errors,
+)
 
 #: tip scatter per axis of taught postures, mm (:data:`calibration.zero_point.DEFAULT_SIGMA_MM`,
 #: kept equal by tests/daq/test_cli_help.py)
@@ -66,7 +78,7 @@ def register(sub) -> None:
     p.add_argument("--db", metavar="cell.db|URL",
                    help="read the postures from a zero20 run in this run store (a SQLite file "
                    "or a postgresql:// URL) instead of a CSV")
-    p.add_argument("--run", type=int, default=None, metavar="N",
+    p.add_argument("--run", type=positive_int, default=None, metavar="N",
                    help="with --db: the zero20 run (default: the latest completed one)")
     p.add_argument("--robot-id", metavar="NAME", default=None,
                    help="with --db: the latest completed zero20 run of this robot")
@@ -76,13 +88,16 @@ def register(sub) -> None:
     p.add_argument("--params", metavar="params.json",
                    help="a calibration of the cell (geometric deltas; its base pose puts the "
                    "measured tips in the robot base frame)")
+    p.add_argument("--effect-file", action="append", default=[], metavar="FILE.py",
+                   help="load user-defined effects from a Python file (needed when the "
+                   "calibration in --params used one; repeatable)")
     p.add_argument("--method", choices=("seed", "rigorous", "both"), default="both",
                    help="seed (published), rigorous, or both compared (default; the "
                    "rigorous result is reported)")
-    p.add_argument("--tolerance-deg", type=float, default=0.01, metavar="T",
+    p.add_argument("--tolerance-deg", type=positive_float, default=0.01, metavar="T",
                    help="a joint changed when |offset| > T; decided when 2 sigma < T "
                    "(default 0.01)")
-    p.add_argument("--sigma", type=float, default=DEFAULT_SIGMA_MM, metavar="MM",
+    p.add_argument("--sigma", type=positive_float, default=DEFAULT_SIGMA_MM, metavar="MM",
                    help=f"tip scatter per axis (teaching repeatability), mm "
                    f"(default {DEFAULT_SIGMA_MM})")
     p.add_argument("--replay", metavar="previous.json",
@@ -92,7 +107,7 @@ def register(sub) -> None:
                    "correction, about 0)")
     p.add_argument("--keep-outliers", action="store_true",
                    help="do not leave out postures with improbable residuals")
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--seed", type=seed_int, default=0,
                    help="random seed of the seed method's resampling (default 0: the same "
                    "result every time)")
     p.add_argument("--out", metavar="FILE",
@@ -108,14 +123,14 @@ def _chain(model, params_path):
         raise UsageError(f"model {model.name} has a prismatic joint: the zero-point "
                          "recalibration handles revolute joints only")
     from calibration.inverse import ChainFK
-    from calibration.params_io import load_params
+    from calibration.params_io import read_params
 
     if not params_path:
         return ChainFK.from_model(model), None
-    em, x, _ = wrap_errors(lambda: load_params(params_path))
-    if em.model.n_joints != model.n_joints:
-        raise UsageError(f"{params_path}: its model has {em.model.n_joints} joints, "
-                         f"{model.name} has {model.n_joints}")
+    p = read_params(params_path, model=model)
+    for n in p.notes:
+        print_note(n)
+    em, x = p.error_model, p.values
     c = em.perturb(x)
     tool = c.tool if "tool" in c.applied else model.tool_mm()
     return ChainFK(model.convention, c.table, tool), c.tracker_T_base
@@ -148,32 +163,43 @@ def _joints_as_calibrated(params_path, postures, notes: list[str]):
 
 
 def _replay_start(path, n_joints):
+    """The offsets (rad) of a previous ``zero --json`` result: ``offsets_deg`` (null for
+    an undetermined joint, read as 0) or ``offsets_rad``; one finite number per joint."""
     import numpy as np
 
+    from calibration.files import read_text
+
+    text = read_text(path, UsageError, "zero --json result", 50 << 20)
     try:
-        doc = json.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise UsageError(f"{path}: no such file") from None
+        doc = json.loads(text)
     except json.JSONDecodeError as e:
-        raise UsageError(f"{path}: not valid JSON: {e}") from None
-    if "offsets_rad" in doc:
-        off = np.array(doc["offsets_rad"], float)
-    elif "offsets_deg" in doc:
-        off = np.radians([0.0 if v is None else v for v in doc["offsets_deg"]])
-    else:
+        raise UsageError(f"{path}: not valid JSON: line {e.lineno}: {e.msg}") from None
+    except RecursionError:
+        raise UsageError(f"{path}: not a `cellcal zero --json` result") from None
+    if not isinstance(doc, dict):
+        raise UsageError(f"{path}: not a `cellcal zero --json` result (a JSON object with "
+                         "offsets_deg expected)")
+    key = "offsets_rad" if "offsets_rad" in doc else "offsets_deg"
+    values = doc.get(key)
+    if values is None:
         raise UsageError(f"{path}: no offsets_deg: not a `cellcal zero --json` result")
-    if off.shape != (n_joints,):
-        raise UsageError(f"{path}: {off.size} offsets, the model has {n_joints} joints")
-    return off
+    limit = math.pi if key == "offsets_rad" else 180.0
+    if not isinstance(values, list) or len(values) != n_joints or not all(
+            v is None or (isinstance(v, (int, float)) and not isinstance(v, bool)
+                          and math.isfinite(v) and abs(v) <= limit) for v in values):
+        raise UsageError(f"{path}: {key} must be {n_joints} numbers (or null) within "
+                         f"±{limit:g}, one per joint of the model")
+    off = np.array([0.0 if v is None else float(v) for v in values])
+    return off if key == "offsets_rad" else np.radians(off)
 
 
-def _check_out(out: str, *inputs) -> Path:
-    path = Path(out)
-    for i in inputs:
-        if i and Path(i).exists() and path.exists() and path.resolve() == Path(i).resolve():
-            raise UsageError(f"--out {out} is an input file; write a new file instead")
+def _check_out(args) -> Path:
+    check_outputs({"--out": args.out},
+                  input_paths(args, "model", "params", "postures", "replay", "db",
+                              "effect_file"))
+    path = Path(args.out)
     if path.suffix not in (".yaml", ".yml", ".json"):
-        raise UsageError(f"--out {out}: give a .yaml (model) or .json (params) file")
+        raise UsageError(f"--out {args.out}: give a .yaml (model) or .json (params) file")
     return path
 
 
@@ -182,17 +208,19 @@ def run(args) -> int:
 
     from calibration import load_model
     from calibration.dataset import read_meta
+    from calibration.effects import load_effect_file
     from calibration.zero_point import load_postures, rigorous_method, seed_method
     from presentation.summaries import zero_summary
 
-    if not (args.sigma > 0 and math.isfinite(args.sigma)):
-        raise UsageError("--sigma must be a positive number of mm")
-    if not (args.tolerance_deg > 0 and math.isfinite(args.tolerance_deg)):
-        raise UsageError("--tolerance-deg must be a positive number")
     if (args.postures is None) == (args.db is None):
         raise UsageError("give a postures CSV or --db cell.db (not both)")
     if (args.run is not None or args.robot_id is not None) and args.db is None:
         raise UsageError("--run and --robot-id need --db")
+    out = _check_out(args) if args.out else None
+    if out is not None and out.suffix == ".json" and not args.params:
+        raise UsageError("--out *.json updates a params file: give --params")
+    for f in args.effect_file:
+        wrap_errors(lambda f=f: load_effect_file(f))
     notes = []
     if args.db is not None:
         model, postures = _from_store(args)
@@ -207,12 +235,6 @@ def run(args) -> int:
         postures = wrap_errors(lambda: load_postures(args.postures, model))
         model = _with_capture_tool(model, meta, args.postures)
         source = args.postures
-    out = None
-    if args.out:
-        out = _check_out(args.out, args.model, args.params, args.postures, args.replay,
-                         args.db)
-        if out.suffix == ".json" and not args.params:
-            raise UsageError("--out *.json updates a params file: give --params")
     fk, base = _chain(model, args.params)
     if args.params:
         postures = _joints_as_calibrated(args.params, postures, notes)
@@ -279,7 +301,7 @@ def _from_store(args):
     from ..store import StoreError
 
     try:
-        with open_store(args.db) as store:
+        with open_store(args.db, read_only=True) as store:
             # tips stay in the tracker frame when --params gives the base pose
             postures, r = postures_from_run(store, args.run, to_base=not args.params,
                                             robot_id=args.robot_id)
@@ -307,9 +329,11 @@ def _from_store(args):
 def _write_out(out: Path, model, params_path, result) -> None:
     import numpy as np
 
+    from calibration.files import read_text, write_atomic
+
     off = np.where(result.determined, result.offsets, 0.0)
     if out.suffix == ".json":
-        doc = json.loads(Path(params_path).read_text())
+        doc = json.loads(read_text(params_path, UsageError, "params file"))
         rows = {r["name"]: r for r in doc["parameters"]}
         for j, v in enumerate(off):
             name = f"geometric.j{j + 1}.theta"
@@ -319,12 +343,12 @@ def _write_out(out: Path, model, params_path, result) -> None:
             rows[name]["value"] = rows[name]["value"] + math.degrees(v)
         doc.setdefault("history", []).append(
             {"zero_point": {"offsets_deg": [math.degrees(v) for v in off]}})
-        out.write_text(json.dumps(doc, indent=1) + "\n")
+        write_atomic(out, json.dumps(doc, indent=1) + "\n")
         return
     joints = [j.model_dump() for j in model.joints]
     for j, v in enumerate(off):
         joints[j]["theta_offset"] = joints[j]["theta_offset"] + math.degrees(v)
-    out.write_text(model.with_changes(joints=joints).to_yaml())
+    write_atomic(out, model.with_changes(joints=joints).to_yaml())
 
 
 def _print(doc, main, results, args, out) -> None:

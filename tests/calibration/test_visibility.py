@@ -200,7 +200,7 @@ def test_cell_file_and_its_errors(tmp_path):
         with pytest.raises(CellError, match=msg) as e:
             load_cell(f)
         assert str(f) in str(e.value)
-    with pytest.raises(CellError, match="no such cell file"):
+    with pytest.raises(CellError, match="missing.yaml: no such file"):
         load_cell(tmp_path / "missing.yaml")
 
 

@@ -88,11 +88,17 @@ def test_steps_export_calibrates(tmp_path, capsys):
     csv = tmp_path / "steps.csv"
     assert main(["export", "--db", str(tmp_path / "c.db"), "--out", str(csv)]) == 0
     capsys.readouterr()
-    rc = main(["calibrate", str(csv), "--model", "ur10e", "--json"])
+    # axis-wise steps from one start cannot determine the full model (the tool and the
+    # wrist offsets stay undetermined): refused as too poor, not fitted
+    assert main(["calibrate", str(csv), "--model", "ur10e", "--json"]) == 3
+    err = capsys.readouterr().err
+    assert "rank-deficient design" in err and "tool.x" in err
+    # the base pose they do determine: the exported file calibrates
+    rc = main(["calibrate", str(csv), "--model", "ur10e", "--effects", "base", "--json"])
     out = json.loads(capsys.readouterr().out)
     assert rc == 0, out
     assert out["calib"]["n"] == len(plan)
-    assert out["calib"]["rms_mm"] < 0.1
+    assert out["calib"]["rms_mm"] < 0.25  # the robot's own geometric errors remain
 
 
 @pytest.mark.slow

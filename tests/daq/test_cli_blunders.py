@@ -39,8 +39,10 @@ def test_simulate_blunders_leaves_the_clean_readings_alone(blunder_csv, tmp_path
     b = [line for line in path.read_text().splitlines() if not line.startswith("#")]
     differ = {x.split(",")[0] for x, y in zip(a, b, strict=True) if x != y}
     assert differ == ids
-    assert main(["simulate", "--model", "ur10e", "--out", str(plain), "--blunders", "2"]) == 2
-    assert "--blunders" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:  # refused by the parser: a probability
+        main(["simulate", "--model", "ur10e", "--out", str(plain), "--blunders", "2"])
+    assert e.value.code == 2
+    assert "--blunders: 2 is not a number 0 .. 1" in capsys.readouterr().err
 
 
 def test_calibrate_json_lists_outliers_and_params(blunder_csv, tmp_path, capsys):

@@ -113,8 +113,12 @@ def test_diagnose_auto_bad_input(several_csv, capsys):
     base = ["diagnose", str(several_csv), "--model", "ur10e"]
     assert main(base + ["--out", "p.json"]) == 2
     assert "--out need(s) --auto" in capsys.readouterr().err
-    assert main(base + ["--auto", "--max-steps", "0"]) == 2
-    assert "--max-steps must be at least 1" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:  # refused by the parser (an integer >= 1)
+        main(base + ["--auto", "--max-steps", "0"])
+    assert e.value.code == 2
+    assert "--max-steps: 0 is not an integer >= 1" in capsys.readouterr().err
     assert main(base + ["--auto", "--out", str(several_csv)]) == 2
-    assert "would overwrite an input file" in capsys.readouterr().err
-    assert main(base + ["--auto", "--budget-s", "-1"]) == 2
+    assert "is an input of this command" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        main(base + ["--auto", "--budget-s", "-1"])
+    assert e.value.code == 2

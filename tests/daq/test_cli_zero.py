@@ -85,9 +85,11 @@ def test_zero_bad_input_exits_2(postures, tmp_path, capsys):
     model = tmp_path / "m.yaml"
     model.write_text(load_model("ur10e").to_yaml())
     assert main(["zero", str(path), "--model", str(model), "--out", str(model)]) == 2
-    assert "is an input file" in capsys.readouterr().err
+    assert "is an input of this command" in capsys.readouterr().err
     assert main(["zero", str(path), "--model", "ur10e", "--out", str(tmp_path / "p.json")]) == 2
-    assert main(["zero", str(path), "--model", "ur10e", "--sigma", "-1"]) == 2
+    with pytest.raises(SystemExit) as e:  # refused by the parser
+        main(["zero", str(path), "--model", "ur10e", "--sigma", "-1"])
+    assert e.value.code == 2 and "--sigma: -1 is not a positive number" in capsys.readouterr().err
 
 
 def test_measured_tips_are_used_in_the_frame_they_are_in(tmp_path, capsys):

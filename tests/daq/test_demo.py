@@ -45,6 +45,39 @@ def test_demo_command(tmp_path, capsys):
 
 
 def test_demo_rejects_bad_options(tmp_path, capsys):
-    assert main(["demo", "--out", str(tmp_path), "--poses", "10"]) == 2
+    with pytest.raises(SystemExit) as e:  # refused by the parser: at least 50
+        main(["demo", "--out", str(tmp_path), "--poses", "10"])
+    assert e.value.code == 2 and "--poses: 10 is not an integer 50" in capsys.readouterr().err
     assert main(["demo", "--out", str(tmp_path), "--hidden", "wobble:1"]) == 2
     assert "unknown effect family" in capsys.readouterr().err
+
+
+def test_the_demo_writes_only_into_a_folder_it_owns(tmp_path):
+    """Refused: a folder with other files (unless --force), and, even with --force, a
+    run store the demo did not create. A folder of an earlier demo is the demo's."""
+    import pytest
+
+    from daq.demo_workflow import DemoFolderError, check_demo_folder
+
+    check_demo_folder(tmp_path / "new")  # a folder still to be made
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "demo.json").write_text(json.dumps({"cellcal_demo": 1, "files": {}}))
+    for name in ("cell.db", "capture.csv", "params.json", "report.html"):
+        (mine / name).write_text("from an earlier demo")
+    check_demo_folder(mine)
+    (mine / "notes.txt").write_text("the user's")
+    with pytest.raises(DemoFolderError, match="notes.txt"):
+        check_demo_folder(mine)
+    check_demo_folder(mine, force=True)
+    user = tmp_path / "user"
+    user.mkdir()
+    (user / "capture.csv").write_text("the user's data")
+    with pytest.raises(DemoFolderError, match="--force"):
+        check_demo_folder(user)
+    check_demo_folder(user, force=True)
+    (user / "cell.db").write_text("the user's run store")
+    with pytest.raises(DemoFolderError, match="never deletes"):
+        check_demo_folder(user, force=True)
+    with pytest.raises(DemoFolderError, match="not a folder"):
+        check_demo_folder(user / "capture.csv")
