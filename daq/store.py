@@ -143,13 +143,13 @@ class RunStore:
 
     def __init__(self, address: str | Path, synchronous: str = "FULL", *,
                  create: bool = True, read_only: bool = False) -> None:
-        self.db: Database = connect(address, create=create, read_only=read_only,
-                                    synchronous=synchronous)
-        self._open_args = (address, read_only, synchronous)
         #: the address as printed (a URL without its password)
         self.address = display_address(address)
+        self.db: Database = connect(address, create=create, read_only=read_only,
+                                    synchronous=synchronous,
+                                    check_file=lambda con: self._check_file(con, read_only))
+        self._open_args = (address, read_only, synchronous)
         try:
-            self._check_tables()
             self._migrate(create=create)
             self._refill_reserve()
         except sqlite3.DatabaseError as e:
@@ -181,31 +181,29 @@ class RunStore:
         """``sqlite`` or ``postgresql``."""
         return self.db.kind
 
-    def _check_tables(self) -> None:
-        """Refuse an SQLite file of another program (before anything is written to it), a
-        newer schema, and a damaged file opened read-only. (A PostgreSQL database may hold
-        other programs' tables besides the store's.)"""
-        if self.db.kind != "sqlite":
-            return
-        tables = {r[0] for r in self.db.execute(
+    def _check_file(self, con, read_only: bool) -> None:
+        """A SQLite file's first look, before anything is written to it: refuse a file of
+        another program, a newer schema, and a damaged file opened read-only. (A
+        PostgreSQL database may hold other programs' tables besides the store's.)"""
+        tables = {r[0] for r in con.execute(
             "SELECT name FROM sqlite_master WHERE type='table' AND name NOT LIKE 'sqlite_%'")}
         if not tables:
-            if self.db.read_only:
-                raise StoreError(f"{self.path}: an empty database, not a cellcal run store "
+            if read_only:
+                raise StoreError(f"{self.address}: an empty database, not a cellcal run store "
                                  "(no runs)")
             return
         if not {"runs", "samples"} <= tables:
             shown = ", ".join(sorted(tables)[:5])
-            raise StoreError(f"{self.path}: not a cellcal run store (an SQLite database with "
-                             f"the tables {shown}); give the run store of a capture")
-        v = self.version
+            raise StoreError(f"{self.address}: not a cellcal run store (an SQLite database "
+                             f"with the tables {shown}); give the run store of a capture")
+        v = int(con.execute("PRAGMA user_version").fetchone()[0])
         if v > SCHEMA_VERSION:
-            raise StoreError(f"{self.path}: schema version {v} is newer than this cellcal "
+            raise StoreError(f"{self.address}: schema version {v} is newer than this cellcal "
                              f"({SCHEMA_VERSION}); update cellcal to read it")
-        if self.db.read_only:  # a damaged file shows on a full read, not always on open
-            bad = self.db.execute("PRAGMA quick_check").fetchone()[0]
+        if read_only:  # a damaged file shows on a full read, not always on open
+            bad = con.execute("PRAGMA quick_check").fetchone()[0]
             if bad != "ok":
-                raise StoreError(f"{self.path}: damaged run store (SQLite: {bad})")
+                raise StoreError(f"{self.address}: damaged run store (SQLite: {bad})")
 
     # ------------------------------------------------------------ lifecycle
     def close(self) -> None:

@@ -146,14 +146,17 @@ class Database(Protocol):
 
 
 def connect(address, *, create: bool = True, read_only: bool = False,
-            synchronous: str = "FULL", timeout_s: float = 10.0) -> Database:
+            synchronous: str = "FULL", timeout_s: float = 10.0,
+            check_file=None) -> Database:
     """The database at ``address`` (a path or a ``postgresql://`` URL).
 
     ``create`` False refuses a missing SQLite file (a PostgreSQL database must always
     exist: the store never creates databases, only its tables in one). ``synchronous``
     FULL (default) or NORMAL: SQLite's pragma; on PostgreSQL NORMAL turns
     ``synchronous_commit`` off for the session (a server crash may lose the last
-    commits, as SQLite's NORMAL may on a power cut).
+    commits, as SQLite's NORMAL may on a power cut). ``check_file(con)``: called on a
+    SQLite file's first connection before anything is written to it (no WAL switch yet):
+    a file of another program raises there and is left as it was.
     """
     if synchronous.upper() not in ("FULL", "NORMAL"):
         raise ValueError(f"synchronous must be FULL or NORMAL, got {synchronous!r}")
@@ -165,7 +168,7 @@ def connect(address, *, create: bool = True, read_only: bool = False,
     path = Path(address)
     check_store_file(path, must_exist=not create or read_only)
     return SqliteDatabase(path, read_only=read_only, synchronous=synchronous.upper(),
-                          timeout_s=max(timeout_s, 30.0))
+                          timeout_s=max(timeout_s, 30.0), check_file=check_file)
 
 
 def _upsert_sql(table: str, key: Sequence[str], row: dict) -> tuple[str, tuple]:
@@ -185,15 +188,15 @@ class SqliteDatabase:
     kind = "sqlite"
 
     def __init__(self, path: Path, *, read_only: bool, synchronous: str,
-                 timeout_s: float) -> None:
+                 timeout_s: float, check_file=None) -> None:
         self.path = Path(path)
         self.address = str(path)
         self.read_only = read_only
         self._synchronous = synchronous
         self._timeout_s = timeout_s
-        self.con = self._open()
+        self.con = self._open(check_file)
 
-    def _open(self) -> sqlite3.Connection:
+    def _open(self, check_file=None) -> sqlite3.Connection:
         from .store_open import connect_read_only, describe_error
 
         try:
@@ -205,6 +208,8 @@ class SqliteDatabase:
         except sqlite3.Error as e:
             raise StoreError(f"{self.address}: cannot open the run store: {e}") from None
         try:
+            if check_file is not None:
+                check_file(con)
             if not self.read_only:
                 con.execute("PRAGMA journal_mode=WAL")
                 con.execute(f"PRAGMA synchronous={self._synchronous}")
@@ -212,6 +217,9 @@ class SqliteDatabase:
         except sqlite3.DatabaseError as e:
             con.close()
             raise StoreError(f"{self.address}: {describe_error(e)}") from None
+        except BaseException:
+            con.close()
+            raise
         return con
 
     def execute(self, sql: str, params: Sequence = ()):
@@ -228,7 +236,9 @@ class SqliteDatabase:
         try:
             yield
         except BaseException:
-            self.con.execute("ROLLBACK")
+            if self.con.in_transaction:  # SQLite may have rolled back itself (a full disk)
+                with contextlib.suppress(sqlite3.Error):
+                    self.con.execute("ROLLBACK")
             raise
         self.con.execute("COMMIT")
 
