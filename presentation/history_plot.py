@@ -10,14 +10,13 @@ from __future__ import annotations
 import base64
 import datetime as dt
 import html
-import os
-import tempfile
 from pathlib import Path
 
 import matplotlib.dates as mdates
 import numpy as np
 from matplotlib.figure import Figure
 
+from calibration.files import write_atomic
 from calibration.history import ParameterHistory
 
 from .figures import png_bytes, style
@@ -90,15 +89,5 @@ def write_history_plot(path, histories: list[ParameterHistory], times: np.ndarra
                 f"<h2>Changes larger than the threshold</h2>{flagged}"
                 f"<h2>Parameters over time</h2><img alt='{html.escape(title)}' "
                 f"src='data:image/png;base64,{b64}'></body></html>\n").encode()
-    fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # as a plain open() would have made it
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_atomic(path, data)  # an interrupted write leaves the old file whole
     return path

@@ -22,6 +22,7 @@ import math
 from pathlib import Path
 
 from ..cli import UsageError, command_parser
+from .common import positive_float
 
 _SPARK = "▁▂▃▄▅▆▇█"
 #: flag a change larger than this many combined sigma (:data:`calibration.history.DEFAULT_SIGMA`,
@@ -48,7 +49,7 @@ def register(sub) -> None:
     p.add_argument("--param", action="append", default=[], metavar="GLOB",
                    help="print the value over time of these parameters (repeatable; "
                    "shell-style patterns, e.g. 'geometric.j2.*'; default: those that changed)")
-    p.add_argument("--sigma", type=float, default=DEFAULT_SIGMA, metavar="K",
+    p.add_argument("--sigma", type=positive_float, default=DEFAULT_SIGMA, metavar="K",
                    help=f"flag a change larger than K combined sigma (default {DEFAULT_SIGMA:g})")
     p.add_argument("--plot", metavar="FILE.html|FILE.png",
                    help="draw the trends of the parameters printed (all when none)")
@@ -145,12 +146,11 @@ def run(args) -> int:
 
     from calibration.history import CalibrationSummary, parameter_histories
 
-    from .common import print_json, table
+    from .common import check_outputs, print_json, table
 
-    if not (args.sigma > 0 and math.isfinite(args.sigma)):
-        raise UsageError("--sigma must be a positive number")
     if args.plot and Path(args.plot).suffix.lower() not in (".html", ".htm", ".png"):
         raise UsageError(f"--plot {args.plot}: give a .html or .png file")
+    check_outputs({"--plot": args.plot}, [args.db])
     address, cals = _load(args)
     docs = [c.params for c in cals]
     summaries = [CalibrationSummary.of(d) for d in docs]

@@ -566,6 +566,26 @@ def build_cases() -> list[Case]:
         ("--tracker-at", ["nan,0,0", "1,2", "a,b,c", "1e400,0,0"]),
         ("--count", ["0", "-1", "x"]), ("--smr-radius-mm", ["-1", "nan"])])
 
+    # ---- calibrate --db: the store a calibration is recorded in (a new file is made)
+    cases += _store_cases("calibrate", [*good_cal, "--db", "{DB}", "--robot-id", "R1"],
+                          ok=False, skip=("missing", "empty"))
+    cases.append(Case("calibrate", "robot_id_without_db", [*good_cal, "--robot-id", "R1"], 2,
+                      r"--robot-id needs --db"))
+
+    # ---- history: the run store, the threshold, the plot (never over an input or a store)
+    cases += _store_cases("history", ["history", "R1", "--db", "{DB}"], ok=False)
+    cases.append(Case("history", "no_calibrations", ["history", "R1", "--db", "cell.db"], 2,
+                      r"no calibrations of robot 'R1'"))
+    cases += _number_cases("history", ["history", "R1", "--db", "cell.db"], [
+        ("--sigma", ["0", "-1", "nan", "inf", "x"])])
+    cases += _out_cases("history", ["history", "R1", "--db", "cell.db"], [
+        ("plot_is_store", ["--plot", "cell.db"], r"html|png|run store"),
+        ("plot_is_store_png", ["--plot", "v2.db.png", "--db", "v2.db.png"],
+         IS_INPUT + "|" + NOT_STORE, [copy("v2.db", "v2.db.png")]),
+        ("plot_no_folder", ["--plot", "nofolder/h.html"], NO_FOLDER),
+        ("plot_directory", ["--plot", "adir.html"], DIRECTORY, [mkdir("adir.html")]),
+    ])
+
     # ---- resume: the run store
     cases += _store_cases("resume", ["resume", "--db", "{DB}"], ok=False)
 

@@ -78,12 +78,15 @@ def test_history_refuses_unknown_robots_and_bad_flags(history_store, tmp_path, c
         capsys.readouterr().err
     assert main(["history", "R7", "--db", history_store, "--plot", "x.pdf"]) == 2
     assert main(["history", "R7", "--db", history_store, "--param", "nothing*"]) == 2
-    assert main(["history", "R7", "--db", history_store, "--sigma", "0"]) == 2
+    with pytest.raises(SystemExit) as e:  # refused by the parser: a positive number
+        main(["history", "R7", "--db", history_store, "--sigma", "0"])
+    assert e.value.code == 2
     capsys.readouterr()
     old = str(tmp_path / "old.db")
     _at_version(old, 3)
-    assert main(["history", "R7", "--db", old]) == 2
-    assert "with write access" in capsys.readouterr().err
+    assert main(["history", "R7", "--db", old]) == 2  # read in a copy upgraded in memory
+    assert "no calibrations of robot 'R7' (robots with calibrations: none)" in \
+        capsys.readouterr().err
     assert main(["history", "R7", "--db", str(tmp_path / "missing.db")]) == 2
 
 
