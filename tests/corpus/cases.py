@@ -742,7 +742,9 @@ def _without_permission_override() -> None:
 
 def run_subprocess(case: Case, ws: Path, timeout: float = 120.0) -> Outcome:
     env = dict(os.environ)
-    env["PYTHONPATH"] = str(ROOT)
+    # the checkout under test first (``PYTHONPATH``, as the tally's docstring says), this
+    # one after it
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [os.environ.get("PYTHONPATH"), str(ROOT)]))
     env.setdefault("MPLBACKEND", "Agg")
     env["MPLCONFIGDIR"] = str(ws / ".mpl")
 
