@@ -84,11 +84,17 @@ def no_leaks():
 @pytest.fixture(scope="session")
 def pg_server():
     """A throwaway PostgreSQL server for the session (:mod:`tests.pg_server`); skipped only
-    when the server binaries are not installed."""
+    when the server binaries are not installed, and never in CI (``.ci/run`` installs them
+    and sets ``CELLCAL_REQUIRE_POSTGRES=1``: a missing server fails there)."""
+    import os
+
     from tests.pg_server import INSTALL_HINT, PgServer, find_bindir
 
     if find_bindir() is None:
-        pytest.skip(f"PostgreSQL server binaries (initdb, pg_ctl) not found: {INSTALL_HINT}")
+        why = f"PostgreSQL server binaries (initdb, pg_ctl) not found: {INSTALL_HINT}"
+        if os.environ.get("CELLCAL_REQUIRE_POSTGRES") == "1":
+            pytest.fail(why, pytrace=False)
+        pytest.skip(why)
     with PgServer.start_new() as server:
         yield server
 
