@@ -301,12 +301,7 @@ class RunStore:
         the file is left alone."""
         if self.version == 0:
             raise StoreError(f"{self.address}: not a cellcal run store (no schema version)")
-        mem = sqlite3.connect(":memory:", isolation_level=None, check_same_thread=False)
-        self.db.con.backup(mem)
-        self.db.con.close()
-        self.db.con = mem
-        self.db.read_only = False  # the copy may be upgraded
-        self.db.reconnect = lambda: None  # nothing to reconnect to: the copy is the store
+        self.db.copy_to_memory()
 
     # ------------------------------------------------------------------ runs
     def create_run(

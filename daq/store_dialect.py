@@ -194,6 +194,7 @@ class SqliteDatabase:
         self.read_only = read_only
         self._synchronous = synchronous
         self._timeout_s = timeout_s
+        self._in_memory = False  # see copy_to_memory
         self.con = self._open(check_file)
 
     def _open(self, check_file=None) -> sqlite3.Connection:
@@ -258,7 +259,17 @@ class SqliteDatabase:
     def columns(self, table: str) -> list[str]:
         return [r[1] for r in self.con.execute(f"PRAGMA table_info({table})")]
 
+    def copy_to_memory(self) -> None:
+        """Go on with a copy of the file in memory, writable (an old schema opened
+        read-only is upgraded there); the file is left alone, never reopened."""
+        mem = sqlite3.connect(":memory:", isolation_level=None, check_same_thread=False)
+        self.con.backup(mem)
+        self.con.close()
+        self.con, self.read_only, self._in_memory = mem, False, True
+
     def reconnect(self) -> None:
+        if self._in_memory:
+            return  # the copy is the store: nothing to reconnect to
         with contextlib.suppress(sqlite3.Error):
             self.con.close()
         self.con = self._open()

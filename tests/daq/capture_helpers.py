@@ -110,7 +110,8 @@ def read_lines(proc, n, timeout):
         assert left > 0, f"only got {lines}"
         if select.select([fd], [], [], left)[0]:
             chunk = os.read(fd, 4096)
-            assert chunk, "cellcal sim serve exited early"
+            assert chunk, "cellcal sim serve exited early: " + (
+                proc.stderr.read().decode() if proc.stderr else "(stderr not captured)")
             buf += chunk
             *done, buf = buf.split(b"\n")
             lines += [d.decode().strip() for d in done if d.strip()]

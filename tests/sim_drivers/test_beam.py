@@ -161,8 +161,7 @@ def test_sim_serve_places_the_tracker_and_reads_the_cell(tmp_path):
     from daq.cli import main
     from drivers.errors import BeamBroken
     from drivers.urls import open_robot, open_tracker
-
-    from .test_serve import _read_lines
+    from tests.daq.capture_helpers import read_lines
 
     at = (-2400.0, 300.0, 700.0)
     m = ModelTruth.from_spec("ur10e", None, 0).model
@@ -182,7 +181,7 @@ def test_sim_serve_places_the_tracker_and_reads_the_cell(tmp_path):
                                  *cell_args], cwd=root, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE)
         try:
-            urls = _read_lines(proc, 4, timeout=30.0)
+            urls = read_lines(proc, 4, timeout=30.0)
             with open_robot(urls[1]) as rob, open_tracker(urls[2]) as trk:
                 rob.connect(2.0)
                 trk.connect(2.0)

@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-import os
-import select
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -15,24 +12,9 @@ import pytest
 
 from drivers.urls import open_robot, open_tracker
 from sim_drivers.serve import PortInUse, ServeConfig, SimStack, ports_from_base
+from tests.daq.capture_helpers import read_lines
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def _read_lines(proc: subprocess.Popen, n: int, timeout: float) -> list[str]:
-    lines, buf = [], b""
-    deadline = time.monotonic() + timeout
-    fd = proc.stdout.fileno()
-    while len(lines) < n:
-        left = deadline - time.monotonic()
-        assert left > 0, f"only got {lines} from cellcal sim serve"
-        if select.select([fd], [], [], left)[0]:
-            chunk = os.read(fd, 4096)
-            assert chunk, f"cellcal sim serve exited early: {proc.stderr.read().decode()}"
-            buf += chunk
-            *done, buf = buf.split(b"\n")
-            lines += [d.decode().strip() for d in done if d.strip()]
-    return lines
 
 
 def test_cellcal_sim_serve_subprocess():
@@ -44,7 +26,7 @@ def test_cellcal_sim_serve_subprocess():
         stderr=subprocess.PIPE,
     )
     try:
-        urls = _read_lines(proc, 6, timeout=20.0)
+        urls = read_lines(proc, 6, timeout=20.0)
         assert urls[5] == f"export R='{urls[0]}' T='{urls[2]}'"  # ready to paste
         assert urls[0].startswith("modbus+tcp://127.0.0.1:")
         assert urls[1].startswith("socket://127.0.0.1:")
@@ -126,9 +108,9 @@ def test_sim_serve_ur10e_with_rtde_read_by_the_real_ur_client():
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
     )
     try:
-        urls = _read_lines(proc, 4, timeout=20.0)
+        urls = read_lines(proc, 4, timeout=20.0)
         while not urls[-1].startswith("export "):  # the RTDE line, if port 30004 was free
-            urls += _read_lines(proc, 1, timeout=5.0)
+            urls += read_lines(proc, 1, timeout=5.0)
         ur = [u for u in urls if u.startswith("ur://")]
         if not ur:
             pytest.skip("port 30004 is taken on this machine: no RTDE server")
