@@ -281,9 +281,9 @@ def read_outliers(source: str | Path | dict) -> list[dict]:
 
 def capture_of(path: str | Path) -> CaptureMeta:
     """The ``capture`` metadata of a params.json (empty when it has none)."""
-    try:
-        return CaptureMeta.from_json(json.loads(Path(path).read_text()).get("capture"))
-    except (OSError, ValueError, TypeError, AttributeError):
+    try:  # read as the parameters are (size limit, UTF-8); ParamsError is a ValueError
+        return CaptureMeta.from_json(_read_json(path).get("capture"))
+    except (ValueError, TypeError, AttributeError):
         return CaptureMeta()
 
 
