@@ -35,7 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from calibration import Dataset, ErrorModel, identify, load_csv, load_model  # noqa: E402
-from daq.cli import main  # noqa: E402
+from cellcal.cli import main  # noqa: E402
 from daq.remeasure import RunningModel  # noqa: E402
 from daq.routines import make_plan  # noqa: E402
 from daq.store import RunStore, Sample  # noqa: E402

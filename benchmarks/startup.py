@@ -1,10 +1,10 @@
 """Start-up time of every ``cellcal`` command: ``--help`` and an argument error, against
 ``python -c 'import numpy'`` measured in the same run (the machine's pace).
 
-Each command runs as a fresh ``python -m daq ...`` process; the table gives the median
+Each command runs as a fresh ``python -m cellcal ...`` process; the table gives the median
 wall time over ``--runs`` runs. The target: ``--help`` and argument errors well under
 0.3 s, i.e. less than importing numpy (building the parser imports no numpy, scipy,
-matplotlib or pydantic; see :mod:`daq.cli`).
+matplotlib or pydantic; see :mod:`cellcal.cli`).
 
     python benchmarks/startup.py                 # this checkout
     python benchmarks/startup.py --root DIR      # another checkout (e.g. an older commit)
@@ -22,7 +22,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
-#: (label, arguments after ``python -m daq``, expected exit code)
+#: (label, arguments after ``python -m cellcal``, expected exit code)
 CASES = [
     ("cellcal --help", ["--help"], 0),
     ("cellcal (bare)", [], 0),
@@ -72,7 +72,7 @@ def main() -> None:
     numpy_s = rows[1][1]
     this = Path(a.root).resolve() == ROOT  # exit codes are checked for this checkout only
     for label, args, code in CASES:
-        cmd = [py, "-m", "daq", *args]
+        cmd = [py, "-m", "cellcal", *args]
         rows.append((label, statistics.median(wall(cmd, env, code if this else None)
                                               for _ in range(a.runs)), code))
     print(f"start-up of {a.root}: median of {a.runs} runs; 'x numpy' = time / "

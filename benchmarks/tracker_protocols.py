@@ -102,7 +102,8 @@ def main() -> None:
         floor_z_mm=None, executor=ExecutorOptions(measure_s=0.001)))
     rows = []
     serve = subprocess.Popen(
-        [sys.executable, "-m", "daq", "sim", "serve", "--model", "toy", "--no-pty", "--no-rtde"],
+        [sys.executable, "-m", "cellcal", "sim", "serve", "--model", "toy", "--no-pty",
+         "--no-rtde"],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     try:
         urls = served_urls(serve, 4)

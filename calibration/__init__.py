@@ -40,7 +40,8 @@ from .effects import DEFAULT_EFFECTS, Effect, EffectError, JointEffect, parse_ef
 from .error_model import ErrorModel
 from .identify import Fit, error_stats, identify
 from .kinematics import forward, run_chain, tool_points
-from .robot_model import ModelError, RobotModel, builtin_models, load_model
+from .model_loading import load_model
+from .robot_model import ModelError, RobotModel, builtin_models
 
 __all__ = [
     "DEFAULT_EFFECTS",

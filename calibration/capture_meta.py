@@ -29,13 +29,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import DataError
+
 #: the header keys this module reads (others are kept in ``Dataset.meta`` untouched)
 KEYS = ("run", "store", "model", "tool_mm", "smr_radius_mm", "reflector", "frame_run",
         "tracker_T_base", "tracker_sigma_mm")
 
 
 def _numbers(text: str, n: int, key: str, source: str) -> np.ndarray:
-    from .dataset import DataError
 
     try:
         v = np.array([float(s) for s in text.replace(";", ",").split(",") if s.strip()])
@@ -48,7 +49,6 @@ def _numbers(text: str, n: int, key: str, source: str) -> np.ndarray:
 
 
 def _positive(text: str, key: str, source: str) -> float:
-    from .dataset import DataError
 
     try:
         v = float(text)
@@ -60,7 +60,6 @@ def _positive(text: str, key: str, source: str) -> float:
 
 
 def _integer(text: str, key: str, source: str) -> int:
-    from .dataset import DataError
 
     try:
         return int(text)
@@ -100,7 +99,6 @@ class CaptureMeta:
     @classmethod
     def from_meta(cls, meta: dict[str, str], source: str = "<data>") -> CaptureMeta:
         """Parse the ``# key: value`` metadata of a file (:class:`DataError` when bad)."""
-        from .dataset import DataError
 
         def get(key):
             v = meta.get(key)

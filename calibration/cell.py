@@ -27,6 +27,7 @@ import numpy as np
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from .errors import CellError
 from .robot_model import validate_file_mapping
 
 #: acceptance half-angle (deg) of each reflector type the tools know, by name: the
@@ -44,10 +45,6 @@ REFLECTOR_ACCEPTANCE_DEG = {
 #: a finite coordinate, mm (or an angle, deg): within a kilometre of the robot
 Coord = Annotated[float, Field(allow_inf_nan=False, ge=-1e6, le=1e6)]
 Vec3 = tuple[Coord, Coord, Coord]
-
-
-class CellError(ValueError):
-    """A cell file or value that cannot be used; the message names the file and field."""
 
 
 class _Strict(BaseModel):

@@ -32,6 +32,7 @@ import numpy as np
 import yaml
 
 from .dh_conversion import dh_from_axes, rot_z, urdf_rpy
+from .errors import ExportError
 from .kinematics import ALPHA, BETA, THETA, A, D, forward, run_chain
 from .parity import Parity, compare, parity_joints
 from .robot_model import RobotModel
@@ -41,10 +42,6 @@ from .urdf_model import mount_transform
 
 #: link names of the UR kinematics YAML, base to wrist 3
 UR_LINKS = ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
-
-
-class ExportError(ValueError):
-    """A model that the asked format cannot hold (the message says why)."""
 
 
 # ---- the UR driver's hash -----------------------------------------------------------------

@@ -30,6 +30,7 @@ import numpy as np
 from .dataset import Dataset
 from .effects import EffectError
 from .error_model import ErrorModel
+from .errors import InsufficientData
 from .identify import structural_identifiability
 from .kinematics import tool_points
 
@@ -42,11 +43,6 @@ MIN_SPAN_DEG = 30.0
 #: the data's pivot threshold for a parameter to count as lost (looser than identify's
 #: 1e-3: only parameters the poses leave (nearly) exactly undetermined)
 LOST_RTOL = 1e-4
-
-
-class InsufficientData(Exception):
-    """The data are too poor for what was asked (exit code 3): the message says why and
-    what to capture instead."""
 
 
 @dataclass

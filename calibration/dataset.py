@@ -17,12 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from .capture_meta import CaptureMeta
+from .errors import DataError
 from .files import read_text, write_atomic
 from .robot_model import RobotModel
-
-
-class DataError(ValueError):
-    """A data file that cannot be used; the message names file, line and column."""
 
 
 @dataclass

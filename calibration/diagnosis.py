@@ -44,8 +44,8 @@ from .effects import Effect, EffectError, parse_effect
 from .effects.physical import derive_directions
 from .error_model import ErrorModel
 from .gravity import gravity_torques, has_mass_model
-from .identify import Fit, identify
-from .outliers import BlunderScreen, concentration, screen_for_diagnosis
+from .identify import Fit, identify, screen_for_diagnosis
+from .outliers import BlunderScreen, concentration
 from .screening import effect_columns, log10_f_sf
 
 #: harmonic orders scanned on every joint

@@ -338,3 +338,17 @@ def fit_at(error_model: ErrorModel, data: Dataset, x: np.ndarray, **kw) -> Fit:
     fit = identify(error_model, data, x0=x, solver_options={"max_iter": 0}, **kw)
     fit.converged, fit.reason, fit.iterations = True, "parameters given, not fitted", 0
     return fit
+
+
+def screen_for_diagnosis(fit):
+    """``fit`` without its blunders, for a diagnosis: a fit that left them out is used as
+    it is; one that kept them (``--outliers keep``/``flag``, or parameters given) is
+    screened and refitted without them (same solver, warm start). Returns the fit, whose
+    ``outliers`` say what was left out."""
+    if fit.outliers is not None and fit.outliers.mode == "exclude":
+        return fit
+    def refit(rows, x):
+        return identify(fit.error_model, rows, fit.solver, valid=fit.valid_data, x0=x,
+                        outliers="keep")
+
+    return screen_fit(fit, "exclude", refit)

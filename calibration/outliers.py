@@ -386,21 +386,6 @@ def screen_fit(fit, mode: str, refit: Callable, **test_kw):
     return result
 
 
-def screen_for_diagnosis(fit):
-    """``fit`` without its blunders, for a diagnosis: a fit that left them out is used as
-    it is; one that kept them (``--outliers keep``/``flag``, or parameters given) is
-    screened and refitted without them (same solver, warm start). Returns the fit, whose
-    ``outliers`` say what was left out."""
-    if fit.outliers is not None and fit.outliers.mode == "exclude":
-        return fit
-    from .identify import identify  # identify uses this module
-
-    def refit(rows, x):
-        return identify(fit.error_model, rows, fit.solver, valid=fit.valid_data, x0=x,
-                        outliers="keep")
-
-    return screen_fit(fit, "exclude", refit)
-
 
 def concentration(r: np.ndarray, d: np.ndarray, n: int, k: int = 2) -> float:
     """Share of a candidate's explained sum of squares that its ``k`` largest points carry.

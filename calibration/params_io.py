@@ -80,6 +80,7 @@ from pydantic import (
 from .capture_meta import CaptureMeta
 from .effects import REGISTRY, EffectError, display_unit, effect_source, parse_effects
 from .error_model import ErrorModel
+from .errors import ParamsError
 from .files import json_ready, read_text, write_atomic
 from .identify import Fit
 from .robot_model import (
@@ -98,10 +99,6 @@ VERSION = 2
 MAX_PARAMS_BYTES = 50 << 20
 #: |value| of a parameter in display units above this is no calibration result
 MAX_VALUE = 1e6
-
-
-class ParamsError(ValueError):
-    """A params.json that cannot be used."""
 
 
 # ------------------------------------------------------------------------- schema

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .kinematics import run_chain
+from .model_loading import load_model
 from .robot_model import RobotModel
 from .simulate import random_joints
 
@@ -55,9 +56,7 @@ def model_poses(model: RobotModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def model_file_parity(path, model: RobotModel) -> Parity:
-    """A written model YAML read back by :func:`calibration.robot_model.load_model`."""
-    from .robot_model import load_model
-
+    """A written model YAML read back by :func:`calibration.model_loading.load_model`."""
     q = parity_joints(model)
     max_mm, max_rad = compare(model, q, *model_poses(load_model(path), q))
     return Parity(str(path), "cellcal model YAML", len(q), max_mm, max_rad)

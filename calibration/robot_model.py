@@ -3,8 +3,8 @@
 Files hold millimetres and degrees; the model keeps them as written and offers
 radian views (``dh_table()``, ``limits_rad()``) for the numerical code. A prismatic joint
 (``type: prismatic``) holds its limits in mm where a revolute one holds degrees (see
-:mod:`calibration.kinematics`). ``load_model`` also reads a URDF's serial chain
-(``robot.urdf#root:tip``, :mod:`calibration.urdf_model`).
+:mod:`calibration.kinematics`). :func:`calibration.model_loading.load_model` loads one by
+name, path or a URDF's serial chain (``robot.urdf#root:tip``, :mod:`calibration.urdf_model`).
 
 The schema is strict: every number must be a finite number (not ``true``, not a
 string, not ``.nan``) of a plausible magnitude (a link shorter than 20 m, an angle
@@ -20,7 +20,6 @@ import json
 import math
 import re
 from importlib import resources
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
@@ -36,7 +35,7 @@ from pydantic import (
     model_validator,
 )
 
-from .files import read_text
+from .errors import ModelError
 
 #: the largest model YAML read (bytes)
 MAX_MODEL_BYTES = 1 << 20
@@ -89,10 +88,6 @@ def _mass(v: float) -> float:
 DH_COLUMNS = ("theta_offset", "d", "a", "alpha", "beta")
 #: whether each column is a length (mm) or an angle (rad inside, deg in files)
 DH_IS_ANGLE = (True, False, False, True, True)
-
-
-class ModelError(ValueError):
-    """A model file or name that cannot be used; the message names the file and field."""
 
 
 class JointRow(BaseModel):
@@ -315,26 +310,3 @@ def validate_file_mapping(cls, data, source: str, error: type[ValueError], what:
 def model_from_dict(data: dict, source: str = "<model>") -> RobotModel:
     """Validate a model mapping; errors name ``source`` and the field."""
     return validate_file_mapping(RobotModel, data, source, ModelError, "a model file")
-
-
-def load_model(name_or_path: str | Path) -> RobotModel:
-    """Load a built-in model by name (``"ur10e"``), a model YAML by path, or the serial chain
-    of a URDF (``"robot.urdf#base_link:tool0"``, or ``"robot.urdf"`` when unambiguous)."""
-    text_source = str(name_or_path)
-    from .urdf_model import is_urdf_spec, load_urdf_model
-
-    if is_urdf_spec(text_source):
-        return load_urdf_model(text_source)
-    path = Path(text_source)
-    if path.suffix in (".yaml", ".yml") or path.exists() or "/" in text_source:
-        text = read_text(path, ModelError, "model file", MAX_MODEL_BYTES)
-    else:
-        names = builtin_models()
-        if text_source not in names:
-            raise ModelError(
-                f"unknown model {text_source!r}: built-in models are {', '.join(names)}; "
-                "or give the path of a model YAML file"
-            )
-        text = (resources.files("calibration") / "models" / f"{text_source}.yaml").read_text()
-        text_source = f"built-in model {text_source}"
-    return model_from_dict(parse_yaml(text, text_source, ModelError), text_source)

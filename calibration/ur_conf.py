@@ -26,16 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .errors import URConfError
 from .files import write_atomic
 from .kinematics import ALPHA, BETA, THETA, A, D
 from .robot_model import RobotModel
 
 #: the four delta arrays of calibration.conf, in the order UR writes them
 DELTA_KEYS = ("delta_theta", "delta_a", "delta_d", "delta_alpha")
-
-
-class URConfError(ValueError):
-    """A calibration.conf or delta set that cannot be used."""
 
 
 def _decompose(a: float, alpha: float, beta: float):

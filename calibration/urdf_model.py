@@ -51,14 +51,11 @@ from pathlib import Path
 import numpy as np
 
 from .dh_conversion import SNAP_MM, SNAP_RAD, dh_from_axes, rot_x, rot_y, rot_z, urdf_rpy
-from .robot_model import ModelError, RobotModel, model_from_dict
+from .errors import UrdfError
+from .robot_model import RobotModel, model_from_dict
 
 _MOVABLE = ("revolute", "continuous", "prismatic")
 _KNOWN = (*_MOVABLE, "fixed", "floating", "planar")
-
-
-class UrdfError(ModelError):
-    """A URDF (or a chain in it) that cannot be used; the message names the element."""
 
 
 def is_urdf_spec(text: str) -> bool:

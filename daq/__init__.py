@@ -1,5 +1,6 @@
 """Capture: plans and routines, their dry run, the executor, the run store (a SQLite file
-or a PostgreSQL database), the capture service and the ``cellcal`` command line.
+or a PostgreSQL database) and the capture service. The ``cellcal`` command line that
+calls it is the application's (:mod:`cellcal`).
 
 Modules
     ``plans``           ``Plan`` and ``Target``: plans as data with a content hash; the
@@ -13,16 +14,8 @@ Modules
     ``run_context``     ``RunContext``, ``ExecutorOptions``, ``TrackerSetup``: what a run was
                         started with (and ``TrackerCheck``: what the tracker's checks found)
     ``tracker_checks``  the tracker's checks before a run: reflector, air, ready gate, two faces
-    ``store``           ``RunStore``, ``open_store``: runs, samples, interruptions, calibrations
-    ``store_records``   the store's records: ``Run``, ``Sample``, ``Samples``, ``Calibration``
-    ``store_dialect``   the two databases (SQLite, PostgreSQL) behind one small interface
-    ``store_schema``    the store's SQL schema and its upgrades between versions
-    ``store_open``      opening a file as a store: refusing what is not one, read-only
+    ``store/``          the run store behind one wall (see its package)
     ``run_data``        runs as calibration inputs: a data set, zero-point postures
     ``service``         plan, start and resume runs (the commands and the demo call it)
-    ``progress``        the progress line of a capture on a terminal
     ``frame_fit``       circle, line and measurement-frame fits for the frame routine
-    ``demo_workflow``   the whole cell on the simulator, from capture to a better robot
-    ``cli``             the ``cellcal`` parser and its exit codes
-    ``commands/``       one module per ``cellcal`` sub-command (see its package)
 """

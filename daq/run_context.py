@@ -11,7 +11,7 @@ what its checks found before the run was stored (:class:`TrackerCheck`,
 
 The context is JSON in the store (``runs.context_json``) and carries its own
 :data:`CONTEXT_VERSION`; the store upgrades older files (schema 2's ``options_json``
-becomes a version-1 context, :mod:`daq.store_schema`).
+becomes a version-1 context, :mod:`daq.store.schema`).
 
 Units: mm, rad, s; air in °C, hPa, %RH.
 """

@@ -26,9 +26,9 @@ Wiring
     (:mod:`daq.motion_guard`).
 
 One owner per run and per robot
-    Leases (:mod:`daq.leases`) on the run and on the robot (its URL and, once known, its
+    Leases (:mod:`daq.store.leases`) on the run and on the robot (its URL and, once known, its
     serial number) are held while a run may move the robot; a second capture or resume
-    on a live run or a busy robot is refused at once (:class:`~daq.leases.LeaseBusy`), a
+    on a live run or a busy robot is refused at once (:class:`~daq.store.leases.LeaseBusy`), a
     stale lease (dead owner) is taken over.
 
 Same cell on resume
@@ -38,7 +38,7 @@ Same cell on resume
     there (all points; ``source_run`` names the old one) rather than mixing two cells.
 
 Errors: :class:`~daq.errors.RequestError` (and :class:`~daq.errors.PlanRefused`,
-:class:`~daq.errors.TrackerRefused`, :class:`~daq.leases.LeaseBusy`, :class:`OtherCell`)
+:class:`~daq.errors.TrackerRefused`, :class:`~daq.store.leases.LeaseBusy`, :class:`OtherCell`)
 for input it refuses or a tracker that fails its checks,
 :class:`~daq.errors.ConnectFailed` when the devices cannot be reached.
 """
@@ -67,7 +67,6 @@ from .devices import (
 from .devices import devices as reach_devices
 from .errors import ConnectFailed, PlanRefused, RequestError, TrackerRefused, one_line
 from .executor import Executor
-from .leases import Leases, held_leases, run_key, take_robot
 from .motion_guard import MotionGuard, MotionLimits
 from .plans import Plan
 from .remeasure import Remeasure
@@ -75,6 +74,8 @@ from .routines import get as get_routine
 from .run_context import ExecutorOptions, RunContext, TrackerSetup
 from .stop_signals import signal_name
 from .store import Run, RunStore, StoreError, StoreUnavailable
+from .store.leases import Leases, held_leases, run_key, take_robot
+from .store.queries import frame_run, measured_in
 from .tracker_checks import check_tracker
 
 #: called with the devices' identities before anything moves; raises to refuse
@@ -310,48 +311,15 @@ def _acquire_options(mod, given: dict) -> dict:
     return options(**given).model_dump()
 
 
-def _same_robot(r: Run, robot_id: str | None, robot_url: str | None) -> bool:
-    """Run ``r`` measured this robot: the same robot id when both know theirs; the same URL
-    when only one does; any run when neither does (a store of one cell) or nothing is
-    known of this robot (``robot_id`` and ``robot_url`` None)."""
-    if robot_id and r.robot_id:
-        return r.robot_id == robot_id
-    if robot_id is None and robot_url is None:
-        return True
-    if robot_id or r.robot_id:
-        return r.robot_url == robot_url
-    return True
-
-
-def frame_run(store: RunStore, run_id: int | None, cell: CellIdentity | None = None,
-              robot_id: str | None = None, robot_url: str | None = None) -> Run | None:
-    """The frame run ``run_id`` (it must have a frame), else the latest completed frame
-    run of the store measured in ``cell`` (a run without stored identities counts as
-    any cell's) of the same robot (``robot_id``, ``robot_url``: :func:`_same_robot`),
-    else None."""
-    if run_id is not None:
-        try:
-            r = store.run(run_id)
-        except StoreError as e:
-            raise RequestError(str(e)) from None
-        if r.frame is None:
-            raise RequestError(f"run {run_id} has no measurement frame (not a completed "
-                               "frame run)")
-        return r
-    for r in reversed(store.runs()):
-        if (r.routine == "frame" and r.status == "completed" and r.frame is not None
-                and (cell is None or _measured_in(r, cell))
-                and _same_robot(r, robot_id, robot_url)):
-            return r
-    return None
-
-
-def _measured_in(run: Run, cell: CellIdentity) -> bool:
-    for stored, now in ((run.robot_identity, cell.robot), (run.tracker_identity, cell.tracker)):
-        old = stored_identity(stored)
-        if old is not None and not old.same_device(now):
-            return False
-    return True
+def _frame_run(store: RunStore, run_id: int | None, cell: CellIdentity, robot_id: str | None,
+               robot_url: str | None) -> Run | None:
+    """:func:`daq.store.queries.frame_run`, a run that is no frame run refused as input."""
+    try:
+        return frame_run(store, run_id, cell, robot_id, robot_url)
+    except StoreUnavailable:
+        raise
+    except StoreError as e:
+        raise RequestError(str(e)) from None
 
 
 def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_url: str,
@@ -397,8 +365,8 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
             if confirm is not None:
                 confirm(cell, robot_url, tracker_url)
             robot_id = default_robot_id(cell.robot, req.robot_id)
-            frame = frame_run(store, req.frame_run, cell, robot_id, robot_url)
-            if frame is not None and not _measured_in(frame, cell):
+            frame = _frame_run(store, req.frame_run, cell, robot_id, robot_url)
+            if frame is not None and not measured_in(frame, cell):
                 raise RequestError(f"frame run {frame.id} was measured in another cell (robot "
                                    f"{stored_identity(frame.robot_identity)}, tracker "
                                    f"{stored_identity(frame.tracker_identity)}): its frame "
@@ -433,7 +401,7 @@ def prepare_resume(store: RunStore, run_id: int | None = None, *,
 
     Unless it is completed, the run's lease is taken first (in ``leases``, kept; else
     for this call only): a run a live process still executes is refused at once
-    (:class:`~daq.leases.LeaseBusy`, naming the owner). A run found ``running`` without
+    (:class:`~daq.store.leases.LeaseBusy`, naming the owner). A run found ``running`` without
     a live owner (its process was killed) then gets a ``killed`` interruption.
     ``robot_url``/``tracker_url`` replace the stored ones for this resume (stored only
     once the devices prove to be the run's cell). ``robot_id`` must be the run's robot
@@ -490,7 +458,7 @@ def resume_run(store: RunStore, resumable: Resumable, *, executor: dict | None =
     ``executor``, ``acquire`` and ``tracker_setup`` override the stored executor and
     acquisition options and tracker setup (e.g. new ``meteo``) for this session (the
     stored context keeps its own). The run's and the robot's
-    leases are taken (:class:`~daq.leases.LeaseBusy` when another process holds them).
+    leases are taken (:class:`~daq.store.leases.LeaseBusy` when another process holds them).
     The devices must be the run's cell (:func:`daq.devices.same_cell`), else
     :class:`OtherCell` — or, with ``other_cell``, a NEW run of the same plan (every
     point; its ``source_run`` is this one; the measurement frame of a frame run of that
@@ -561,7 +529,7 @@ def _repeat_elsewhere(store, resumable: Resumable, cell: CellIdentity, options, 
     """``resume --other-cell``: a new run of the resumed run's plan in this cell."""
     r = resumable.run
     robot_id = default_robot_id(cell.robot)
-    frame = frame_run(store, None, cell, robot_id, resumable.robot_url)
+    frame = _frame_run(store, None, cell, robot_id, resumable.robot_url)
     context = r.context.model_copy(update={
         "executor": options, "acquire": acq, "robot_url": resumable.robot_url,
         "tracker_url": resumable.tracker_url,

@@ -21,6 +21,8 @@ import numpy as np
 from calibration.cell import CellSpec, tracker_in_base
 
 from .plans import Plan, estimate_capture_s
+from .store import RunStore, StoreError, StoreUnavailable, is_server_address
+from .store.queries import frame_run
 
 
 def resolve_cell(cell: CellSpec | None, tracker_at, frame_T=None,
@@ -41,9 +43,6 @@ def frame_from_store(db: str | Path | None, run_id: int | None) -> tuple[np.ndar
     """The measurement frame (``tracker_T_base``, 4x4) of frame run ``run_id`` (default: the
     latest completed one) in the run store ``db``, and that run's id; (None, None) when the
     store does not exist yet or has no frame."""
-    from .service import frame_run
-    from .store import RunStore
-    from .store_dialect import StoreError, StoreUnavailable, is_server_address
 
     if db is None or (not is_server_address(db) and not Path(db).is_file()):
         return None, None

@@ -9,17 +9,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from calibration.dataset import Dataset
-
-
-def software_version() -> str:
-    """``cellcal X.Y.Z`` of the installed package (``cellcal (unknown version)`` when it is
-    run from a source tree that is not installed)."""
-    try:
-        from importlib.metadata import version
-
-        return f"cellcal {version('cellcal')}"
-    except Exception:  # noqa: BLE001 - not installed: still say something
-        return "cellcal (unknown version)"
+from calibration.version import software_version
 
 
 def sha256_of(path: str | Path) -> str:

@@ -26,11 +26,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ..dataset import Dataset
+from ..errors import EffectError
 from ..robot_model import RobotModel
-
-
-class EffectError(ValueError):
-    """An effect that cannot be used with this model or data (message says why)."""
 
 
 def display_unit(unit: str) -> tuple[str, float]:

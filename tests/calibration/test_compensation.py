@@ -98,7 +98,7 @@ def test_cli_compensate_and_exports(calibrated, tmp_path, capsys):
 
     from calibration.params_io import save_params
     from calibration.ur_conf import read_calibration_conf
-    from daq.cli import main
+    from cellcal.cli import main
 
     m, em, _, fit, rng = calibrated
     params = tmp_path / "params.json"

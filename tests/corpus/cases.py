@@ -4,7 +4,7 @@ long module because it is one table: the inputs of each command and what must co
 A :class:`Case` is one command line run in a fresh copy of the workspace
 (:mod:`tests.corpus.workspace`) after its ``setup`` wrote the bad input
 (:mod:`tests.corpus.inputs`). :func:`run_case` runs it (in-process through
-``daq.cli.main``, or as a subprocess where the input could hang or the process state
+``cellcal.cli.main``, or as a subprocess where the input could hang or the process state
 matters) and :func:`judge` names what went wrong, if anything:
 
 ``traceback``  an exception escaped (or a subprocess printed a traceback / hung)
@@ -701,7 +701,7 @@ def _restore_permissions(ws: Path) -> None:
 
 def run_inproc(case: Case, ws: Path) -> Outcome:
     from calibration import effects
-    from daq.cli import main
+    from cellcal.cli import main
 
     registry = dict(effects.REGISTRY)
     modules = set(sys.modules)
@@ -755,7 +755,7 @@ def run_subprocess(case: Case, ws: Path, timeout: float = 120.0) -> Outcome:
         if case.unprivileged:
             _without_permission_override()
 
-    cmd = [sys.executable, "-m", "daq", *case.argv]
+    cmd = [sys.executable, "-m", "cellcal", *case.argv]
     if case.stdout_closed:
         proc = subprocess.Popen(cmd, cwd=ws, env=env, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE, stdin=subprocess.DEVNULL,

@@ -1,7 +1,7 @@
 """Every CLI command over the corpus of bad inputs (tests/corpus/cases.py): no traceback,
 the documented exit code, a message naming the problem, every input file unchanged.
 
-The quick part runs in-process (``daq.cli.main``); cases that need a real process (stdout
+The quick part runs in-process (``cellcal.cli.main``); cases that need a real process (stdout
 without a reader, /dev/zero and FIFOs as inputs, a store only readable by an unprivileged
 user, `sim serve`) are marked slow. ``python -m tests.corpus.tally`` prints the same
 corpus as a table per command.
@@ -37,7 +37,7 @@ def test_corpus_case(case, corpus_workspace, tmp_path):
 
 
 def test_corpus_covers_every_command():
-    from daq.cli import COMMANDS
+    from cellcal.cli import COMMANDS
 
     names = {m.rsplit(".", 1)[-1] for m in COMMANDS}
     aliases = {"export_run": "export", "sim_serve": "sim", "simulate_dataset": "simulate"}
@@ -59,7 +59,7 @@ class _ClosedPipe:
 
 
 def test_a_closed_stdout_ends_quietly(corpus_workspace, monkeypatch, capsys):
-    from daq.cli import main
+    from cellcal.cli import main
 
     monkeypatch.chdir(corpus_workspace)
     monkeypatch.setattr("sys.stdout", _ClosedPipe())
@@ -69,16 +69,16 @@ def test_a_closed_stdout_ends_quietly(corpus_workspace, monkeypatch, capsys):
 
 
 def test_an_unexpected_error_is_one_line_not_a_traceback(monkeypatch, capsys):
-    from daq.cli import main
+    from cellcal.cli import main
 
     def boom(args):
         raise RuntimeError("something nobody foresaw")
 
     monkeypatch.delenv("CELLCAL_TRACEBACK", raising=False)
-    import daq.cli
+    import cellcal.cli
 
-    parser = daq.cli.build_parser  # the sub-command binds run at registration
-    monkeypatch.setattr(daq.cli, "build_parser", lambda: _with_func(parser(), boom))
+    parser = cellcal.cli.build_parser  # the sub-command binds run at registration
+    monkeypatch.setattr(cellcal.cli, "build_parser", lambda: _with_func(parser(), boom))
     assert main(["models"]) == 1
     err = capsys.readouterr().err
     assert "internal error: RuntimeError: something nobody foresaw" in err

@@ -66,7 +66,7 @@ def build(ws: Path) -> Path:
     from calibration.kinematics import tool_points
     from calibration.simulate import random_joints, realistic_truth, simulate
     from calibration.zero_point import simulate_postures
-    from daq.cli import main
+    from cellcal.cli import main
     from daq.store import RunStore
 
     ws.mkdir(parents=True, exist_ok=True)

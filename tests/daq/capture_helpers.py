@@ -121,7 +121,7 @@ def read_lines(proc, n, timeout):
 def count_samples(address) -> int:
     """Samples stored in the run store at ``address`` (a file or a PostgreSQL URL), read
     on a connection of its own; 0 while there is no store yet or the server is away."""
-    from daq.store_dialect import StoreError, connect
+    from daq.store.dialect import StoreError, connect
 
     try:
         db = connect(address, read_only=True, timeout_s=2.0)
@@ -142,7 +142,7 @@ def sim_serve(*args: str):
     if not any(a.startswith("--") and a.endswith(("-port", "-port-base", "--any-port"))
                for a in args):
         args = (*args, "--port-base", "0")
-    serve = subprocess.Popen([sys.executable, "-m", "daq", "sim", "serve", *args], cwd=ROOT,
+    serve = subprocess.Popen([sys.executable, "-m", "cellcal", "sim", "serve", *args], cwd=ROOT,
                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     try:
         yield serve

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from calibration.frame_fit import axis_angle_deg
+from cellcal.cli import main
 from daq.check import check_plan
-from daq.cli import main
 from daq.routines import make_plan
 from daq.run_data import dataset_from_run
 from daq.store import RunStore
@@ -106,7 +106,7 @@ def test_sigkill_three_times_then_resume(store_address):
     """Over sockets into a SQLite file and into PostgreSQL: killed three times, resumed."""
     db = store_address
     rng = np.random.default_rng(7)
-    cli = [sys.executable, "-m", "daq"]
+    cli = [sys.executable, "-m", "cellcal"]
     with sim_serve("--no-pty", "--seed", "5") as serve:
         urls = read_lines(serve, 3, timeout=30)
         robot, tracker = urls[1], urls[2]

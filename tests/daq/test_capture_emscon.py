@@ -21,7 +21,7 @@ from daq.store import RunStore
 
 from .capture_helpers import ROOT, read_lines, sim_serve
 
-CLI = [sys.executable, "-m", "daq"]
+CLI = [sys.executable, "-m", "cellcal"]
 #: routine -> its flags, in the order they run into one store (frame first: the others
 #: use its measurement frame); the routines pick starts the tracker sees (--tracker-at)
 ROUTINES = {

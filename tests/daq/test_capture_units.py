@@ -11,12 +11,12 @@ import pytest
 import sim_drivers.inprocess as inproc
 from calibration import ErrorModel, identify, load_csv, load_model
 from calibration.frame_fit import axis_angle_deg, fit_circle, fit_line, measurement_frame
+from cellcal.cli import main
+from cellcal.commands.capture import confirm_motion
+from cellcal.progress import Progress
 from daq.check import PlanRefused, check_plan, require_ok
-from daq.cli import main
-from daq.commands.capture import confirm_motion
 from daq.devices import CellIdentity
 from daq.plans import Plan, Target
-from daq.progress import Progress
 from daq.routines import make_plan
 from daq.routines.poses import observability
 from daq.run_context import ExecutorOptions
@@ -197,7 +197,7 @@ def test_quality_threshold_remeasures_then_gives_up(tmp_path):
 
 # ------------------------------------------------------------------ CLI
 def test_only_identified_simulators_move_without_confirmation():
-    from daq.cli import UsageError
+    from cellcal.cli import UsageError
 
     class NoTTY(io.StringIO):
         def isatty(self):
@@ -280,7 +280,7 @@ def test_progress_lines():
 
 # ------------------------------------------------------ layout contracts
 def test_every_routine_has_its_command_line_options():
-    from daq.commands.routine_args import ROUTINE_ARGS
+    from cellcal.commands.routine_args import ROUTINE_ARGS
     from daq.routines import ROUTINES
 
     assert set(ROUTINE_ARGS) == set(ROUTINES)

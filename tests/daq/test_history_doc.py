@@ -1,5 +1,5 @@
 """The drift example of docs/history.md runs as shown: its commands are taken from the page,
-run in a shell (``cellcal`` is this interpreter's ``-m daq``), and print what the page
+run in a shell (``cellcal`` is this interpreter's ``-m cellcal``), and print what the page
 says they print; then the same again into a PostgreSQL database."""
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def same_output(actual: str, expected: str) -> None:
 @pytest.mark.slow
 def test_the_drift_example_prints_what_the_page_shows(store_address, tmp_path):
     (tmp_path / "examples").symlink_to(ROOT / "examples")
-    prelude = (f'cellcal() {{ "{sys.executable}" -m daq "$@"; }}\n'
+    prelude = (f'cellcal() {{ "{sys.executable}" -m cellcal "$@"; }}\n'
                f'python() {{ "{sys.executable}" "$@"; }}\nset -o pipefail\n')
     session = doc_session()
     assert [c.split()[0] for c, _ in session] == ["python", "for", "cellcal"]

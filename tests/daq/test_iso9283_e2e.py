@@ -8,7 +8,7 @@ import json
 
 import numpy as np
 
-from daq.cli import main
+from cellcal.cli import main
 from daq.store import RunStore
 from sim_drivers.model_truth import model_truth_factory
 from sim_drivers.truth import PoseContext

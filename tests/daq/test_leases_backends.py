@@ -1,5 +1,5 @@
 """Leases (one owner per run and per robot) on both backends: a SQLite file and a
-PostgreSQL database (the ``leases`` table: store schema 5, :mod:`daq.store_schema`)."""
+PostgreSQL database (the ``leases`` table: store schema 5, :mod:`daq.store.schema`)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ import time
 
 import pytest
 
-from daq.leases import LeaseBusy, Leases, run_key
 from daq.store import RunStore
+from daq.store.leases import LeaseBusy, Leases, run_key
 
 
 def _dead_pid() -> int:

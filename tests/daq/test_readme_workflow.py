@@ -26,7 +26,7 @@ from calibration.inverse import ChainFK
 from calibration.params_io import load_params
 from calibration.simulate import random_joints
 from calibration.visibility import assess
-from daq.cli import main
+from cellcal.cli import main
 from drivers.urls import open_robot, open_tracker
 from sim_drivers.model_truth import DEFAULT_TRACKER_AT_MM, ModelTruth
 

@@ -17,12 +17,12 @@ import numpy as np
 import pytest
 
 from calibration import Dataset, load_csv
-from daq.cli import main
+from cellcal.cli import main
 from daq.remeasure import Remeasure, RunningModel
 from daq.routines import make_plan
 from daq.run_context import ExecutorOptions, RunContext
 from daq.store import Reading, RunStore, Sample
-from daq.store_schema import SCHEMA_VERSION, UPGRADES
+from daq.store.schema import SCHEMA_VERSION, UPGRADES
 from drivers.protocols import JointReading, Measurement
 from sim_drivers.model_truth import ModelTruth
 

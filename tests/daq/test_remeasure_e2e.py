@@ -22,7 +22,7 @@ import pytest
 
 from calibration import ErrorModel, identify, load_csv
 from calibration.cell import CellSpec, Smr
-from daq.cli import main
+from cellcal.cli import main
 from daq.remeasure import RunningModel
 from daq.routines import make_plan
 from daq.store import RunStore
@@ -149,7 +149,7 @@ def test_a_kill_in_the_middle_of_a_re_measurement_leaves_one_accepted_sample_per
             return measure(duration_s)
 
         cell.tracker_measure = tracker_measure
-        cli = [sys.executable, "-m", "daq"]
+        cli = [sys.executable, "-m", "cellcal"]
         p = subprocess.Popen([*cli, *_capture(stack, db, "--count", "120", "--seed", "2",
                                               "--json")],
                              cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

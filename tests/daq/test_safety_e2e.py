@@ -27,7 +27,7 @@ import pytest
 
 from calibration.cell import CellSpec, Smr
 from calibration.transforms import make_T, rotvec_to_matrix
-from daq.cli import main
+from cellcal.cli import main
 from daq.plans import Plan
 from daq.routines import make_plan
 from daq.store import RunStore
@@ -37,7 +37,7 @@ from .capture_helpers import ROOT, count_samples, served_cell, ur10e_controller_
 from .line_proxy import LineProxy
 from .test_zero_e2e import TARGET, zero_truth
 
-CLI = [sys.executable, "-m", "daq"]
+CLI = [sys.executable, "-m", "cellcal"]
 #: the simulated cell's tracker stands at (2500, 0, 500) mm in the base frame
 UR = ["--model", "ur10e", "--tool-mm", "0,0,60", "--tracker-at", "2500,0,500"]
 #: plans made without line of sight (compared with make_plan's), on a cell whose 360-degree

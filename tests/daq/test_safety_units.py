@@ -15,17 +15,17 @@ import pytest
 
 import sim_drivers.inprocess as inproc
 from calibration import load_model
+from cellcal.cli import main
 from daq.check import check_plan
-from daq.cli import main
 from daq.executor import Executor, StaleMeasurement
-from daq.leases import Leases, robot_key, run_key
 from daq.motion_guard import MotionGuard, MotionLimits
 from daq.plans import Plan, Target
 from daq.remeasure import Judgement, Remeasure
 from daq.routines import make_plan
 from daq.run_context import ExecutorOptions, RunContext
 from daq.store import RunStore
-from daq.store_schema import SCHEMA_V1, SCHEMA_VERSION, UPGRADES
+from daq.store.leases import Leases, robot_key, run_key
+from daq.store.schema import SCHEMA_V1, SCHEMA_VERSION, UPGRADES
 from drivers.urls import open_robot, open_tracker
 
 from .capture_helpers import TOY, run_plan, toy_sim

@@ -13,8 +13,8 @@ from calibration import load_model
 from daq.routines import make_plan
 from daq.run_context import RunContext
 from daq.store import Reading, RunStore, Sample, StoreError, StoreUnavailable, open_store
-from daq.store_dialect import connect, display_address, is_server_address, translate
-from daq.store_schema import SCHEMA_V1, SCHEMA_VERSION, UPGRADES
+from daq.store.dialect import connect, display_address, is_server_address, translate
+from daq.store.schema import SCHEMA_V1, SCHEMA_VERSION, UPGRADES
 
 from .capture_helpers import TOY, toy_sim
 

@@ -16,7 +16,7 @@ from daq.store import RunStore
 
 from .capture_helpers import ROOT, count_samples, read_lines, sim_serve
 
-CLI = [sys.executable, "-m", "daq"]
+CLI = [sys.executable, "-m", "cellcal"]
 POINTS = 120
 
 

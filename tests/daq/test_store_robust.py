@@ -16,7 +16,7 @@ from calibration import load_model
 from daq.routines import make_plan
 from daq.run_context import ExecutorOptions, RunContext
 from daq.store import RunStore, StoreError
-from daq.store_schema import SCHEMA_VERSION
+from daq.store.schema import SCHEMA_VERSION
 from drivers.urls import open_robot, open_tracker
 
 from .capture_helpers import DATA, TOY, run_plan
@@ -152,7 +152,7 @@ def test_a_full_disk_pauses_the_run_with_the_reason_and_loses_nothing(tmp_path):
 def test_an_upgrade_adds_the_reserve_and_keeps_every_run(tmp_path):
     """Schema 8 is additive: a schema-3 store upgraded to today gains the reserve table
     (one row of RESERVE_BYTES zeros); runs and samples stay as they were."""
-    from daq.store_schema import RESERVE_BYTES, UPGRADES
+    from daq.store.schema import RESERVE_BYTES, UPGRADES
 
     p = tmp_path / "v3.db"
     shutil.copyfile(V2, p)

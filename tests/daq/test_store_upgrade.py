@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 
 from calibration.cell import CellSpec, Smr
-from daq.cli import main
+from cellcal.cli import main
 from daq.plans import Plan
 from daq.routines.zero20 import ZeroLoopOptions
 from daq.run_context import CONTEXT_VERSION, ExecutorOptions
 from daq.store import RunStore, Sample
-from daq.store_schema import _V2_EXECUTOR_KEYS, SCHEMA_VERSION, UPGRADES
+from daq.store.schema import _V2_EXECUTOR_KEYS, SCHEMA_VERSION, UPGRADES
 from sim_drivers.model_truth import model_truth_factory
 
 from .capture_helpers import DATA, served_cell

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from calibration import load_csv, load_model
-from daq.cli import main
+from cellcal.cli import main
 from daq.store import RunStore
 from sim_drivers.model_truth import model_truth_factory
 

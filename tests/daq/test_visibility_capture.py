@@ -10,7 +10,7 @@ import pytest
 
 from calibration.cell import CellSpec, cell_from_dict
 from calibration.visibility import assess, sample_visible, smr_pose
-from daq.cli import main
+from cellcal.cli import main
 from daq.errors import NotEnoughVisible
 from daq.plans import path_time, shortest_order
 from daq.routines import make_plan

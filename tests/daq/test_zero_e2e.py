@@ -15,7 +15,7 @@ import numpy as np
 from calibration import ErrorModel, load_model
 from calibration.simulate import realistic_truth
 from calibration.zero_point import load_postures
-from daq.cli import main
+from cellcal.cli import main
 from daq.run_data import postures_from_run
 from daq.store import RunStore
 from sim_drivers.model_truth import DEFAULT_TRACKER_AT_MM, ModelTruth

@@ -13,7 +13,7 @@ Blocks
 Sessions
     The blocks of one file run in order, in one fresh directory (``examples/`` there is
     the repository's), in one shell environment (``export`` carries over); ``cellcal``
-    is ``python -m daq`` of this checkout, the terminal is 80 columns wide.
+    is ``python -m cellcal`` of this checkout, the terminal is 80 columns wide.
 The simulated cell
     ``cellcal sim serve ...`` runs in the background for the rest of the file, with
     ``--port-base P --no-rtde`` appended (free ports of the test's own); the documented
@@ -285,7 +285,7 @@ class Session:
         bindir = workdir / ".bin"
         bindir.mkdir(parents=True)
         wrapper = bindir / "cellcal"
-        wrapper.write_text(f'#!/bin/sh\nexec "{sys.executable}" -m daq "$@"\n')
+        wrapper.write_text(f'#!/bin/sh\nexec "{sys.executable}" -m cellcal "$@"\n')
         wrapper.chmod(0o755)
         (workdir / "examples").symlink_to(ROOT / "examples")
         self.env_file = workdir / ".env.sh"
@@ -371,7 +371,7 @@ class Session:
         base = free_port_base()
         self.ports = {old: base + k for k, old in enumerate(DEFAULT_PORTS)}
         args = [a for a in shlex.split(command, comments=True)[3:] if a != "&"]
-        proc = subprocess.Popen([sys.executable, "-m", "daq", "sim", "serve", *args,
+        proc = subprocess.Popen([sys.executable, "-m", "cellcal", "sim", "serve", *args,
                                  "--port-base", str(base), "--no-rtde"], cwd=self.dir,
                                 env=self.env, stdout=subprocess.PIPE,
                                 stderr=subprocess.DEVNULL)

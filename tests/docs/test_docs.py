@@ -14,7 +14,7 @@ import io
 
 import pytest
 
-from daq.cli import build_parser
+from cellcal.cli import build_parser
 
 from .harness import DOCS, ROOT, Session, cellcal_argv, check_block, parse_blocks
 

@@ -158,7 +158,7 @@ def test_sim_serve_places_the_tracker_and_reads_the_cell(tmp_path):
     import sys
     from pathlib import Path
 
-    from daq.cli import main
+    from cellcal.cli import main
     from drivers.errors import BeamBroken
     from drivers.urls import open_robot, open_tracker
     from tests.daq.capture_helpers import read_lines
@@ -175,7 +175,7 @@ def test_sim_serve_places_the_tracker_and_reads_the_cell(tmp_path):
                  f"end: [{x}, {y}, 2500], radius: 60}}}}\n")
     root = Path(__file__).resolve().parents[2]
     for cell_args, blocked in (([], False), (["--cell", str(f)], True)):
-        proc = subprocess.Popen([sys.executable, "-m", "daq", "sim", "serve", "--no-pty",
+        proc = subprocess.Popen([sys.executable, "-m", "cellcal", "sim", "serve", "--no-pty",
                                  "--no-rtde", "--port-base", "0",
                                  f"--tracker-at={at[0]},{at[1]},{at[2]}",
                                  *cell_args], cwd=root, stdout=subprocess.PIPE,

@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def test_cellcal_sim_serve_subprocess():
     proc = subprocess.Popen(
-        [sys.executable, "-m", "daq", "sim", "serve", "--model", "toy", "--seed", "3",
+        [sys.executable, "-m", "cellcal", "sim", "serve", "--model", "toy", "--seed", "3",
          "--faults", "beam=0", "--port-base", "0", "--no-rtde"],  # 30004 may be free or not
         cwd=ROOT,
         stdout=subprocess.PIPE,
@@ -60,7 +60,7 @@ def test_cellcal_sim_serve_subprocess():
 
 def test_bad_fault_spec_is_a_usage_error():
     out = subprocess.run(
-        [sys.executable, "-m", "daq", "sim", "serve", "--faults", "laser=1"],
+        [sys.executable, "-m", "cellcal", "sim", "serve", "--faults", "laser=1"],
         cwd=ROOT,
         capture_output=True,
         timeout=30,
@@ -103,7 +103,7 @@ def test_sim_serve_ur10e_with_rtde_read_by_the_real_ur_client():
     """The default truth (a UR10e with hidden errors) is also served over RTDE: the real
     ur-rtde receive client sees the joints the Modbus robot was moved to."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "daq", "sim", "serve", "--seed", "1", "--no-pty", "--port-base",
+        [sys.executable, "-m", "cellcal", "sim", "serve", "--seed", "1", "--no-pty", "--port-base",
          "0"],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
     )
@@ -136,7 +136,7 @@ def test_sim_serve_port_in_use_is_an_error_with_a_hint():
     free = {"modbus": 0, "line_robot": 0, "tracker": 0, "emscon": 0}
     with SimStack(ServeConfig(pty=False, ports=free)) as a:
         port = a.servers[0].port
-        out = subprocess.run([sys.executable, "-m", "daq", "sim", "serve", "--no-pty",
+        out = subprocess.run([sys.executable, "-m", "cellcal", "sim", "serve", "--no-pty",
                               "--no-rtde", "--port-base", "0", "--modbus-port", str(port)],
                              cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert out.returncode == 2 and out.stdout == ""

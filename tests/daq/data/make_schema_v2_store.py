@@ -25,7 +25,7 @@ import threading
 import time
 from pathlib import Path
 
-from daq.cli import main
+from cellcal.cli import main
 from sim_drivers.model_truth import model_truth_factory
 from sim_drivers.serve import ServeConfig, SimStack
 

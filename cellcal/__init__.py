@@ -1,0 +1,12 @@
+"""The cellcal application: the ``cellcal`` command line, one thin module per command,
+the demo, and the use-case functions the commands call.
+
+It imports every layer below it (``calibration``, ``drivers``, ``sim_drivers``, ``daq``,
+``presentation``); nothing imports it. ARCHITECTURE.md maps the layers.
+
+Modules
+    ``cli``             the ``cellcal`` parser, its error-to-exit-code mapping
+    ``commands/``       one module per ``cellcal`` sub-command (see its package)
+    ``demo_workflow``   the whole cell on the simulator, from capture to a better robot
+    ``progress``        the progress line of a capture on a terminal
+"""

@@ -1,0 +1,5 @@
+import sys
+
+from cellcal.cli import main
+
+sys.exit(main())

@@ -1,0 +1,207 @@
+"""The ``cellcal`` command line.
+
+Each sub-command lives in its own module under :mod:`cellcal.commands` and
+exposes ``register(subparsers)``; adding a command is one line in
+``COMMANDS``. Exit codes (docs/formats.md §6): 0 success, 1 failure at run time,
+2 bad input (a file, a flag or a model that is refused: :class:`UsageError`, the
+capture service's :class:`~daq.errors.RequestError`, or a reader's own error such as
+``DataError``), 3 the data are too poor for what was asked
+(:class:`calibration.data_quality.InsufficientData`; ``zero`` when the postures cannot
+decide, ``capture`` for a plan the tracker would not see:
+:class:`~daq.errors.NotEnoughVisible`), 130 interrupted.
+
+Whatever goes wrong, the user gets one line, never a traceback: an error of the
+operating system (a missing folder, a permission, a full disk) is named with its
+file; stdout closed by its reader (``cellcal runs --json | head``) ends quietly; an
+unexpected exception is reported as an internal error (``CELLCAL_TRACEBACK=1`` shows
+the traceback).
+
+Start-up is kept short (``--help`` and argument errors well under 0.3 s): building the
+parser imports no numpy, scipy, matplotlib or pydantic. A command module imports what
+its work needs inside its ``run`` function, and the parser's constants (default effects,
+solver names, routine summaries) come from :mod:`cellcal.commands.choices`, which
+``tests/cellcal/test_cli_help.py`` keeps equal to the calibration core's. The error classes
+of the core are caught only once their module is loaded (:func:`_Loaded`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import errno
+import importlib
+import os
+import re
+import sys
+import textwrap
+
+#: sub-command modules, in the order ``cellcal --help`` lists them
+COMMANDS = [
+    "cellcal.commands.demo",
+    "cellcal.commands.capture",
+    "cellcal.commands.runs",
+    "cellcal.commands.resume",
+    "cellcal.commands.export_run",
+    "cellcal.commands.calibrate",
+    "cellcal.commands.history",
+    "cellcal.commands.diagnose",
+    "cellcal.commands.models",
+    "cellcal.commands.sim_serve",
+    "cellcal.commands.simulate_dataset",
+    "cellcal.commands.zero",
+    "cellcal.commands.report",
+    "cellcal.commands.compensate",
+]
+
+
+class UsageError(Exception):
+    """Bad input from the user: printed without a traceback, exit code 2."""
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """Descriptions and epilogs keep their paragraphs (blank-line separated) and their
+    indented lines (examples); option defaults are said by the help texts themselves."""
+
+    def _fill_text(self, text, width, indent):
+        out = []
+        for para in re.split(r"\n\s*\n", text.strip("\n")):
+            if para.startswith("  "):  # an example block: kept as written
+                out.append("\n".join(indent + line for line in para.splitlines()))
+            else:
+                out.append(textwrap.fill(" ".join(para.split()), width,
+                                         initial_indent=indent, subsequent_indent=indent))
+        return "\n\n".join(out)
+
+
+
+class _Version(argparse.Action):
+    """``--version``: looks the version up only when asked (no start-up cost)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                 help="print the version and exit"):
+        super().__init__(option_strings, dest=dest, default=default, nargs=0, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from calibration.version import software_version  # loaded when asked: start-up
+
+        print(software_version())
+        parser.exit()
+
+
+def add_subcommands(parser: argparse.ArgumentParser, dest: str, metavar: str):
+    """Sub-parsers of ``parser``; without one given, the command prints ``parser``'s help
+    (see :func:`main`) instead of an error."""
+    sub = parser.add_subparsers(dest=dest, metavar=metavar, title="commands"
+                                if dest == "command" else None)
+    parser.set_defaults(func=None, help_parser=parser)
+    return sub
+
+
+def command_parser(sub, name: str, *, help: str, description: str | None = None,
+                   epilog: str | None = None) -> argparse.ArgumentParser:
+    """A sub-command parser with the project's formatter; its description defaults to the
+    one-line ``help`` (every sub-command has one)."""
+    return sub.add_parser(name, help=help, description=description or help, epilog=epilog,
+                          formatter_class=HelpFormatter)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="cellcal",
+        description="Robot calibration with a laser tracker: capture, identify, "
+        "diagnose the missing physics, compensate.",
+        epilog="`cellcal COMMAND --help` describes a command. Exit codes: 0 done, 1 failed "
+        "at run time, 2 bad input, 3 data too poor to decide, 130 interrupted "
+        "(docs/formats.md §6).",
+        formatter_class=HelpFormatter,
+    )
+    parser.add_argument("--version", action=_Version)
+    sub = add_subcommands(parser, "command", "COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(name).register(sub)
+    return parser
+
+
+#: errors of the operating system that mean a bad path or permission (exit 2, not 1)
+_INPUT_ERRNOS = {errno.ENOENT, errno.EACCES, errno.EPERM, errno.EISDIR, errno.ENOTDIR,
+                 errno.EROFS, errno.ENAMETOOLONG, errno.ELOOP, errno.EEXIST}
+
+
+def _one_line(e: BaseException) -> str:
+    text = " ".join(str(e).split("\n")) if str(e) else type(e).__name__
+    return text if len(text) <= 2000 else text[:2000] + " ..."
+
+
+def _os_error(e: OSError) -> str:
+    what = e.strerror or str(e)
+    return f"{e.filename}: {what}" if e.filename else what
+
+
+#: the readers' own errors (bad input, exit 2): (module, class name) pairs
+_INPUT_ERRORS = ("calibration.dataset", "DataError", "calibration.robot_model", "ModelError",
+                 "calibration.effects", "EffectError", "calibration.params_io", "ParamsError")
+
+
+def _Loaded(*pairs: str) -> tuple[type, ...]:  # noqa: N802 - used as an exception type
+    """The exception classes named by (module, class) pairs whose modules are loaded: a
+    module never imported raised nothing, and the parser stays free of the core."""
+    out = []
+    for mod, cls in zip(pairs[::2], pairs[1::2], strict=True):
+        c = getattr(sys.modules.get(mod), cls, None)
+        if c is not None:
+            out.append(c)
+    return tuple(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)  # a usage error: argparse prints it and exits with 2
+    if args.func is None:  # `cellcal`, `cellcal sim`, `cellcal capture`: the help
+        args.help_parser.print_help()
+        return 0
+    name = args.command + (f" {args.sim_command}" if getattr(args, "sim_command", None) else "")
+    try:
+        rc = int(args.func(args) or 0)
+        sys.stdout.flush()  # a reader that went away shows here, not at the exit
+        return rc
+    except BrokenPipeError:
+        _quiet_stdout()
+        return 0
+    except UsageError as e:
+        print(f"cellcal {name}: error: {_one_line(e)}", file=sys.stderr)
+        return 2
+    except _Loaded("daq.errors", "RequestError") as e:
+        print(f"cellcal {name}: error: {_one_line(e)}", file=sys.stderr)
+        return getattr(e, "exit_code", 2)
+    except _Loaded(*_INPUT_ERRORS) as e:
+        print(f"cellcal {name}: error: {_one_line(e)}", file=sys.stderr)
+        return 2
+    except _Loaded("calibration.data_quality", "InsufficientData") as e:
+        print(f"cellcal {name}: data too poor: {_one_line(e)}", file=sys.stderr)
+        return 3
+    except KeyboardInterrupt:
+        print(f"cellcal {name}: interrupted", file=sys.stderr)
+        return 130
+    except OSError as e:
+        print(f"cellcal {name}: error: {_os_error(e)}", file=sys.stderr)
+        return 2 if e.errno in _INPUT_ERRNOS else 1
+    except Exception as e:  # noqa: BLE001 - the last resort: one line, never a traceback
+        if os.environ.get("CELLCAL_TRACEBACK"):
+            raise
+        print(f"cellcal {name}: internal error: {type(e).__name__}: {_one_line(e)} "
+              "(please report it; CELLCAL_TRACEBACK=1 shows the traceback)", file=sys.stderr)
+        return 1
+
+
+def _quiet_stdout() -> None:
+    """stdout's reader is gone: point stdout at /dev/null so the interpreter's final flush
+    does not fail again (the Python documentation's recipe for SIGPIPE)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):  # stdout is no file (captured in a test)
+        pass
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,28 @@
+"""Constants the ``cellcal`` parser shows (defaults, choices), without importing the
+calibration core: building the parser must stay fast (see :mod:`cellcal.cli`).
+
+Each is a copy of the core's own value; ``tests/cellcal/test_cli_help.py`` checks that they
+agree, so a change in the core that is not made here fails the tests.
+"""
+
+from __future__ import annotations
+
+#: :data:`calibration.effects.DEFAULT_EFFECTS`
+DEFAULT_EFFECTS = "geometric,base,tool"
+
+#: the keys of :data:`calibration.solvers.SOLVERS`, with what each is
+SOLVERS = {
+    "lm": "Levenberg-Marquardt",
+    "ridge": "robust ridge estimation: IGG3 pose weights, Tikhonov ridge",
+    "besa": "improved simulated annealing (seeded)",
+    "sa": "classic simulated annealing (seeded)",
+    "besa+lm": "annealing as a global start, polished by Levenberg-Marquardt",
+}
+
+#: :data:`calibration.outliers.MODES`: what ``--outliers`` does with blunders
+OUTLIER_MODES = ("exclude", "flag", "keep")
+
+
+def solver_help(what: str = "identification method") -> str:
+    """The ``--solver`` help text: the choices and what each is."""
+    return f"{what} (default lm): " + "; ".join(f"{k}: {v}" for k, v in SOLVERS.items())

@@ -1,0 +1,59 @@
+"""``cellcal demo``: the whole cell on the simulator, from capture to a more accurate robot."""
+
+from __future__ import annotations
+
+from ..cli import UsageError, command_parser
+from .common import bounded_int, seed_int
+
+
+def register(sub) -> None:
+    p = command_parser(
+        sub, "demo",
+        help="run the whole workflow on the simulated cell (no robot needed)",
+        description="Start a simulated UR10e with hidden errors and one hidden physical effect "
+        "behind real wire protocols, capture through the real drivers, calibrate, diagnose, "
+        "add the missing effect, calibrate again and write an HTML report.\n\n"
+        "Writes into --out: cell.db (the run store), capture.csv, params.json, report.html "
+        "and demo.json (what was hidden and found, the validation RMS of each stage, the "
+        "files). Exit 0 when the diagnosis found the hidden effect, 1 otherwise.",
+    )
+    p.add_argument("--seed", type=seed_int, default=1,
+                   help="chooses the cell and its hidden effect (default 1)")
+    p.add_argument("--hidden", default=None, metavar="EFFECT",
+                   help="the hidden physical effect (default: chosen by the seed)")
+    p.add_argument("--out", default="cellcal-demo", metavar="DIR",
+                   help="where the run store, CSV, params.json, report.html and demo.json go "
+                   "(default cellcal-demo)")
+    p.add_argument("--poses", type=bounded_int(50, 100_000), default=300, metavar="N",
+                   help="calibration poses (default 300, at least 50)")
+    p.add_argument("--valid", type=bounded_int(20, 100_000), default=150, metavar="N",
+                   help="validation poses (default 150, at least 20)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--force", action="store_true",
+                   help="write into a folder that holds other files (the demo's own file "
+                   "names are replaced; a run store the demo did not create never is)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from calibration.effects import EffectError, parse_effect
+    from calibration.model_loading import load_model
+
+    if args.poses < 50 or args.valid < 20:
+        raise UsageError("--poses must be >= 50 and --valid >= 20")
+    if args.hidden:
+        try:
+            parse_effect(args.hidden, load_model("ur10e"))
+        except EffectError as e:
+            raise UsageError(f"--hidden {args.hidden!r}: {e}") from None
+    from pathlib import Path
+
+    from ..demo_workflow import DemoFolderError, check_demo_folder, run_demo
+
+    try:
+        check_demo_folder(Path(args.out), args.force)
+    except DemoFolderError as e:
+        raise UsageError(str(e)) from None
+    result = run_demo(args.out, seed=args.seed, hidden=args.hidden, poses=args.poses,
+                      valid=args.valid, progress=not args.quiet, force=args.force)
+    return 0 if result.found == result.hidden else 1

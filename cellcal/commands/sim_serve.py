@@ -1,0 +1,176 @@
+"""``cellcal sim serve``: run the simulated cell behind its wire protocols until stopped.
+
+Prints one driver URL per line (Modbus robot, line robot, tracker over TCP, tracker over
+a pty, emScon tracker, then the read-only RTDE robot when port 30004 was free), then a
+ready-to-paste ``export R=... T=...`` line (the Modbus robot and the TCP tracker), then
+serves until Ctrl-C or SIGTERM and stops cleanly (exit code 0). A port in use is an
+error (exit 2) unless ``--any-port``. The simulated tracker's line of sight is honest
+(:mod:`sim_drivers.beam`): ``--tracker-at`` places it, ``--cell`` adds fixtures.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import threading
+
+from ..cli import UsageError, add_subcommands, command_parser
+from .common import bounded_float, bounded_int, nonneg_float, seed_int
+
+#: the default ports (also in :data:`sim_drivers.serve.DEFAULT_PORTS`, kept equal by
+#: tests/cellcal/test_cli_help.py): Modbus robot, line robot, line tracker, emScon tracker
+DEFAULT_PORTS = {"modbus": 15020, "line_robot": 15021, "tracker": 15700, "emscon": 15701}
+_PORT_FLAGS = {"modbus": "--modbus-port", "line_robot": "--line-robot-port",
+               "tracker": "--tracker-port", "emscon": "--emscon-port"}
+
+
+def register(sub) -> None:
+    p = command_parser(
+        sub, "sim", help="simulated cell: serve it over the real wire protocols",
+        description="The simulated cell: a robot with realistic hidden errors (and hidden "
+        "physical effects) and a laser tracker, behind the same wire protocols as the "
+        "hardware. `cellcal sim serve --help` for the options.")
+    ssub = add_subcommands(p, "sim_command", "SIM_COMMAND")
+    s = command_parser(
+        ssub, "serve", help="start the simulated servers and print their URLs",
+        description="Serve the simulated cell on loopback until Ctrl-C: prints one driver URL "
+        "per line (Modbus robot, line-protocol robot, line-protocol tracker over TCP and "
+        "over a pty, emScon tracker; the read-only RTDE robot when port 30004 is free), "
+        "then an `export R=... T=...` line to paste into the shell that captures.\n\n"
+        "Ports: Modbus robot 15020, line robot 15021, tracker 15700, emScon 15701 by "
+        "default; --port-base N serves them on N, N+1, N+2, N+3; a port flag sets one (0: "
+        "any free port). A port in use is an error (exit 2) unless --any-port.")
+    s.add_argument("--seed", type=seed_int, default=0,
+                   help="random seed of the cell (default 0)")
+    s.add_argument("--model", default="ur10e", metavar="NAME|PATH",
+                   help="the true robot: a model name or YAML with realistic hidden errors "
+                        "(default ur10e), or 'toy' for a 3-joint stand-in arm")
+    s.add_argument("--tracker-at", metavar="X,Y,Z", default=None,
+                   help="where the simulated tracker stands, robot base frame, mm (default "
+                   "2500,0,500; write --tracker-at=-2500,0,500 for a negative first value)")
+    s.add_argument("--cell", metavar="cell.yaml", default=None,
+                   help="the simulated cell: fixtures that break the beam, the SMR axis and "
+                   "acceptance, the tracker position (docs/formats.md section 7)")
+    s.add_argument("--hidden", default=None, metavar="EFFECTS",
+                   help="hidden physical effects of the true robot, e.g. compliance:3 "
+                   "(docs/formats.md §3)")
+    s.add_argument("--faults", default=None, metavar="SPEC",
+                   help="fault spec, e.g. 'beam=0.05,slow=0.02,drop@3,delay=2'; "
+                   "'blunder=0.03': 3 %% of tracker readings off by 0.5-5 mm")
+    s.add_argument("--time-scale", type=nonneg_float, default=0.0, metavar="S",
+                   help="wall seconds per simulated second (default 0: instantaneous)")
+    s.add_argument("--host", default="127.0.0.1", help="address to listen on (default loopback)")
+    s.add_argument("--port-base", type=bounded_int(0, 65532), default=None, metavar="N",
+                   help="serve on ports N (Modbus robot), N+1 (line robot), N+2 (tracker), "
+                   "N+3 (emScon); 0: any free ports")
+    for name, flag in _PORT_FLAGS.items():
+        s.add_argument(flag, type=bounded_int(0, 65535), default=None, metavar="PORT",
+                       help=f"port of the {name.replace('_', ' ')} server (default "
+                       f"{DEFAULT_PORTS[name]}; 0: any free port)")
+    s.add_argument("--any-port", action="store_true",
+                   help="serve on a free port instead of a port in use (the printed URLs "
+                   "are the truth)")
+    s.add_argument("--no-pty", action="store_true", help="no tracker on a pseudo-terminal")
+    s.add_argument("--no-rtde", action="store_true",
+                   help="no RTDE receive server on port 30004 (ur://, read-only)")
+    s.add_argument("--no-weather-station", action="store_true",
+                   help="the tracker has no weather station (give it the air: capture --meteo)")
+    s.add_argument("--tracker-collimation-urad", type=bounded_float(-1e4, 1e4), default=0.0,
+                   metavar="URAD",
+                   help="the tracker's two-face (collimation) error, µrad (default 0)")
+    s.add_argument("--tracker-warmup-s", type=nonneg_float, default=0.0, metavar="S",
+                   help="simulated seconds until the tracker is warmed up (default 0)")
+    s.set_defaults(func=run)
+
+
+def ports(args) -> dict[str, int]:
+    """The ports asked for: the defaults, or from --port-base, then the port flags."""
+    out = dict(DEFAULT_PORTS)
+    if args.port_base is not None:
+        out = {name: args.port_base + k if args.port_base else 0
+               for k, name in enumerate(DEFAULT_PORTS)}
+    for name in DEFAULT_PORTS:
+        v = getattr(args, _PORT_FLAGS[name].lstrip("-").replace("-", "_"))
+        if v is not None:
+            out[name] = v
+    bad = {name: v for name, v in out.items() if not 0 <= v <= 65535}
+    if bad:
+        raise UsageError("ports must be 0..65535 (0: any free port), got "
+                         + ", ".join(f"{k} {v}" for k, v in bad.items()))
+    return out
+
+
+def export_line(urls: list[str]) -> str:
+    """``export R='modbus+tcp://...' T='tracker+tcp://...'``: the robot and tracker URLs the
+    README's commands use, ready to paste."""
+    robot = next(u for u in urls if u.startswith("modbus+tcp://"))
+    tracker = next(u for u in urls if u.startswith("tracker+tcp://"))
+    return f"export R='{robot}' T='{tracker}'"
+
+
+def run(args) -> int:
+    from calibration.cell import load_cell
+    from sim_drivers.serve import ServeConfig, SimStack
+
+    from .routine_args import floats
+
+    if args.hidden and args.model != "toy":
+        from calibration import EffectError, load_model, parse_effects
+
+        model = load_model(args.model)  # a bad model: ModelError, exit 2
+        try:
+            parse_effects(args.hidden, model)
+        except EffectError as e:
+            raise UsageError(f"--hidden {args.hidden!r}: {e}") from None
+    config = ServeConfig(seed=args.seed, hidden=args.hidden, faults=args.faults,
+                         time_scale=args.time_scale, host=args.host, ports=ports(args),
+                         pty=not args.no_pty, rtde=not args.no_rtde, any_port=args.any_port)
+    try:
+        tracker_at = floats(args.tracker_at, 3, "--tracker-at")
+        cell = load_cell(args.cell) if args.cell else None
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    if args.model == "toy":
+        from sim_drivers.inprocess import default_truth as factory
+    else:
+        from sim_drivers.model_truth import DEFAULT_TRACKER_AT_MM, ModelTruth
+
+        at = tracker_at or (cell.tracker_mm if cell is not None and cell.tracker is not None
+                            else DEFAULT_TRACKER_AT_MM)
+        axis = (0.0, 0.0, 1.0) if cell is None else cell.smr.axis
+
+        def factory(seed, hidden):
+            return ModelTruth.from_spec(args.model, hidden, seed, tracker_at=at, smr_axis=axis)
+
+    try:
+        stack = SimStack(config, truth_factory=factory, cell=cell,
+                         weather_station=not args.no_weather_station,
+                         tracker_collimation_rad=args.tracker_collimation_urad * 1e-6,
+                         warmup_s=args.tracker_warmup_s)
+    except ValueError as e:  # ModelError and EffectError are ValueErrors too
+        raise UsageError(str(e)) from e
+    stop = threading.Event()
+    previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    try:
+        try:
+            stack.start()
+        except ValueError as e:  # PortInUse
+            raise UsageError(str(e)) from None
+        try:
+            for url in stack.urls:
+                print(url)
+            print(export_line(stack.urls))
+            for note in stack.notes:
+                print(f"cellcal sim: {note}", file=sys.stderr)
+            sys.stdout.flush()
+            try:
+                while not stop.wait(0.2):
+                    pass
+            except KeyboardInterrupt:
+                pass
+        finally:
+            stack.stop()
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    print("cellcal sim: stopped", file=sys.stderr)
+    return 0

@@ -1,0 +1,263 @@
+"""The whole cell on the simulator, from capture to a more accurate robot.
+
+:func:`run_demo` starts the simulated cell (a UR10e with realistic hidden errors and one
+hidden physical effect) behind its wire protocols on loopback, connects the real drivers
+(Modbus TCP robot, line-protocol tracker over TCP), sets up the measurement frame,
+captures calibration and validation poses into a SQLite run store, exports the
+measurement CSV, calibrates the default model, diagnoses, lets the automatic diagnosis
+add the missing effects one at a time, and writes the HTML report, which tells that story
+step by step.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from calibration import load_csv
+from calibration.auto_diagnosis import auto_diagnose
+from calibration.diagnosis import diagnose
+from calibration.files import write_atomic
+from calibration.params_io import save_params
+from calibration.workflow import UNCALIBRATED_LABEL, AutoStory, staged_fit
+from daq.run_data import dataset_from_run
+from daq.service import CaptureRequest, plan_run, start_run
+from daq.store import RunStore
+from drivers.urls import open_robot, open_tracker
+from presentation.html_report import render_report, story_stages
+from presentation.provenance import Provenance
+from sim_drivers.model_truth import ModelTruth
+from sim_drivers.serve import ServeConfig, SimStack
+
+from .progress import Progress
+
+#: hidden effects the demo draws from (by seed): each 0.05-0.5 mm at the tool
+DEMO_EFFECTS = ("compliance:3", "compliance:2", "harmonic:1", "backlash:2", "scale:3",
+                "coupling:5")
+
+
+#: where the demo's user says the tracker stands (mm, robot base frame): roughly where the
+#: simulated cell puts it (:data:`~sim_drivers.model_truth.DEFAULT_TRACKER_AT_MM`)
+TRACKER_AT_MM = (2500.0, 0.0, 500.0)
+
+#: the files the demo writes in its folder (with SQLite's side files of the store); it
+#: writes no others and replaces these only in a folder it made (see check_demo_folder)
+DEMO_FILES = ("cell.db", "cell.db-wal", "cell.db-shm", "cell.db-journal", "capture.csv",
+              "params.json", "report.html", "demo.json")
+#: marks demo.json as the demo's manifest
+MANIFEST_KEY = "cellcal_demo"
+
+
+class DemoFolderError(ValueError):
+    """The demo's output folder holds files the demo did not write (exit 2)."""
+
+
+def _manifest(folder: Path) -> dict | None:
+    """The demo's manifest (demo.json) in ``folder``, or None when there is none."""
+    try:
+        doc = json.loads((folder / "demo.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) and isinstance(doc.get("files"), dict) else None
+
+
+def check_demo_folder(out: Path, force: bool = False) -> None:
+    """Refuse an output folder the demo would damage.
+
+    A folder holding files the demo did not write (no demo manifest, or files besides
+    :data:`DEMO_FILES`) is refused unless ``force``; even then a run store the demo did
+    not create (``cell.db`` without the demo's manifest) is never deleted."""
+    if out.exists() and not out.is_dir():
+        raise DemoFolderError(f"--out {out}: a file, not a folder; give a new or empty folder")
+    if not out.exists():
+        return
+    entries = sorted(p.name for p in out.iterdir())
+    manifest = _manifest(out)
+    foreign = [e for e in entries if manifest is None or e not in DEMO_FILES]
+    if foreign and not force:
+        shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5
+                                          else "")
+        raise DemoFolderError(
+            f"--out {out} holds files the demo did not write ({shown}); give a new or empty "
+            "folder, or --force to write the demo's files (capture.csv, params.json, "
+            "report.html, ...) there anyway")
+    if manifest is None and (out / "cell.db").exists():
+        raise DemoFolderError(
+            f"--out {out}: cell.db there is a run store the demo did not create; the demo "
+            "never deletes one, even with --force: give another folder")
+
+
+@dataclass
+class DemoResult:
+    """What the demo did and found (also written as ``demo.json``)."""
+
+    out: Path
+    hidden: str
+    found: str | None
+    noise_floor_mm: float
+    rms: dict[str, float] = field(default_factory=dict)  # stage label -> validation RMS
+    frame: dict | None = None
+    seconds: float = 0.0
+    files: dict[str, str] = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {"hidden": self.hidden, "found": self.found,
+                "noise_floor_mm": self.noise_floor_mm, "valid_rms_mm": self.rms,
+                "seconds": self.seconds, "files": self.files,
+                "frame": None if self.frame is None else {
+                    k: self.frame[k] for k in ("orthogonality_deg",) if k in self.frame}}
+
+
+def pick_hidden(seed: int) -> str:
+    return DEMO_EFFECTS[seed % len(DEMO_EFFECTS)]
+
+
+def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | None = None,
+             poses: int = 300, valid: int = 150, progress: bool = True,
+             stream=None, force: bool = False) -> DemoResult:
+    """Run the demo; returns what it measured. ``stream`` receives the step-by-step text.
+
+    :class:`DemoFolderError` for a folder holding other files (see
+    :func:`check_demo_folder`; ``force`` writes there anyway, never over a foreign store).
+    """
+    stream = stream or sys.stdout
+    t_start = time.perf_counter()
+    out = Path(out)
+    check_demo_folder(out, force)
+    out.mkdir(parents=True, exist_ok=True)
+    hidden = hidden or pick_hidden(seed)
+    db_path, csv_path = out / "cell.db", out / "capture.csv"
+    params_path, report_path = out / "params.json", out / "report.html"
+    # the manifest first: the store about to be made is the demo's, whatever happens next
+    write_atomic(out / "demo.json", json.dumps(
+        {MANIFEST_KEY: 1, "status": "running", "files": {"store": str(db_path)}}) + "\n")
+    for name in ("cell.db", "cell.db-wal", "cell.db-shm", "cell.db-journal"):
+        (out / name).unlink(missing_ok=True)
+
+    def say(text: str = "") -> None:
+        print(text, file=stream, flush=True)
+
+    truth = ModelTruth.from_spec("ur10e", hidden, seed)
+    model = truth.model  # what the controller knows: nominal UR10e, SMR on a 60 mm holder
+    say(f"cellcal demo (seed {seed}): a simulated UR10e with realistic hidden errors and one "
+        "hidden physical effect, measured by a simulated laser tracker")
+    config = ServeConfig(seed=seed, hidden=hidden, pty=False,
+                         ports={"modbus": 0, "line_robot": 0, "tracker": 0})
+    result = DemoResult(out, hidden, None, float("nan"))
+    with SimStack(config, truth_factory=lambda s, h: truth) as stack:
+        robot_url = next(u for u in stack.urls if u.startswith("modbus+tcp://"))
+        tracker_url = next(u for u in stack.urls if u.startswith("tracker+tcp://"))
+        say(f"[1/7] cell served on loopback: robot {robot_url}, tracker {tracker_url}")
+        robot, tracker = open_robot(robot_url), open_tracker(tracker_url)
+        try:
+            robot.connect(5.0)
+            tracker.connect(5.0)
+            with RunStore(db_path) as store:
+                # the frame from a start the tracker sees (the routine picks it), then poses
+                # planned for the tracker the frame measured
+                frame_run = _capture(store, "frame", {}, model, robot, tracker,
+                                     (robot_url, tracker_url), progress, seed,
+                                     tracker_at=TRACKER_AT_MM)
+                frame = store.run(frame_run).frame
+                result.frame = frame
+                say(f"[2/7] measurement frame: joint-1 circle rms {frame['circle']['rms_mm']:.4f}"
+                    f" mm, x line rms {frame['line']['rms_mm']:.4f} mm, x line "
+                    f"{frame['orthogonality_deg']:.3f} deg off perpendicular to joint 1")
+                count = poses + valid
+                say(f"[3/7] capturing {poses} calibration + {valid} validation poses "
+                    f"into {db_path}")
+                run_id = _capture(store, "poses", {"count": count, "seed": seed,
+                                                   "valid_fraction": valid / count,
+                                                   "floor_z_mm": 0.0},
+                                  model, robot, tracker, (robot_url, tracker_url), progress,
+                                  seed)
+                dataset_from_run(store, run_id).to_csv(csv_path)
+                n_int = len(store.interruptions(run_id))
+                n_samples = store.n_samples(run_id)
+                beam = store.run(run_id).summary or {}
+            broken = (f", {beam['beam_breaks']} beam breaks, {len(beam['skipped_points'])} "
+                      "points replaced" if beam.get("beam_breaks") else "")
+            say(f"      {n_samples} samples stored"
+                f"{f', {n_int} interruptions recovered' if n_int else ''}{broken}; "
+                f"exported {csv_path}")
+        finally:
+            robot.close()
+            tracker.close()
+
+    data = load_csv(csv_path, model)  # through the interchange format, as a user would
+    floor = data.noise_floor_mm()
+    result.noise_floor_mm = floor
+    sf = staged_fit(data, model, refit=False)
+    fit, diag = sf.current, sf.diagnosis
+    say(f"[4/7] calibrated {','.join(fit.error_model.labels)}: RMS {fit.calib['rms_mm']:.4f} "
+        f"mm on the {fit.calib['n']} calibration poses, {fit.valid['rms_mm']:.4f} mm on the "
+        f"{fit.valid['n']} validation poses (uncalibrated {sf.uncalibrated.valid['rms_mm']:.3f}"
+        f" mm, noise floor {floor:.4f} mm)")
+    say(f"[5/7] diagnosis ({diag.n_screened} candidates): {diag.recommendation()}")
+    auto = auto_diagnose(fit, data)
+    story = AutoStory.from_auto(auto, sf.uncalibrated)
+    stages = story_stages(sf.uncalibrated, story, ",".join(fit.error_model.labels),
+                          UNCALIBRATED_LABEL)
+    final = story.final.fit
+    added = [s.effect for s in story.added]
+    if added:
+        result.found = hidden if hidden in added else added[0]
+        say(f"[6/7] calibrated --effects {','.join(final.error_model.labels)}: RMS "
+            f"{final.calib['rms_mm']:.4f} mm calibration, {final.valid['rms_mm']:.4f} mm "
+            "validation")
+        diag = diagnose(final, data)
+    else:
+        say("[6/7] nothing to add")
+    save_params(final, params_path, auto=auto, capture=data.capture)
+    render_report(diag, stages, title=f"cellcal demo, seed {seed}", story=story, data=data,
+                  provenance=Provenance.of(model.name, csv_path, data)).write(report_path)
+    say(f"[7/7] wrote {params_path}, {report_path} and {out / 'demo.json'} (what was hidden "
+        "and found, the RMS of each stage)")
+
+    result.rms = {s.label: s.fit.valid["rms_mm"] for s in stages}
+    result.seconds = time.perf_counter() - t_start
+    result.files = {"store": str(db_path), "csv": str(csv_path), "params": str(params_path),
+                    "report": str(report_path)}
+    write_atomic(out / "demo.json",
+                 json.dumps({MANIFEST_KEY: 1, **result.to_json()}, indent=1) + "\n")
+    say()
+    say(before_after(result))
+    return result
+
+
+def before_after(r: DemoResult) -> str:
+    """The closing table: validation RMS stage by stage against the noise floor."""
+    labels = list(r.rms)
+    width = max(len(s) for s in labels)
+    lines = [f"{'model':<{width}}  RMS on the validation poses"]
+    for label in labels:
+        lines.append(f"{label:<{width}}  {r.rms[label]:8.4f} mm  "
+                     f"({r.rms[label] / r.noise_floor_mm:5.2f} x noise floor)")
+    lines.append(f"{'noise floor':<{width}}  {r.noise_floor_mm:8.4f} mm  (sqrt(3) x tracker sigma)")
+    verdict = ("found it" if r.found == r.hidden else
+               f"the diagnosis proposed {r.found or 'nothing'}")
+    lines.append(f"hidden effect: {r.hidden} -> {verdict}; {r.seconds:.0f} s in all; "
+                 f"open {r.files.get('report', 'report.html')}")
+    return "\n".join(lines)
+
+
+def _capture(store, routine, params, model, robot, tracker, urls, progress, seed,
+             tracker_at=None) -> int:
+    """Plan (for the tracker at ``tracker_at``, else where the store's frame run measured
+    it), dry-run and execute one routine (:mod:`daq.service`); returns the run id (raises
+    on failure)."""
+    request = CaptureRequest(routine=routine, model=model.name, params=params, seed=seed,
+                             tracker_at=tracker_at)
+    planned = plan_run(request, model=model, db=store.path)
+    prog = Progress(enabled=progress)
+    try:
+        out = start_run(store, planned, robot_url=urls[0], tracker_url=urls[1],
+                        devices=(robot, tracker), progress=prog)
+    finally:
+        prog.close()
+    if out.status != "completed":
+        raise RuntimeError(f"{routine} run {out.run_id} {out.status}: {out.reason}")
+    return out.run_id

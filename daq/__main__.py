@@ -1,5 +1,0 @@
-import sys
-
-from daq.cli import main
-
-sys.exit(main())

@@ -1,0 +1,673 @@
+"""The durable run store: runs, samples, the readings a capture did not accept,
+interruptions, leases (:mod:`daq.store.leases`) and calibrations, in one SQLite file (one per
+cell, the default) or in a PostgreSQL database (a plant's central store).
+
+:func:`open_store` (and :class:`RunStore` itself) picks the backend from the address
+(docs/formats.md §5): a ``postgresql://user@host/db`` URL is a server, anything else a
+file. The SQL below is written once; what the two databases spell differently lives in
+:mod:`daq.store.dialect`.
+
+Durability
+    One transaction per sample (:meth:`RunStore.add_sample`); that commit is the
+    executor's checkpoint. SQLite runs in WAL mode with ``synchronous=FULL``: in WAL
+    mode ``NORMAL`` already survives a killed process (the WAL is written before the
+    commit returns) but may lose the last commits on a power cut or OS crash; ``FULL``
+    also fsyncs the WAL on every commit. A sample costs the robot seconds of motion and
+    measurement, the fsync about a millisecond, and a sample the operator was told is
+    stored must stay stored, so ``FULL`` is the default (``synchronous="NORMAL"`` is
+    accepted for bulk tests). On PostgreSQL a commit returns once the server has
+    flushed its WAL (``synchronous_commit`` on, the server's default; ``NORMAL`` turns
+    it off for the session).
+
+Idempotence
+    ``samples`` has ``UNIQUE(run_id, point_index)`` and samples are inserted with
+    ``ON CONFLICT DO NOTHING``: writing a point twice (a resumed run redoing a point
+    whose commit did land, or a commit repeated after the server connection broke
+    during it) keeps the first one, so nothing is ever duplicated. A point's rejected
+    readings are written only with its sample, and a re-measured point's replacement
+    is skipped when the point already holds it: a repeated commit doubles nothing.
+
+Lost connections
+    A PostgreSQL server that goes away raises :class:`StoreUnavailable` (a
+    :class:`StoreError`, transient); :meth:`RunStore.reconnect` opens a new connection.
+    The executor waits for the store, then pauses the run (:mod:`daq.executor`).
+
+Schema versions
+    :meth:`Database.get_version <daq.store.dialect.Database.get_version>` holds
+    :data:`~daq.store.schema.SCHEMA_VERSION` (SQLite's ``PRAGMA user_version``, a
+    ``schema_version`` table on PostgreSQL). Opening an older store applies the upgrades
+    of :mod:`daq.store.schema` in order, each in one transaction that holds the
+    store's write lock (two processes opening an old store upgrade it once); a newer
+    store is refused. A read-only store is never upgraded.
+
+Every run stores its plan, its typed context (:class:`daq.run_context.RunContext`) and
+the robot's identity (``robot_id``). Reading turns a run's samples into calibration
+inputs: :mod:`daq.run_data`. Calibrations (a params.json per robot and time) are read
+by ``cellcal history``.
+
+Opening read-only and refusing what is not a store
+    ``read_only=True`` (the commands that only read: ``runs``, ``export``, ``zero --db``)
+    opens a file with SQLite's ``mode=ro``: no WAL switch, nothing written, so a
+    read-only file or folder works and the file stays byte for byte the same; an older
+    schema is upgraded in a copy in memory. Any open refuses, with one line
+    (:class:`StoreError`), a file that is not an SQLite database, a damaged (truncated,
+    overwritten) one, an SQLite database of another program (tables that are not a run
+    store's; it is never written to) and a store of a newer schema. On PostgreSQL a
+    read-only open sets ``default_transaction_read_only``; its database may hold other
+    programs' tables.
+
+Units: joints rad (stored as JSON lists), lengths mm, covariances mm², times epoch s,
+temperature °C, pressure hPa, humidity %.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sqlite3
+import time
+from pathlib import Path
+
+import numpy as np
+
+from calibration.version import software_version
+
+from ..run_context import RunContext
+from .dialect import (
+    Database,
+    StoreError,
+    StoreUnavailable,
+    connect,
+    display_address,
+)
+from .open_checks import describe_error
+from .records import STATUSES, Calibration, Reading, Run, Sample, Samples
+from .schema import RESERVE_BYTES, SCHEMA_V1, SCHEMA_VERSION, UPGRADES
+
+__all__ = ["STATUSES", "Calibration", "Reading", "Run", "RunStore", "Sample", "Samples",
+           "StoreError", "StoreUnavailable", "open_store"]
+
+
+def _f(v) -> float | None:
+    return None if v is None else float(v)
+
+
+#: the covariance's upper triangle as stored (``cov_xx`` … ``cov_zz``): (row, column)
+_COV = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+def _cov_cols(cov) -> tuple:
+    if cov is None:
+        return (None,) * len(_COV)
+    c = np.asarray(cov, float)
+    return tuple(float(c[i, j]) for i, j in _COV)
+
+
+def _cov_matrix(rows: list, k: int) -> np.ndarray:
+    """(n, 3, 3) from the six columns starting at ``k`` (NaN where NULL)."""
+    out = np.full((len(rows), 3, 3), np.nan)
+    for m, (i, j) in enumerate(_COV):
+        v = np.array([np.nan if r[k + m] is None else r[k + m] for r in rows], float)
+        out[:, i, j] = out[:, j, i] = v
+    return out
+
+
+def _json(v) -> str | None:
+    return None if v is None else json.dumps(v)
+
+
+def open_store(address, *, create: bool = True, read_only: bool = False,
+               synchronous: str = "FULL") -> RunStore:
+    """The run store at ``address``: a SQLite file path or a ``postgresql://`` URL.
+
+    ``create`` False refuses a store that does not exist yet (a missing file, a
+    PostgreSQL database without the store's tables): never create an empty store for a
+    mistyped address. ``read_only`` opens without write access and never upgrades (an
+    older schema is refused).
+    """
+    return RunStore(address, synchronous, create=create, read_only=read_only)
+
+
+class RunStore:
+    """The run store (see the module docstring).
+
+    Parameters
+    ----------
+    address : str or Path
+        A SQLite file (created with the current schema when absent) or a
+        ``postgresql://user[:password]@host[:port]/dbname`` URL (the database must exist;
+        the store's tables are created in an empty one).
+    synchronous : {"FULL", "NORMAL"}
+        Durability of a commit (see the module docstring).
+    create, read_only : bool
+        As :func:`open_store`.
+    """
+
+    def __init__(self, address: str | Path, synchronous: str = "FULL", *,
+                 create: bool = True, read_only: bool = False) -> None:
+        #: the address as printed (a URL without its password)
+        self.address = display_address(address)
+        self.db: Database = connect(address, create=create, read_only=read_only,
+                                    synchronous=synchronous,
+                                    check_file=lambda con: self._check_file(con, read_only))
+        self._open_args = (address, read_only, synchronous)
+        try:
+            self._migrate(create=create)
+            self._refill_reserve()
+        except sqlite3.DatabaseError as e:
+            self.db.close()
+            raise StoreError(f"{self.address}: {describe_error(e)}") from None
+        except BaseException:
+            self.db.close()
+            raise
+
+    @classmethod
+    def open_existing(cls, path: str | Path, synchronous: str = "FULL", *,
+                      read_only: bool = False) -> RunStore:
+        """An existing store; :class:`StoreError` when there is none at ``path`` (never
+        create an empty store for a mistyped path)."""
+        return cls(path, synchronous, create=False, read_only=read_only)
+
+    @property
+    def path(self) -> Path | str:
+        """The SQLite file, or the server's address (no password)."""
+        return self.db.path if self.db.kind == "sqlite" else self.address
+
+    @property
+    def con(self):
+        """The driver's connection (sqlite3 or psycopg), for inspection."""
+        return self.db.con
+
+    @property
+    def kind(self) -> str:
+        """``sqlite`` or ``postgresql``."""
+        return self.db.kind
+
+    def _check_file(self, con, read_only: bool) -> None:
+        """A SQLite file's first look, before anything is written to it: refuse a file of
+        another program, a newer schema, and a damaged file opened read-only. (A
+        PostgreSQL database may hold other programs' tables besides the store's.)"""
+        tables = {r[0] for r in con.execute(
+            "SELECT name FROM sqlite_master WHERE type='table' AND name NOT LIKE 'sqlite_%'")}
+        if not tables:
+            if read_only:
+                raise StoreError(f"{self.address}: an empty database, not a cellcal run store "
+                                 "(no runs)")
+            return
+        if not {"runs", "samples"} <= tables:
+            shown = ", ".join(sorted(tables)[:5])
+            raise StoreError(f"{self.address}: not a cellcal run store (an SQLite database "
+                             f"with the tables {shown}); give the run store of a capture")
+        v = int(con.execute("PRAGMA user_version").fetchone()[0])
+        if v > SCHEMA_VERSION:
+            raise StoreError(f"{self.address}: schema version {v} is newer than this cellcal "
+                             f"({SCHEMA_VERSION}); update cellcal to read it")
+        if read_only:  # a damaged file shows on a full read, not always on open
+            bad = con.execute("PRAGMA quick_check").fetchone()[0]
+            if bad != "ok":
+                raise StoreError(f"{self.address}: damaged run store (SQLite: {bad})")
+
+    # ------------------------------------------------------------ lifecycle
+    def close(self) -> None:
+        self.db.close()
+
+    def __enter__(self) -> RunStore:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def new_connection(self) -> Database:
+        """Another connection to this store (:mod:`daq.store.dialect`), for work beside
+        this one: e.g. leases renewed by a heartbeat thread (write them in the store's SQL
+        spelling; an insert-or-replace is :meth:`Database.upsert
+        <daq.store.dialect.Database.upsert>`, a serialised transaction
+        ``transaction(lock=True)``)."""
+        address, read_only, synchronous = self._open_args
+        return connect(address, create=False, read_only=read_only, synchronous=synchronous)
+
+    def reconnect(self) -> None:
+        """A new connection after a lost one (:class:`StoreUnavailable` when the server
+        is still away)."""
+        self.db.reconnect()
+
+    @property
+    def version(self) -> int:
+        return self.db.get_version()
+
+    def _migrate(self, create: bool) -> None:
+        db = self.db
+        v = db.get_version()
+        if v == 0 and (not create or db.read_only):
+            raise StoreError(f"{self.address}: no run store here (an empty database)")
+        if v > SCHEMA_VERSION:
+            raise StoreError(f"{self.address}: schema version {v} is newer than this "
+                             f"cellcal ({SCHEMA_VERSION})")
+        if db.read_only and v < SCHEMA_VERSION:
+            if db.kind != "sqlite":
+                raise StoreError(f"{self.address}: schema version {v}, this cellcal reads "
+                                 f"{SCHEMA_VERSION}: open it once with write access (any "
+                                 "capture, runs or export) to upgrade it")
+            self._upgrade_in_memory()  # the file is left alone
+        if db.read_only:
+            return
+        while v < SCHEMA_VERSION:
+            # one step per transaction, under the store's write lock; the version is read
+            # again inside it, so two processes opening an old store upgrade it once
+            with db.transaction(lock=True):
+                v = db.get_version()
+                if v == 0:
+                    if db.has_table("runs"):
+                        raise StoreError(f"{self.address}: has a runs table but no schema "
+                                         "version")
+                    for statement in SCHEMA_V1.split(";"):
+                        if statement.strip():
+                            db.execute(statement)
+                elif v < SCHEMA_VERSION:
+                    UPGRADES[v - 1](db)
+                if v < SCHEMA_VERSION:
+                    db.set_version(v + 1)
+                    v += 1
+        if v > SCHEMA_VERSION:
+            raise StoreError(f"{self.address}: schema version {v} is newer than this "
+                             f"cellcal ({SCHEMA_VERSION})")
+
+    # ------------------------------------------------------------- reserve
+    def release_reserve(self) -> bool:
+        """Give up the reserve of free space (a full disk: SQLite): the pages it held let
+        the run's status and the reason still be written. True when there was one (a
+        PostgreSQL store keeps none: its server's disk is the server's)."""
+        if self.db.kind != "sqlite" or self.db.read_only:
+            return False
+        try:
+            with self.db.transaction():
+                cur = self.db.execute("DELETE FROM reserve")
+            return cur.rowcount > 0
+        except sqlite3.Error:
+            return False
+
+    def _refill_reserve(self) -> None:
+        """Put the reserve back when it was given up and there is space again."""
+        if self.db.kind != "sqlite" or self.db.read_only:
+            return
+        try:
+            with self.db.transaction():
+                if self.db.execute("SELECT count(*) FROM reserve").fetchone()[0] == 0:
+                    self.db.execute("INSERT INTO reserve (id, pad) VALUES (1, zeroblob(?))",
+                                    (RESERVE_BYTES,))
+        except sqlite3.OperationalError:  # still no space: the capture will say so
+            pass
+
+    def _upgrade_in_memory(self) -> None:
+        """An older schema opened read-only (SQLite): work on an upgraded copy in memory;
+        the file is left alone."""
+        if self.version == 0:
+            raise StoreError(f"{self.address}: not a cellcal run store (no schema version)")
+        self.db.copy_to_memory()
+
+    # ------------------------------------------------------------------ runs
+    def create_run(
+        self,
+        plan,
+        context: RunContext | None = None,
+        *,
+        robot_desc: str | None = None,
+        tracker_desc: str | None = None,
+        software: str | None = None,
+        robot_id: str | None = None,
+        robot_identity: dict | None = None,
+        tracker_identity: dict | None = None,
+        source_run: int | None = None,
+    ) -> int:
+        """Store a new run for ``plan`` (a :class:`daq.plans.Plan`); returns its id.
+
+        ``context`` defaults to the plan's routine and model; its model defaults to the
+        plan's. The context's URLs, seed and model also fill the run's columns (for
+        listing and queries). ``robot_id`` is who the robot is (:class:`Run`);
+        ``robot_identity``/``tracker_identity`` are who the devices said they were
+        (:meth:`drivers.protocols.DeviceIdentity.to_dict`); ``source_run`` the run whose
+        plan this one repeats on another cell.
+        """
+        if software is None:
+            software = software_version()
+        if context is None:
+            context = RunContext(routine=plan.routine)
+        if context.routine != plan.routine:
+            raise ValueError(f"context of a {context.routine} run for a {plan.routine} plan")
+        if context.model is None and plan.model:
+            context = context.model_copy(update={"model": plan.model})
+        c = context
+        with self.db.transaction():
+            row = self.db.execute(
+                """INSERT INTO runs (routine, plan_json, plan_hash, n_points, robot_url,
+                   tracker_url, robot_desc, tracker_desc, software, seed, model, started,
+                   status, context_json, robot_id, robot_identity, tracker_identity,
+                   source_run) VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?)
+                   RETURNING id""",
+                (plan.routine, plan.to_json(), plan.hash, plan.n_planned, c.robot_url,
+                 c.tracker_url, robot_desc, tracker_desc, software, c.seed, c.model,
+                 time.time(), "running", c.to_json(), robot_id, _json(robot_identity),
+                 _json(tracker_identity), source_run),
+            ).fetchone()
+        return int(row[0])
+
+    _RUN_COLS = ("id, routine, plan_json, plan_hash, n_points, robot_desc, tracker_desc, "
+                 "software, started, stopped, status, reason, frame_json, summary_json, "
+                 "context_json, robot_id, robot_identity, tracker_identity, source_run")
+
+    def _row_to_run(self, r) -> Run:
+        return Run(
+            id=r[0], routine=r[1], plan_json=r[2], plan_hash=r[3], n_points=r[4],
+            robot_desc=r[5], tracker_desc=r[6], software=r[7], started=r[8], stopped=r[9],
+            status=r[10], reason=r[11],
+            frame=json.loads(r[12]) if r[12] else None,
+            summary=json.loads(r[13]) if r[13] else None,
+            context=RunContext.from_json(r[14]), robot_id=r[15],
+            robot_identity=json.loads(r[16]) if r[16] else None,
+            tracker_identity=json.loads(r[17]) if r[17] else None,
+            source_run=r[18],
+        )
+
+    def run(self, run_id: int | None = None) -> Run:
+        """The run ``run_id`` (default: the latest); :class:`StoreError` when there is none."""
+        if run_id is None:
+            r = self.db.execute(
+                f"SELECT {self._RUN_COLS} FROM runs ORDER BY id DESC LIMIT 1"
+            ).fetchone()
+            if r is None:
+                raise StoreError(f"{self.address}: no runs yet")
+        else:
+            r = self.db.execute(
+                f"SELECT {self._RUN_COLS} FROM runs WHERE id=?", (int(run_id),)
+            ).fetchone()
+            if r is None:
+                raise StoreError(f"{self.address}: no run {run_id}")
+        return self._row_to_run(r)
+
+    def runs(self, robot_id: str | None = None) -> list[Run]:
+        """Every run in order (only those of ``robot_id`` when given)."""
+        if robot_id is None:
+            rows = self.db.execute(f"SELECT {self._RUN_COLS} FROM runs ORDER BY id")
+        else:
+            rows = self.db.execute(f"SELECT {self._RUN_COLS} FROM runs WHERE robot_id=? "
+                                   "ORDER BY id", (robot_id,))
+        return [self._row_to_run(r) for r in rows.fetchall()]
+
+    def set_status(self, run_id: int, status: str, reason: str | None = None) -> None:
+        """Record the run's status (and why); a final status also sets the stop time."""
+        if status not in STATUSES:
+            raise ValueError(f"status must be one of {STATUSES}, got {status!r}")
+        stopped = None if status == "running" else time.time()
+        self.db.execute("UPDATE runs SET status=?, reason=?, stopped=? WHERE id=?",
+                        (status, reason, stopped, run_id))
+
+    def update_run(self, run_id: int, **fields) -> None:
+        """Set ``frame``, ``summary``, ``robot_identity``/``tracker_identity`` (dicts),
+        ``robot_desc``/``tracker_desc``, ``robot_id``, or ``robot_url``/``tracker_url`` (in
+        the run's context and its columns)."""
+        cols, vals = [], []
+        urls = {}
+        for k, v in fields.items():
+            if k in ("robot_identity", "tracker_identity"):
+                cols.append(f"{k}=?")
+                vals.append(_json(v))
+            elif k in ("frame", "summary"):
+                cols.append(f"{k}_json=?")
+                vals.append(json.dumps(v) if v is not None else None)
+            elif k in ("robot_desc", "tracker_desc", "robot_id"):
+                cols.append(f"{k}=?")
+                vals.append(v)
+            elif k in ("robot_url", "tracker_url"):
+                cols.append(f"{k}=?")
+                vals.append(v)
+                urls[k] = v
+            else:
+                raise ValueError(f"cannot update run field {k!r}")
+        if not cols:
+            return
+        with self.db.transaction():
+            if urls:
+                ctx = self.run(run_id).context.model_copy(update=urls)
+                cols.append("context_json=?")
+                vals.append(ctx.to_json())
+            self.db.execute(f"UPDATE runs SET {', '.join(cols)} WHERE id=?", (*vals, run_id))
+
+    def latest_run(self, routine: str, status: str = "completed",
+                   robot_id: str | None = None) -> Run:
+        """The latest run of ``routine`` with ``status`` (of ``robot_id`` when given);
+        :class:`StoreError` when none."""
+        for r in reversed(self.runs(robot_id)):
+            if r.routine == routine and r.status == status:
+                return r
+        of = f" of robot {robot_id}" if robot_id is not None else ""
+        raise StoreError(f"{self.address}: no {status} {routine} run{of}")
+
+    # --------------------------------------------------------------- samples
+    #: the measurement columns a sample and a reading share, and their values
+    _MEASURED = ("q_json, x, y, z, sx, sy, sz, n, t, temp_c, pressure_hpa, humidity_pct, "
+                 "cmd_x, cmd_y, cmd_z, dir_json, model_residual_mm, model_threshold_mm, "
+                 "reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz")
+
+    @staticmethod
+    def _measured(s: Sample) -> tuple:
+        cmd = s.base_p_tcp_cmd if s.base_p_tcp_cmd is not None else (None, None, None)
+        return (json.dumps([float(v) for v in np.asarray(s.joints_rad, float)]),
+                *(float(v) for v in s.tracker_p_smr), *(float(v) for v in s.std_mm),
+                int(s.n), float(s.t), _f(s.temp_c), _f(s.pressure_hpa), _f(s.humidity_pct),
+                *(_f(v) for v in cmd),
+                json.dumps([int(v) for v in s.dirs]) if s.dirs is not None else None,
+                _f(s.model_residual_mm), _f(s.model_threshold_mm), s.reflector or None,
+                int(s.face) if s.face else None, *_cov_cols(s.cov_mm2))
+
+    def add_sample(self, run_id: int, s: Sample, rejected=(), revisited=()) -> bool:
+        """Write one sample in one transaction (the checkpoint).
+
+        ``rejected`` are the point's readings that were not accepted (:class:`Reading`),
+        written only with the sample. ``revisited`` are earlier points measured again
+        while this one was done, ``(sample, rejected readings)`` pairs: each replaces its
+        point's stored sample (whose reading becomes one of the rejected), in the same
+        transaction.
+
+        Returns True when stored, False when the point was already there (idempotent:
+        the first sample of a point wins; its rejected readings are then not written).
+        """
+        ins = self._MEASURED.count(",") + 1
+        with self.db.transaction():
+            cur = self.db.execute(
+                f"""INSERT INTO samples (run_id, point_index, pose_id, set_name,
+                   target_json, attempts, joints_t, verdict, remeasures, {self._MEASURED})
+                   VALUES (?,?,?,?,?,?,?,?,?,{",".join("?" * ins)})
+                   ON CONFLICT DO NOTHING""",
+                (run_id, int(s.point_index), s.pose_id, s.set_name,
+                 json.dumps(s.target) if s.target is not None else None, int(s.attempts),
+                 _f(s.joints_t), s.verdict, int(s.remeasures), *self._measured(s)),
+            )
+            stored = cur.rowcount == 1
+            for r in rejected if stored else ():
+                self._add_reading(run_id, r)
+            for new, old in revisited:
+                self._replace_sample(run_id, new, old)
+        return stored
+
+    def _add_reading(self, run_id: int, r: Reading) -> None:
+        n = self._MEASURED.count(",") + 1
+        self.db.execute(
+            f"INSERT INTO readings (run_id, point_index, reason, {self._MEASURED}) "
+            f"VALUES (?,?,?,{','.join('?' * n)})",
+            (run_id, int(r.sample.point_index), r.reason, *self._measured(r.sample)))
+
+    def _replace_sample(self, run_id: int, s: Sample, rejected) -> None:
+        """Replace a point's sample by ``s`` (a re-measurement, taken later) and add the
+        readings it rejected; a no-op when the point already holds ``s`` (the same
+        commit repeated after a lost connection)."""
+        cols = [c.strip() for c in self._MEASURED.split(",")]
+        cur = self.db.execute(
+            f"""UPDATE samples SET {", ".join(f"{c}=?" for c in cols)}, verdict=?,
+               remeasures=? WHERE run_id=? AND point_index=? AND t<>?""",
+            (*self._measured(s), s.verdict, int(s.remeasures), run_id, int(s.point_index),
+             float(s.t)))
+        if cur.rowcount != 1:
+            if self.db.execute("SELECT count(*) FROM samples WHERE run_id=? AND "
+                               "point_index=?", (run_id, int(s.point_index))).fetchone()[0]:
+                return  # already replaced by this very sample
+            raise StoreError(f"{self.address}: run {run_id} has no point {s.point_index} "
+                             "to replace")
+        for r in rejected:
+            self._add_reading(run_id, r)
+
+    def done_indices(self, run_id: int) -> set[int]:
+        """Point indices already stored for the run."""
+        rows = self.db.execute("SELECT point_index FROM samples WHERE run_id=?", (run_id,))
+        return {int(r[0]) for r in rows.fetchall()}
+
+    def n_samples(self, run_id: int) -> int:
+        return int(self.db.execute("SELECT count(*) FROM samples WHERE run_id=?",
+                                   (run_id,)).fetchone()[0])
+
+    def samples(self, run_id: int) -> Samples:
+        """All samples of a run ordered by point index (:class:`Samples`)."""
+        rows = self.db.execute(
+            """SELECT point_index, pose_id, set_name, q_json, x, y, z, sx, sy, sz, n, t,
+               temp_c, pressure_hpa, humidity_pct, cmd_x, cmd_y, cmd_z, dir_json, target_json,
+               reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz,
+               verdict, remeasures
+               FROM samples WHERE run_id=? ORDER BY point_index""", (run_id,)
+        ).fetchall()
+
+        def col(k, dtype=float):
+            return np.array([np.nan if r[k] is None else r[k] for r in rows], dtype)
+
+        def xyz(k):
+            return np.column_stack([col(k), col(k + 1), col(k + 2)]) if rows else np.zeros((0, 3))
+
+        q = np.array([json.loads(r[3]) for r in rows], float)
+        dirs = [r[18] for r in rows]
+        return Samples(
+            point_index=np.array([r[0] for r in rows], int),
+            pose_id=[r[1] or str(r[0] + 1) for r in rows],
+            set_name=[r[2] or "calib" for r in rows],
+            joints_rad=q.reshape(len(rows), -1) if rows else np.zeros((0, 0)),
+            tracker_p_smr=xyz(4),
+            std_mm=xyz(7),
+            n_averaged=col(10, float),
+            t=col(11),
+            temp_c=col(12),
+            pressure_hpa=col(13),
+            humidity_pct=col(14),
+            base_p_tcp_cmd=xyz(15),
+            dirs=(np.array([json.loads(d) for d in dirs], int)
+                  if rows and all(d is not None for d in dirs) else None),
+            targets=[json.loads(r[19]) if r[19] else None for r in rows],
+            reflector=[r[20] or None for r in rows],
+            face=np.array([r[21] or 0 for r in rows], int),
+            cov_mm2=_cov_matrix(rows, 22),
+            verdict=[r[28] for r in rows],
+            remeasures=np.array([r[29] or 0 for r in rows], int),
+        )
+
+    def readings(self, run_id: int) -> list[Reading]:
+        """The readings of a run that were not accepted, by point index, in order taken."""
+        rows = self.db.execute(
+            f"""SELECT r.point_index, r.reason, s.pose_id, s.set_name, {
+                ", ".join(f"r.{c.strip()}" for c in self._MEASURED.split(","))}
+               FROM readings r LEFT JOIN samples s
+               ON s.run_id = r.run_id AND s.point_index = r.point_index
+               WHERE r.run_id=? ORDER BY r.point_index, r.t, r.id""", (run_id,)).fetchall()
+        out = []
+        for r in rows:
+            (q, x, y, z, sx, sy, sz, n, t, temp, pres, hum, cx, cy, cz, dirs, res,
+             thr, reflector, face) = r[4:24]
+            out.append(Reading(Sample(
+                point_index=int(r[0]), joints_rad=np.array(json.loads(q), float),
+                tracker_p_smr=np.array([x, y, z], float), std_mm=np.array([sx, sy, sz], float),
+                n=int(n or 0), t=float(t), pose_id=r[2] or str(r[0] + 1),
+                set_name=r[3] or "calib", temp_c=temp, pressure_hpa=pres, humidity_pct=hum,
+                base_p_tcp_cmd=None if cx is None else np.array([cx, cy, cz], float),
+                dirs=None if dirs is None else np.array(json.loads(dirs), int),
+                model_residual_mm=res, model_threshold_mm=thr, reflector=reflector or None,
+                face=face or None, cov_mm2=None if r[24] is None else _cov_matrix([r], 24)[0]),
+                r[1]))
+        return out
+
+    def remeasure_counts(self, run_id: int) -> dict:
+        """What the re-measure policy did in a run (from the stored samples and readings).
+
+        ``judged`` samples judged against the running model at capture, ``warmup`` taken
+        before there was one, ``suspects`` points re-measured, ``remeasurements`` made,
+        ``rejected`` readings not accepted, ``model_disagrees`` points whose
+        re-measurements agreed with each other but not with the model, ``unresolved``
+        points whose readings agreed with neither.
+        """
+        rows = self.db.execute(
+            "SELECT verdict, count(*), sum(remeasures), "
+            "sum(CASE WHEN remeasures > 0 THEN 1 ELSE 0 END) FROM samples "
+            "WHERE run_id=? GROUP BY verdict", (run_id,)).fetchall()
+        by = {v: int(c) for v, c, _, _ in rows}
+        n_rejected = int(self.db.execute("SELECT count(*) FROM readings WHERE run_id=?",
+                                         (run_id,)).fetchone()[0])
+        return {"judged": sum(c for v, c in by.items() if v not in (None, "warmup")),
+                "warmup": by.get("warmup", 0),
+                "suspects": sum(int(k or 0) for _, _, _, k in rows),
+                "remeasurements": sum(int(m or 0) for _, _, m, _ in rows),
+                "rejected": n_rejected, "model_disagrees": by.get("model", 0),
+                "unresolved": by.get("unresolved", 0)}
+
+    # --------------------------------------------------------- interruptions
+    def add_interruption(self, run_id: int, point_index: int | None, kind: str,
+                         message: str) -> None:
+        """Record an interruption (fault, retry, pause, Ctrl-C, kill found on resume)."""
+        self.db.execute(
+            "INSERT INTO interruptions (run_id, point_index, t, kind, message) "
+            "VALUES (?,?,?,?,?)",
+            (run_id, point_index, time.time(), kind, message),
+        )
+
+    def interruptions(self, run_id: int) -> list[tuple[int | None, float, str, str]]:
+        """(point index, time, kind, message) of every interruption of the run, in order."""
+        return [tuple(r) for r in self.db.execute(
+            "SELECT point_index, t, kind, message FROM interruptions WHERE run_id=? ORDER BY id",
+            (run_id,)).fetchall()]
+
+    # ---------------------------------------------------------- calibrations
+    def add_calibration(self, robot_id: str, params: dict, *, t: float | None = None,
+                        source_file: str | None = None, source_run: int | None = None,
+                        software: str | None = None) -> tuple[int, bool]:
+        """Record a calibration of ``robot_id`` (``params``: the params.json document).
+
+        ``t`` when its data were measured (default: now). Idempotent: the same
+        parameters recorded again for the same robot are not stored twice. Returns (its
+        id, True when new).
+        """
+        if not robot_id:
+            raise ValueError("a calibration needs a robot id")
+        from calibration.files import json_ready
+
+        text = json.dumps(json_ready(params), sort_keys=True, allow_nan=False)
+        digest = hashlib.sha256(text.encode()).hexdigest()
+        now = time.time()
+        with self.db.transaction():
+            row = self.db.execute(
+                "INSERT INTO calibrations (robot_id, t, recorded, params_json, params_sha256, "
+                "source_file, source_run, software) VALUES (?,?,?,?,?,?,?,?) "
+                "ON CONFLICT DO NOTHING RETURNING id",
+                (robot_id, now if t is None else float(t), now, text, digest, source_file,
+                 source_run, software or software_version())).fetchone()
+            if row is not None:
+                return int(row[0]), True
+            row = self.db.execute("SELECT id FROM calibrations WHERE robot_id=? AND "
+                                  "params_sha256=?", (robot_id, digest)).fetchone()
+        return int(row[0]), False
+
+    def calibrations(self, robot_id: str) -> list[Calibration]:
+        """The calibrations of ``robot_id`` in time order."""
+        rows = self.db.execute(
+            "SELECT id, robot_id, t, recorded, params_json, source_file, source_run, software "
+            "FROM calibrations WHERE robot_id=? ORDER BY t, id", (robot_id,)).fetchall()
+        return [Calibration(*r) for r in rows]
+
+    def robots(self) -> list[tuple[str, int]]:
+        """(robot id, number of calibrations) of every robot with calibrations."""
+        rows = self.db.execute("SELECT robot_id, count(*) FROM calibrations GROUP BY robot_id "
+                               "ORDER BY robot_id").fetchall()
+        return [(r[0], int(r[1])) for r in rows]
+

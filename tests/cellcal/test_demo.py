@@ -1,0 +1,83 @@
+"""`cellcal demo`: the whole cell on the simulator, end to end (real drivers over loopback)."""
+
+import json
+
+import pytest
+
+from cellcal.cli import main
+from cellcal.demo_workflow import DEMO_EFFECTS, pick_hidden, run_demo
+
+
+@pytest.mark.slow
+def test_demo_finds_the_hidden_effect_and_reaches_the_noise_floor(tmp_path):
+    hidden = pick_hidden(3)
+    with open(tmp_path / "demo.txt", "w") as stream:
+        r = run_demo(tmp_path / "demo", seed=3, poses=150, valid=60, progress=False,
+                     stream=stream)
+    assert r.hidden == hidden and r.found == hidden
+    final = list(r.rms.values())[-1]
+    assert final < 1.15 * r.noise_floor_mm
+    assert list(r.rms)[0].startswith("uncalibrated") and r.rms[list(r.rms)[0]] > 0.5
+    for f in ("store", "csv", "params", "report"):
+        assert (tmp_path / "demo" / r.files[f].split("/")[-1]).stat().st_size > 0
+    html = (tmp_path / "demo" / "report.html").read_text()
+    assert hidden in html and html.count("<img") >= 5
+    # the report tells the story: the RMS at every step first, then what each step fixed,
+    # with the capture's provenance (run id from the exported CSV)
+    assert html.index("<figure") == html.index('<figure id="fig-steps">')
+    assert f"+ <code>{hidden}</code>" in html and 'id="fig-step-1"' in html
+    assert 'id="provenance"' in html and "capture.csv" in html
+    params = json.loads((tmp_path / "demo" / "params.json").read_text())
+    assert hidden in [s["effect"] for s in params["auto_steps"]["steps"]]
+    text = (tmp_path / "demo.txt").read_text()
+    assert "[7/7]" in text and f"hidden effect: {hidden} -> found it" in text
+
+
+@pytest.mark.slow
+def test_demo_command(tmp_path, capsys):
+    out = tmp_path / "d"
+    rc = main(["demo", "--seed", "5", "--out", str(out), "--poses", "150", "--valid", "60",
+               "--quiet"])
+    assert rc == 0
+    doc = json.loads((out / "demo.json").read_text())
+    assert doc["hidden"] == doc["found"] == DEMO_EFFECTS[5 % len(DEMO_EFFECTS)]
+    assert "noise floor" in capsys.readouterr().out
+
+
+def test_demo_rejects_bad_options(tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:  # refused by the parser: at least 50
+        main(["demo", "--out", str(tmp_path), "--poses", "10"])
+    assert e.value.code == 2 and "--poses: 10 is not an integer 50" in capsys.readouterr().err
+    assert main(["demo", "--out", str(tmp_path), "--hidden", "wobble:1"]) == 2
+    assert "unknown effect family" in capsys.readouterr().err
+
+
+def test_the_demo_writes_only_into_a_folder_it_owns(tmp_path):
+    """Refused: a folder with other files (unless --force), and, even with --force, a
+    run store the demo did not create. A folder of an earlier demo is the demo's."""
+    import pytest
+
+    from cellcal.demo_workflow import DemoFolderError, check_demo_folder
+
+    check_demo_folder(tmp_path / "new")  # a folder still to be made
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "demo.json").write_text(json.dumps({"cellcal_demo": 1, "files": {}}))
+    for name in ("cell.db", "capture.csv", "params.json", "report.html"):
+        (mine / name).write_text("from an earlier demo")
+    check_demo_folder(mine)
+    (mine / "notes.txt").write_text("the user's")
+    with pytest.raises(DemoFolderError, match="notes.txt"):
+        check_demo_folder(mine)
+    check_demo_folder(mine, force=True)
+    user = tmp_path / "user"
+    user.mkdir()
+    (user / "capture.csv").write_text("the user's data")
+    with pytest.raises(DemoFolderError, match="--force"):
+        check_demo_folder(user)
+    check_demo_folder(user, force=True)
+    (user / "cell.db").write_text("the user's run store")
+    with pytest.raises(DemoFolderError, match="never deletes"):
+        check_demo_folder(user, force=True)
+    with pytest.raises(DemoFolderError, match="not a folder"):
+        check_demo_folder(user / "capture.csv")
