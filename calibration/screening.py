@@ -105,15 +105,27 @@ def linearise(fit: Fit, calib: Dataset, valid: Dataset | None = None) -> Lineari
     W3 = W.reshape(n, 3, m)
     h0 = np.einsum("nim,njm->nij", W3, W3)
     r = calib.tracker_p_smr - P
+    # The formulas above hold at the least-squares optimum on *these* rows (Xᵀr = Pᵀ p, the
+    # penalty's pull). When the fit left out rows that ``calib`` keeps (blunders a later,
+    # more flexible fit excluded: they may be a local effect still to be found), it is not:
+    # re-centre on the current model refitted to these rows (one linear step δ₀). Else a
+    # candidate direction the model already spans (a table's constant part is the joint's
+    # offset: V = 0 there) gets Cᵀr ≠ 0 over a zero pivot, and its result is rounding noise.
+    g = (X / d).T @ r.ravel()
+    if pen is not None:
+        g = g - (Pf / d).T @ pen[0]
+    u = scipy.linalg.solve_triangular(L, g, lower=True, check_finite=False)  # X δ₀ = W u
+    r = r - (W @ u).reshape(n, 3)
     loo0 = np.sum(_loo(h0, r) ** 2, axis=-1)
     lin = Linearised(fit, calib, bound, r, W, h0, float(np.sum(W * W)), loo0, G)
     if valid is not None and valid.n:
         bound_v = em.bind(valid)
         Pv, Jv, Gv = em.evaluate(x, bound_v, jacobian=True, joints=True)
         Xv = Jv[:, :, free].reshape(3 * valid.n, m)
-        lin.valid, lin.bound_v, lin.rv, lin.Gv = valid, bound_v, valid.tracker_p_smr - Pv, Gv
         lin.Wv = scipy.linalg.solve_triangular(L, (Xv / d).T, lower=True,
                                                check_finite=False).T
+        rv = valid.tracker_p_smr - Pv - (lin.Wv @ u).reshape(valid.n, 3)
+        lin.valid, lin.bound_v, lin.rv, lin.Gv = valid, bound_v, rv, Gv
     return lin
 
 
