@@ -56,6 +56,7 @@ def main() -> None:
     ap.add_argument("--points", type=int, default=1000)
     args = ap.parse_args()
     plan = make_plan("poses", load_model(TOY), count=args.points, seed=0)
+    inproc.register()  # sim:// (the application registers it when it starts)
     rows = []
     for sync in ("FULL", "NORMAL"):
         inproc.reset_cells()

@@ -9,4 +9,6 @@ Modules
     ``commands/``       one module per ``cellcal`` sub-command (see its package)
     ``demo_workflow``   the whole cell on the simulator, from capture to a better robot
     ``progress``        the progress line of a capture on a terminal
+    ``request``         typed requests: what a command was asked, naming the user's flags
+    ``url_schemes``     the URL schemes the application adds to the drivers' (``sim://``)
 """

@@ -158,6 +158,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.func is None:  # `cellcal`, `cellcal sim`, `cellcal capture`: the help
         args.help_parser.print_help()
         return 0
+    from cellcal.url_schemes import register_schemes  # after parsing: a short start-up
+
+    register_schemes()  # sim:// (drivers.urls knows the real cell's schemes itself)
     name = args.command + (f" {args.sim_command}" if getattr(args, "sim_command", None) else "")
     try:
         rc = int(args.func(args) or 0)

@@ -56,7 +56,6 @@ def open_drivers(robot_url: str, tracker_url: str, timeout: float = 5.0):
     :class:`RequestError` for a URL no driver knows, :class:`ConnectFailed` when a
     device cannot be reached.
     """
-    import sim_drivers.inprocess  # noqa: F401  (registers sim://)
     from drivers.errors import DriverError
     from drivers.urls import open_robot, open_tracker
 

@@ -7,7 +7,9 @@ lazily (``drivers.ModbusRobot`` loads pymodbus only when first used).
 Modules
     ``protocols``     what capture needs from a robot and a tracker (small protocols)
     ``errors``        one error hierarchy for every driver
-    ``urls``          open drivers from URLs (``ur://``, ``modbus+tcp://``, ``sim://``...)
+    ``urls``          open drivers from URLs: a registry of schemes (``ur://``,
+                      ``modbus+tcp://``...; ``sim://`` registered by the application)
+    ``url_parts``     the parts of a driver URL (host, port, query), refused by name
     ``transport``     line I/O over any pyserial URL, with deadlines and typed errors
     ``settle``        waiting until a robot is settled, by polling its status
     ``line_robot``    a robot controller behind the ASCII line protocol

@@ -15,216 +15,198 @@ Trackers (:func:`open_tracker`)::
     emscon://host[:700]?reflector=NAME            EmsconTracker (Leica emScon TPI, port 700)
     sim://...                                     registered scheme
 
+Every scheme is an entry of one registry (:func:`register_scheme`): this module registers
+the real cell's schemes above; the application registers ``sim`` (the simulated cell,
+:mod:`cellcal.url_schemes`), so this package never imports the simulator and a capture on
+the real cell never loads it.
+
 The returned driver is not yet connected: call ``connect(timeout)``. Extra
 keyword arguments go to the driver's constructor. A URL that cannot be
-understood raises ``ValueError`` naming it (an unknown query parameter, a port
+understood raises ``ValueError`` naming it (an unknown scheme or query parameter, a port
 outside 1..65535, a Modbus unit outside 0..255 or a missing register map
 included); :func:`check_url` runs the same checks without building a driver.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from pathlib import Path
-from urllib.parse import parse_qs, urlsplit
+from collections.abc import Callable, Collection
+from dataclasses import dataclass
+from typing import Any, Literal, Protocol
 
-#: scheme → factory(url, kind, **kw); kind is "robot" or "tracker"
-_REGISTRY: dict[str, Callable[..., object]] = {}
+from drivers import url_parts as parts
+
+#: what a URL opens
+Kind = Literal["robot", "tracker"]
 
 
-def register_scheme(scheme: str, factory: Callable[..., object]) -> None:
-    """Make ``scheme://...`` URLs open through ``factory(url, kind, **kw)``.
+class Opener(Protocol):
+    """Builds the driver of a URL (not yet connected); ``kw`` go to its constructor."""
 
-    ``kind`` is ``"robot"`` or ``"tracker"``. Used by :mod:`sim_drivers.inprocess`
-    for ``sim://`` so this package never imports the simulator.
+    def __call__(self, url: str, kind: Kind, /, **kw: Any) -> Any: ...
+
+
+@dataclass(frozen=True)
+class Scheme:
+    """How the URLs of one scheme open drivers.
+
+    Attributes
+    ----------
+    opener : Opener
+        ``opener(url, kind, **kw)`` builds the driver.
+    kinds : frozenset of str
+        What it opens: ``"robot"``, ``"tracker"`` or both.
+    params : frozenset of str or None
+        The query parameters it takes (another is refused before the opener runs); None
+        leaves them to the opener.
+    check : callable or None
+        ``check(url)`` validates a URL without building a driver (:func:`check_url`); None
+        leaves that to the opener.
     """
-    _REGISTRY[scheme] = factory
+
+    opener: Opener
+    kinds: frozenset[str]
+    params: frozenset[str] | None = None
+    check: Callable[[str], object] | None = None
+
+
+_REGISTRY: dict[str, Scheme] = {}
+
+
+def register_scheme(scheme: str, opener: Opener, *,
+                    kinds: Collection[Kind] = ("robot", "tracker"),
+                    params: Collection[str] | None = None,
+                    check: Callable[[str], object] | None = None) -> None:
+    """Make ``scheme://...`` URLs open through ``opener(url, kind, **kw)`` (see
+    :class:`Scheme` for the rest); registering a scheme again replaces it."""
+    _REGISTRY[scheme.lower()] = Scheme(opener, frozenset(kinds),
+                                       None if params is None else frozenset(params), check)
 
 
 def unregister_scheme(scheme: str) -> None:
     """Forget a registered scheme (no error when absent)."""
-    _REGISTRY.pop(scheme, None)
+    _REGISTRY.pop(scheme.lower(), None)
 
 
-#: query parameters each built-in scheme takes
-_PARAMS = {"modbus+tcp": {"unit", "map"}, "serial": {"baud"}, "socket": set(),
-           "tracker+tcp": set(), "tracker+serial": {"baud"}, "emscon": {"reflector"}}
-
-
-def _split(url: str):
-    try:
-        return urlsplit(url)
-    except ValueError as e:  # e.g. "socket://[::1": an unclosed IPv6 bracket
-        raise ValueError(f"bad URL {url!r}: {e}") from None
-
-
-def _query(url: str) -> dict[str, str]:
-    query = _split(url).query
-    try:
-        q = parse_qs(query, strict_parsing=False, keep_blank_values=True)
-    except ValueError as e:
-        raise ValueError(f"bad URL {url!r}: {e}") from e
-    return {k: v[-1] for k, v in q.items()}
-
-
-def _known_params(url: str, scheme: str, q: dict[str, str]) -> None:
-    known = _PARAMS.get(scheme)
-    if known is None:
-        return
-    unknown = sorted(set(q) - known)
-    if unknown:
-        raise ValueError(f"bad URL {url!r}: unknown parameter(s) {unknown}"
-                         + (f" (known: {', '.join(sorted(known))})" if known else
-                            " (this scheme takes none)"))
-
-
-def _host_port(url: str, default_port: int | None = None) -> tuple[str, int]:
-    parts = _split(url)
-    try:
-        port = parts.port
-    except ValueError as e:
-        raise ValueError(f"bad URL {url!r}: {e}") from e
-    if not parts.hostname:
-        raise ValueError(f"bad URL {url!r}: no host")
-    if port is None:
-        if default_port is None:
-            raise ValueError(f"bad URL {url!r}: no port")
-        port = default_port
-    if not 1 <= port <= 65535:
-        raise ValueError(f"bad URL {url!r}: port {port} is not 1..65535")
-    return parts.hostname, port
-
-
-def _int_param(url: str, q: dict[str, str], name: str, default: int, lo: int, hi: int) -> int:
-    text = q.get(name)
-    if text is None:
-        return default
-    try:
-        v = int(text)
-    except ValueError:
-        raise ValueError(f"bad URL {url!r}: {name} must be an integer, got {text!r}") from None
-    if not lo <= v <= hi:
-        raise ValueError(f"bad URL {url!r}: {name} {v} is not {lo}..{hi}")
-    return v
-
-
-def _baud(url: str, q: dict[str, str]) -> int:
-    return _int_param(url, q, "baud", 115200, 1, 10_000_000)
-
-
-def _serial_path(url: str) -> str:
-    path = _split(url).path
-    if not path or path == "/":
-        raise ValueError(f"bad URL {url!r}: no device path")
-    return path
-
-
-def _scheme(url: str) -> str:
-    if not isinstance(url, str) or "://" not in url:
-        raise ValueError(f"bad URL {url!r}: expected scheme://...")
-    return url.split("://", 1)[0].lower()
-
-
-def _map_file(url: str, q: dict[str, str]) -> str | None:
-    m = q.get("map") or None
-    if m is not None and not Path(m).is_file():
-        raise ValueError(f"bad URL {url!r}: register map {m}: no such file")
-    return m
-
-
-def _robot_args(url: str) -> tuple[str, dict]:
-    """(scheme, the driver's arguments) of a robot URL; ValueError naming what is wrong."""
-    scheme = _scheme(url)
-    q = _query(url)
-    _known_params(url, scheme, q)
-    if scheme == "modbus+tcp":
-        host, port = _host_port(url, 502)
-        unit = _int_param(url, q, "unit", 1, 0, 255)
-        return scheme, {"host": host, "port": port, "unit": unit, "map_file": _map_file(url, q)}
-    if scheme == "serial":
-        return scheme, {"port": _serial_path(url), "baudrate": _baud(url, q)}
-    if scheme == "socket":
-        host, port = _host_port(url)
-        return scheme, {"port": f"socket://{host}:{port}"}
-    if scheme == "ur" or scheme in _REGISTRY:
-        return scheme, {}
-    raise ValueError(f"bad robot URL {url!r}: unknown scheme {scheme!r}")
-
-
-def _tracker_args(url: str) -> tuple[str, dict]:
-    """(scheme, the driver's arguments) of a tracker URL; ValueError naming what is wrong."""
-    scheme = _scheme(url)
-    q = _query(url)
-    _known_params(url, scheme, q)
-    if scheme == "tracker+tcp":
-        host, port = _host_port(url)
-        return scheme, {"port": f"socket://{host}:{port}"}
-    if scheme == "tracker+serial":
-        return scheme, {"port": _serial_path(url), "baudrate": _baud(url, q)}
-    if scheme == "emscon":
-        from drivers.leica.driver import DEFAULT_PORT
-
-        host, port = _host_port(url, DEFAULT_PORT)
-        return scheme, {"host": host, "port": port,
-                        **({"reflector": q["reflector"]} if "reflector" in q else {})}
-    if scheme in _REGISTRY:
-        return scheme, {}
-    raise ValueError(f"bad tracker URL {url!r}: unknown scheme {scheme!r}")
+def _lookup(url: str, kind: Kind) -> Scheme:
+    """The scheme of ``url`` for a ``kind``; ValueError naming the URL when none fits."""
+    name = parts.scheme_of(url)
+    q = parts.query(url)
+    scheme = _REGISTRY.get(name)
+    if scheme is None or kind not in scheme.kinds:
+        raise ValueError(f"bad {kind} URL {url!r}: unknown scheme {name!r}")
+    if scheme.params is not None:
+        parts.check_params(url, q, scheme.params)
+    return scheme
 
 
 def check_url(url: str, kind: str) -> None:
     """Validate a robot (``kind="robot"``) or tracker URL without building a driver:
     ValueError naming the URL and what is wrong (a Modbus register map is read and
     checked too). ``ur://`` and registered schemes (``sim://``) are left to their
-    factory."""
-    if kind == "robot":
-        scheme, a = _robot_args(url)
-        if scheme == "modbus+tcp" and a["map_file"]:
-            from drivers.modbus_robot import RegisterMap
-
-            RegisterMap.from_yaml(a["map_file"])
-    else:
-        _tracker_args(url)
+    opener."""
+    scheme = _lookup(url, "robot" if kind == "robot" else "tracker")
+    if scheme.check is not None:
+        scheme.check(url)
 
 
 def open_robot(url: str, **kw):
     """A robot driver for ``url`` (not yet connected); see the module docstring."""
-    scheme, a = _robot_args(url)
-    if scheme == "modbus+tcp":
-        from drivers.modbus_robot import ModbusRobot
-
-        return ModbusRobot(url, a["host"], a["port"], unit=a["unit"], map_file=a["map_file"],
-                           **kw)
-    if scheme == "serial":
-        from drivers.line_robot import SerialRobot
-
-        return SerialRobot(url, a["port"], baudrate=a["baudrate"], **kw)
-    if scheme == "socket":
-        from drivers.line_robot import SerialRobot
-
-        return SerialRobot(url, a["port"], **kw)
-    if scheme == "ur":
-        from drivers.ur_rtde import UrRtdeRobot  # written alongside; imported lazily
-
-        return UrRtdeRobot.from_url(url, **kw)
-    return _REGISTRY[scheme](url, "robot", **kw)
+    return _lookup(url, "robot").opener(url, "robot", **kw)
 
 
 def open_tracker(url: str, **kw):
     """A tracker driver for ``url`` (not yet connected); see the module docstring."""
-    scheme, a = _tracker_args(url)
-    if scheme == "tracker+tcp":
+    return _lookup(url, "tracker").opener(url, "tracker", **kw)
+
+
+# -- the real cell's schemes (driver modules are imported when their URL is opened, so
+# -- pymodbus or ur-rtde load only for the cell that needs them)
+
+def _modbus(url: str) -> dict:
+    q = parts.query(url)
+    host, port = parts.host_port(url, 502)
+    return {"host": host, "port": port, "unit": parts.int_param(url, q, "unit", 1, 0, 255),
+            "map_file": parts.map_file(url, q)}
+
+
+def _check_modbus(url: str) -> None:
+    a = _modbus(url)
+    if a["map_file"]:
+        from drivers.modbus_robot import RegisterMap
+
+        RegisterMap.from_yaml(a["map_file"])
+
+
+def _open_modbus(url: str, kind: Kind, /, **kw):
+    a = _modbus(url)
+    from drivers.modbus_robot import ModbusRobot
+
+    return ModbusRobot(url, a["host"], a["port"], unit=a["unit"], map_file=a["map_file"], **kw)
+
+
+def _serial(url: str) -> dict:
+    return {"port": parts.serial_path(url), "baudrate": parts.baud(url, parts.query(url))}
+
+
+def _socket(url: str) -> dict:
+    host, port = parts.host_port(url)
+    return {"port": f"socket://{host}:{port}"}
+
+
+def _open_line_robot(args: Callable[[str], dict]) -> Opener:
+    def opener(url: str, kind: Kind, /, **kw):
+        a = args(url)
+        from drivers.line_robot import SerialRobot
+
+        return SerialRobot(url, a.pop("port"), **a, **kw)
+
+    return opener
+
+
+def _open_line_tracker(args: Callable[[str], dict]) -> Opener:
+    def opener(url: str, kind: Kind, /, **kw):
+        a = args(url)
         from drivers.line_tracker import LineTracker
 
-        return LineTracker(url, a["port"], **kw)
-    if scheme == "tracker+serial":
-        from drivers.line_tracker import LineTracker
+        return LineTracker(url, a.pop("port"), **a, **kw)
 
-        return LineTracker(url, a["port"], baudrate=a["baudrate"], **kw)
-    if scheme == "emscon":
-        from drivers.leica.driver import EmsconTracker
+    return opener
 
-        if "reflector" in a:
-            kw.setdefault("reflector", a["reflector"])
-        return EmsconTracker(url, a["host"], a["port"], **kw)
-    return _REGISTRY[scheme](url, "tracker", **kw)
+
+def _open_ur(url: str, kind: Kind, /, **kw):
+    from drivers.ur_rtde import UrRtdeRobot
+
+    return UrRtdeRobot.from_url(url, **kw)
+
+
+def _emscon(url: str) -> dict:
+    from drivers.leica.driver import DEFAULT_PORT
+
+    q = parts.query(url)
+    host, port = parts.host_port(url, DEFAULT_PORT)
+    return {"host": host, "port": port,
+            **({"reflector": q["reflector"]} if "reflector" in q else {})}
+
+
+def _open_emscon(url: str, kind: Kind, /, **kw):
+    a = _emscon(url)
+    from drivers.leica.driver import EmsconTracker
+
+    if "reflector" in a:
+        kw.setdefault("reflector", a["reflector"])
+    return EmsconTracker(url, a["host"], a["port"], **kw)
+
+
+register_scheme("modbus+tcp", _open_modbus, kinds=("robot",), params=("unit", "map"),
+                check=_check_modbus)
+register_scheme("serial", _open_line_robot(_serial), kinds=("robot",), params=("baud",),
+                check=_serial)
+register_scheme("socket", _open_line_robot(_socket), kinds=("robot",), params=(),
+                check=_socket)
+register_scheme("ur", _open_ur, kinds=("robot",))
+register_scheme("tracker+tcp", _open_line_tracker(_socket), kinds=("tracker",), params=(),
+                check=_socket)
+register_scheme("tracker+serial", _open_line_tracker(_serial), kinds=("tracker",),
+                params=("baud",), check=_serial)
+register_scheme("emscon", _open_emscon, kinds=("tracker",), params=("reflector",),
+                check=_emscon)

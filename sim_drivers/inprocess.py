@@ -1,8 +1,9 @@
 """In-process simulated drivers reachable by URL: ``sim://robot?model=ur10e&seed=1``,
 ``sim://tracker?seed=1``.
 
-Importing this module registers the ``sim`` scheme with :mod:`drivers.urls`
-(:func:`register` does it again, e.g. after a test unregistered it). Robot and
+:func:`register` registers the ``sim`` scheme with :mod:`drivers.urls` (importing this
+module does not: the application registers ``sim`` when it starts,
+:mod:`cellcal.url_schemes`, and a test after unregistering it). Robot and
 tracker URLs with the same ``seed`` and ``name`` share one
 :class:`~sim_drivers.cell.SimCell`, so the tracker sees the robot move. Query
 parameters used when the cell is first created: ``time_scale`` (default 0)
@@ -350,6 +351,3 @@ def open_sim(url: str, kind: str, **kw):
 def register() -> None:
     """Register the ``sim`` URL scheme with :mod:`drivers.urls`."""
     urls.register_scheme("sim", open_sim)
-
-
-register()

@@ -1,4 +1,4 @@
-"""Suite-wide fixtures: leak checks and opt-in hardware options.
+"""Suite-wide fixtures: leak checks, opt-in hardware options, the ``sim://`` scheme.
 
 Every test must leave no thread, child process or socket behind: the
 ``no_leaks`` fixture (autouse) fails a test that does.
@@ -12,6 +12,15 @@ import threading
 import time
 
 import pytest
+
+from cellcal.url_schemes import register_schemes
+
+
+@pytest.fixture(autouse=True, scope="session")
+def sim_scheme():
+    """``sim://`` URLs open in every test, as in the application (which registers the
+    scheme when it starts: :mod:`cellcal.url_schemes`)."""
+    register_schemes()
 
 
 def pytest_addoption(parser):
