@@ -2,13 +2,14 @@
 
 Each sub-command lives in its own module under :mod:`cellcal.commands` and
 exposes ``register(subparsers)``; adding a command is one line in
-``COMMANDS``. Exit codes (docs/formats.md §6): 0 success, 1 failure at run time,
-2 bad input (a file, a flag or a model that is refused: :class:`UsageError`, the
-capture service's :class:`~daq.errors.RequestError`, or a reader's own error such as
-``DataError``), 3 the data are too poor for what was asked
-(:class:`calibration.data_quality.InsufficientData`; ``zero`` when the postures cannot
-decide, ``capture`` for a plan the tracker would not see:
-:class:`~daq.errors.NotEnoughVisible`), 130 interrupted.
+``COMMANDS``. Exit codes: docs/formats.md §6 (the only place they are listed).
+:func:`main` maps every error family of every layer, each class carrying its
+``exit_code``, in one place: :class:`UsageError` (2), the core's
+:class:`calibration.errors.CalibrationError` (2 bad input, 3 the data are too poor:
+``InsufficientData``), the capture service's :class:`daq.errors.DaqError` (2 a request it
+refuses, 3 a plan the tracker would not see, 1 the devices unreachable), the run store's
+:class:`daq.store.errors.StoreError` (2, 1 unreachable) and the drivers'
+:class:`drivers.errors.DriverError` (1).
 
 Whatever goes wrong, the user gets one line, never a traceback: an error of the
 operating system (a missing folder, a permission, a full disk) is named with its
@@ -20,8 +21,8 @@ Start-up is kept short (``--help`` and argument errors well under 0.3 s): buildi
 parser imports no numpy, scipy, matplotlib or pydantic. A command module imports what
 its work needs inside its ``run`` function, and the parser's constants (default effects,
 solver names, routine summaries) come from :mod:`cellcal.commands.choices`, which
-``tests/cellcal/test_cli_help.py`` keeps equal to the calibration core's. The error classes
-of the core are caught only once their module is loaded (:func:`_Loaded`).
+``tests/cellcal/test_cli_help.py`` keeps equal to the calibration core's. The error
+families are caught only once their module is loaded (:func:`_Loaded`).
 """
 
 from __future__ import annotations
@@ -55,6 +56,8 @@ COMMANDS = [
 
 class UsageError(Exception):
     """Bad input from the user: printed without a traceback, exit code 2."""
+
+    exit_code = 2
 
 
 class HelpFormatter(argparse.HelpFormatter):
@@ -110,8 +113,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Robot calibration with a laser tracker: capture, identify, "
         "diagnose the missing physics, compensate.",
         epilog="`cellcal COMMAND --help` describes a command. Exit codes: 0 done, 1 failed "
-        "at run time, 2 bad input, 3 data too poor to decide, 130 interrupted "
-        "(docs/formats.md §6).",
+        "at run time, 2 bad input, 3 data too poor for what was asked, 130 interrupted; "
+        "what they mean for each command: docs/formats.md §6.",
         formatter_class=HelpFormatter,
     )
     parser.add_argument("--version", action=_Version)
@@ -136,9 +139,10 @@ def _os_error(e: OSError) -> str:
     return f"{e.filename}: {what}" if e.filename else what
 
 
-#: the readers' own errors (bad input, exit 2): (module, class name) pairs
-_INPUT_ERRORS = ("calibration.dataset", "DataError", "calibration.robot_model", "ModelError",
-                 "calibration.effects", "EffectError", "calibration.params_io", "ParamsError")
+#: the error family of each layer, (module, class name) pairs: every class in them has
+#: its ``exit_code`` (docs/formats.md §6)
+_FAMILIES = ("calibration.errors", "CalibrationError", "daq.errors", "DaqError",
+             "daq.store.errors", "StoreError", "drivers.errors", "DriverError")
 
 
 def _Loaded(*pairs: str) -> tuple[type, ...]:  # noqa: N802 - used as an exception type
@@ -169,18 +173,11 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         _quiet_stdout()
         return 0
-    except UsageError as e:
-        print(f"cellcal {name}: error: {_one_line(e)}", file=sys.stderr)
-        return 2
-    except _Loaded("daq.errors", "RequestError") as e:
-        print(f"cellcal {name}: error: {_one_line(e)}", file=sys.stderr)
-        return getattr(e, "exit_code", 2)
-    except _Loaded(*_INPUT_ERRORS) as e:
-        print(f"cellcal {name}: error: {_one_line(e)}", file=sys.stderr)
-        return 2
-    except _Loaded("calibration.data_quality", "InsufficientData") as e:
-        print(f"cellcal {name}: data too poor: {_one_line(e)}", file=sys.stderr)
-        return 3
+    except (UsageError, *_Loaded(*_FAMILIES)) as e:
+        poor = isinstance(e, _Loaded("calibration.errors", "InsufficientData"))
+        print(f"cellcal {name}: {'data too poor' if poor else 'error'}: {_one_line(e)}",
+              file=sys.stderr)
+        return e.exit_code
     except KeyboardInterrupt:
         print(f"cellcal {name}: interrupted", file=sys.stderr)
         return 130

@@ -1,5 +1,5 @@
-"""The capture's own errors: what goes wrong in acquiring a point that is not a driver's fault,
-and what the capture service refuses.
+"""The capture service's errors, one family (:class:`DaqError`), each class with the exit
+code the command line gives it (:mod:`cellcal.cli`; the codes: docs/formats.md §6).
 
 The executor handles two families alike (record, then retry or pause):
 :class:`drivers.errors.DriverError` (the devices) and :class:`CaptureError` (the capture:
@@ -11,14 +11,21 @@ The service (:mod:`daq.service`) raises :class:`RequestError` for input it refus
 model, parameters, a plan that fails the dry run, an unknown run, a tracker that fails
 its checks: :class:`TrackerRefused`; exit code 2, but 3 for :class:`NotEnoughVisible`, a
 plan the tracker would not see) and :class:`ConnectFailed` when the devices cannot be
-reached (exit code 1).
+reached (exit code 1). The run store's errors are its own (:mod:`daq.store.errors`).
 """
 
 from __future__ import annotations
 
 
-class CaptureError(Exception):
-    """A point could not be acquired for a reason of the capture itself.
+class DaqError(Exception):
+    """An error of the capture service; ``exit_code`` is what the command line exits with
+    (1: the work failed at run time)."""
+
+    exit_code = 1
+
+
+class CaptureError(DaqError):
+    """A point could not be acquired for a reason of the capture itself (exit code 1).
 
     Parameters as :class:`drivers.errors.DriverError` (``device``, ``command``,
     ``detail``), so both read alike: ``"tracker tracker+tcp://...: measure: std ..."``.
@@ -56,8 +63,10 @@ class ZeroDiverged(CaptureError):
     kind = "zero_diverged"
 
 
-class RequestError(ValueError):
+class RequestError(DaqError, ValueError):
     """The service refuses its input (model, parameters, plan, run): exit code 2 at the CLI."""
+
+    exit_code = 2
 
 
 class NotEnoughVisible(RequestError):
@@ -81,8 +90,10 @@ class TrackerRefused(RequestError):
     reflector, ``--meteo`` it cannot take): :mod:`daq.tracker_checks`. Nothing is stored."""
 
 
-class ConnectFailed(ConnectionError):
-    """The robot or the tracker could not be reached."""
+class ConnectFailed(DaqError, ConnectionError):
+    """The robot or the tracker could not be reached (exit code 1)."""
+
+    exit_code = 1
 
 
 def one_line(e: Exception) -> str:

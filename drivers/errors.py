@@ -3,7 +3,8 @@
 Each error is also the built-in it resembles (``CommandTimeout`` is a
 ``TimeoutError``, ``ConnectionLost`` a ``ConnectionError``...), so callers can
 catch either. Messages name the device and the command: ``"tracker
-tracker+tcp://127.0.0.1:15700: MEAS: ERR 14 BEAM_BROKEN"``.
+tracker+tcp://127.0.0.1:15700: MEAS: ERR 14 BEAM_BROKEN"``. Every one is a failure at run
+time: ``exit_code`` 1 at the command line (docs/formats.md §6).
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ class DriverError(Exception):
 
     #: True when retrying the same command (after a reconnect) may succeed.
     transient = False
+    #: what the command line exits with when this error ends a command: run time failure
+    exit_code = 1
 
     def __init__(self, device: str = "", command: str = "", detail: str = "") -> None:
         self.device = device

@@ -37,7 +37,7 @@ def register(sub) -> None:
         "`cellcal export` from the capture's --tool-mm), so params.json describes the "
         "robot as its controller knows it; --out keeps the capture's metadata with the "
         "parameters (params.json `capture`). Exit 0 converged, 1 not converged, 2 bad "
-        "input.",
+        "input, 3 data too poor to fit (docs/formats.md §6).",
     )
     add_model_args(p)
     p.add_argument("--effects", default=DEFAULT_EFFECTS, metavar="LIST",

@@ -9,13 +9,15 @@ are connected and say who they are, the robot's joint count (and a simulator's r
 model) must be the model's (exit 2), and unless both devices declared themselves
 simulators the motion must be confirmed (``--yes``, or typing ``yes`` at a terminal).
 
-Exit codes: 0 the run completed; 1 it paused (protective stop, rejected
-command, retries exhausted, a move refused or not done) or failed; 2 bad input, a
-plan refused by the dry run (the offending points are named), a busy robot or run,
-the wrong robot, a tracker that fails its checks (the check and what to do are
-named; nothing is stored); 130 stopped with Ctrl-C (the run is resumable with ``cellcal
-resume``); 128 + N stopped at once by signal N (a second Ctrl-C 130, SIGTERM 143,
-SIGHUP 129: the controller's stop was sent and the run is ``paused``).
+Exit codes (docs/formats.md §6): 0 the run completed; 1 it paused (protective stop,
+rejected command, retries exhausted, a move refused or not done, the run store
+unreachable) or failed, or the devices cannot be reached; 2 bad input, a plan refused by
+the dry run (the offending points are named), a busy robot or run, the wrong robot, the
+motion not confirmed, a tracker that fails its checks (the check and what to do are
+named; nothing is stored); 3 a plan the tracker would not see enough of; 130 stopped
+with Ctrl-C (the run is resumable with ``cellcal resume``); 128 + N stopped at once by
+signal N (a second Ctrl-C 130, SIGTERM 143, SIGHUP 129: the controller's stop was sent
+and the run is ``paused``).
 """
 
 from __future__ import annotations
@@ -125,8 +127,11 @@ def register(sub) -> None:
         "`cellcal resume`. `cellcal capture ROUTINE --help` describes a routine and its "
         "options.\n\n"
         "Exit codes: 0 completed; 1 paused (protective stop, rejected command, retries "
-        "exhausted, run store unreachable) or failed; 2 bad input or a plan refused by the "
-        "dry run (the offending points are named); 130 stopped with Ctrl-C (resumable).",
+        "exhausted, run store unreachable) or failed, or the devices cannot be reached; 2 "
+        "bad input, a plan refused by the dry run (the offending points are named) or "
+        "anything else refused before the run is stored; 3 a plan the tracker would not "
+        "see enough of; 130 stopped with Ctrl-C (resumable); 128 + N stopped at once by "
+        "signal N (docs/formats.md §6).",
     )
     rsub = add_subcommands(p, "routine", "ROUTINE")
     for name, spec in ROUTINE_ARGS.items():

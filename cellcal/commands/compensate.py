@@ -26,7 +26,8 @@ def register(sub) -> None:
         "the calibrated model (YAML) or UR deltas.\n\n"
         "Targets without nominal joints get them by inverse kinematics on the nominal "
         "model, from --start (default: a few standard postures, the first that reaches "
-        "wins). Exit 0 when every target is reached, 1 otherwise, 2 for bad input.",
+        "wins). Exit 0 when every target is reached, 1 otherwise, 2 for bad input "
+        "(docs/formats.md §6).",
     )
     p.add_argument("targets", metavar="TARGETS.csv", nargs="?",
                    help="target points (omit to only export)")

@@ -15,7 +15,8 @@ def register(sub) -> None:
         "add the missing effect, calibrate again and write an HTML report.\n\n"
         "Writes into --out: cell.db (the run store), capture.csv, params.json, report.html "
         "and demo.json (what was hidden and found, the validation RMS of each stage, the "
-        "files). Exit 0 when the diagnosis found the hidden effect, 1 otherwise.",
+        "files). Exit 0 when the diagnosis found the hidden effect, 1 otherwise "
+        "(docs/formats.md §6).",
     )
     p.add_argument("--seed", type=seed_int, default=1,
                    help="chooses the cell and its hidden effect (default 1)")

@@ -10,8 +10,8 @@ uncertainty of the parameters that changed (or of those named with ``--param``).
 ``--plot FILE.html|FILE.png`` draws the trends; ``--json`` prints one object
 (docs/formats.md §4).
 
-Exit codes: 0 done (whether or not a change was flagged), 2 bad input (no such store
-or robot).
+Exit codes (docs/formats.md §6): 0 done (whether or not a change was flagged), 2 bad
+input (no such store or robot).
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ def register(sub) -> None:
         "sigma (sqrt(σ1² + σ2²)), and the value over time of the parameters that changed "
         "(or of those named with --param). The store is opened read-only (docs/history.md)."
         "\n\nExit codes: 0 done (whether or not a change was flagged), 2 bad input (no "
-        "such store or robot).")
+        "such store or robot); docs/formats.md §6.")
     p.add_argument("robot_id", metavar="ROBOT", help="the robot (as given with --robot-id)")
     p.add_argument("--db", required=True, metavar="cell.db|URL", help=DB_HELP)
     p.add_argument("--param", action="append", default=[], metavar="GLOB",

@@ -9,7 +9,7 @@ NEW run of the same plan there instead of mixing the two cells' samples. A run
 still executed by a live process is refused at once (exit 2, naming it); a run
 found ``running`` whose process is gone (killed) gets a ``killed`` interruption
 first. The tracker is checked again with the run's setup (``--meteo`` replaces its
-air), not its two faces. Exit codes as ``cellcal capture``.
+air), not its two faces. Exit codes as ``cellcal capture`` (docs/formats.md §6).
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ def register(sub) -> None:
         "hash is checked). The devices are reached with the URLs stored in the run, or "
         "with --robot/--tracker when given. A run found still running (its process was "
         "killed) gets a `killed` interruption first. Flags given override the stored "
-        "settings for this session. Exit codes as `cellcal capture`.")
+        "settings for this session. Exit codes as `cellcal capture` (docs/formats.md §6).")
     p.add_argument("run_id", nargs="?", type=positive_int, default=None, metavar="RUN",
                    help="the run to continue (default: the latest run of the store)")
     add_common(p, resume=True)

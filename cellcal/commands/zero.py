@@ -16,9 +16,10 @@ The fine pass starts from the first pass's offsets and reports what remains to
 correct relative to the adjusted controller's readings: about 0 when the
 adjustment took.
 
-Exit codes: 0 the recalibration is decided (within tolerance), 3 the data are too
-poor to decide (an offset that matters is undetermined, the uncertainty exceeds the
-tolerance, the residual is far above the tip scatter, or no convergence), 2 bad input.
+Exit codes (docs/formats.md §6): 0 the recalibration is decided (within tolerance),
+3 the data are too poor to decide (an offset that matters is undetermined, the
+uncertainty exceeds the tolerance, the residual is far above the tip scatter, or no
+convergence), 2 bad input.
 """
 
 from __future__ import annotations
@@ -69,7 +70,8 @@ def register(sub) -> None:
         "without it they stay undetermined and, when they matter, the status is poor (exit "
         "3). The nominal tool is the capture's (the run's --tool-mm, or the CSV's `# "
         "tool_mm:` line).\n\n"
-        "Exit 0 when decided, 3 when the data are too poor to decide, 2 for bad input.",
+        "Exit 0 when decided, 3 when the data are too poor to decide, 2 for bad input "
+        "(docs/formats.md §6).",
         epilog=_EPILOG,
     )
     p.add_argument("postures", metavar="POSTURES.csv", nargs="?", default=None,

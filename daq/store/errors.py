@@ -1,4 +1,5 @@
-"""The run store's own errors: whatever the backend, a caller sees these."""
+"""The run store's own errors: whatever the backend, a caller sees these; each with the
+exit code the command line gives it (docs/formats.md §6)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ class StoreError(Exception):
 
 
 class StoreUnavailable(StoreError):  # noqa: N818 - a StoreError, named for what happened
-    """The database server cannot be reached or the connection was lost (transient)."""
+    """The database server cannot be reached or the connection was lost (transient): exit 1."""
 
     transient = True
     exit_code = 1

@@ -1,0 +1,92 @@
+"""Plan a run: load the model, make the routine's plan for the cell and dry-run it.
+
+:func:`plan_run` turns a :class:`~daq.run_request.CaptureRequest` into a
+:class:`~daq.run_request.PlannedRun` (or refuses it); :func:`acquire_options` completes a
+routine's acquisition options, for a new run and for a resumed one.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from calibration import load_model
+
+from .check import check_plan
+from .errors import PlanRefused, RequestError, one_line
+from .routines import get as get_routine
+from .run_request import CaptureRequest, PlannedRun
+from .sight import frame_from_store, predict, resolve_cell
+from .store import RunStore, StoreError
+
+
+def _open_existing(db) -> RunStore:
+    if db is None:
+        raise RequestError("no run store given")
+    try:
+        return RunStore.open_existing(db)
+    except (StoreError, OSError) as e:
+        raise RequestError(str(e)) from None
+
+
+def plan_run(request: CaptureRequest, *, model=None, db: str | Path | None = None
+             ) -> PlannedRun:
+    """Load the model, make the routine's plan and dry-run it.
+
+    Parameters
+    ----------
+    request : CaptureRequest
+    model : RobotModel, optional
+        The model already loaded (``request.model`` names it); else loaded from it.
+    db : path, optional
+        The run store, read for a measurement frame (the tracker's position) and when the
+        routine's parameters refer to an earlier run (zero20 ``--replay``).
+
+    The plan is made for the tracker's line of sight (unless ``request.visibility`` is
+    False) when the tracker position is known: ``request.tracker_at``, else the frame run
+    (``request.frame_run`` or the latest in ``db``), else ``request.cell``
+    (:func:`daq.sight.resolve_cell`); the planned run's ``sight`` says what the tracker
+    will see of it either way.
+
+    Raises
+    ------
+    RequestError
+        Unknown routine or model, bad parameters or acquisition options.
+    NotEnoughVisible
+        The tracker would not see enough of the plan (a RequestError, exit code 3).
+    PlanRefused
+        The plan fails the dry run (joint limits, reach, floor).
+    """
+    try:
+        mod = get_routine(request.routine)
+        if model is None:
+            model = load_model(request.model)
+        if request.tool_mm is not None:
+            model = model.with_changes(tool=tuple(float(v) for v in request.tool_mm))
+        params = dict(request.params)
+        resolve = getattr(mod, "resolve_params", None)
+        if resolve is not None:
+            params = resolve(params, lambda: _open_existing(db))
+        cell = resolve_cell(request.cell, request.tracker_at,
+                            *frame_from_store(db, request.frame_run))
+        plan = mod.make_plan(model, **params, cell=cell if request.visibility else None)
+        acquire = acquire_options(mod, request.acquire)
+    except RequestError:  # NotEnoughVisible keeps its exit code
+        raise
+    except (ValueError, StoreError) as e:  # ModelError, CellError, pydantic's ValidationError
+        raise RequestError(one_line(e)) from None
+    res = check_plan(plan, model, limits=request.motion)
+    if not res.ok:
+        raise PlanRefused(res)
+    return PlannedRun(request, model, plan, res, acquire, predict(plan, model, cell))
+
+
+def acquire_options(mod, given: dict) -> dict:
+    """The routine's complete acquisition options (its defaults, then ``given``); {} for a
+    routine without (which refuses any given)."""
+    options = getattr(mod, "ACQUIRE_OPTIONS", None)
+    if options is None:
+        if given:
+            raise RequestError(f"routine {mod.__name__.rsplit('.', 1)[-1]} takes no "
+                               f"acquisition options ({', '.join(given)})")
+        return {}
+    return options(**given).model_dump()
