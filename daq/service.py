@@ -73,7 +73,7 @@ from .remeasure import Remeasure
 from .routines import get as get_routine
 from .run_context import ExecutorOptions, RunContext, TrackerSetup
 from .stop_signals import signal_name
-from .store import Run, RunStore, StoreError, StoreUnavailable
+from .store import RemeasureSummary, Run, RunStore, RunSummary, StoreError, StoreUnavailable
 from .store.leases import Leases, held_leases, run_key, take_robot
 from .store.queries import frame_run, measured_in
 from .tracker_checks import check_tracker
@@ -577,7 +577,8 @@ def execute(store: RunStore, run_id: int, plan: Plan, robot, tracker, *, model,
     elapsed = time.monotonic() - t0
     try:
         run = store.run(run_id)
-        reason, n, frame, summary = run.reason, store.n_samples(run_id), run.frame, run.summary
+        reason, n, frame, summary = (run.reason, store.n_samples(run_id), run.frame,
+                                     run.summary and run.summary.to_json())
         check = run.context.tracker_check
     except StoreUnavailable:  # paused because the store is away: what the executor knows
         reason, n, frame, summary, check = ex.last_error, ex.n_done, None, None, None
@@ -590,14 +591,14 @@ def _remeasure_summary(store: RunStore, run_id: int, remeasure: Remeasure) -> No
     """The run summary's ``remeasure``: the counts of the store
     (:meth:`RunStore.remeasure_counts`), the running model's warm-up and its refits over
     every session."""
-    summary = dict(store.run(run_id).summary or {})
-    before = summary.get("remeasure") or {}
+    summary = store.run(run_id).summary or RunSummary()
+    before = summary.remeasure or RemeasureSummary()
     running = remeasure.running
     sizes = [n for n, _ in running.refits]
-    summary["remeasure"] = {
-        **store.remeasure_counts(run_id), "max_remeasures": remeasure.n,
-        "warmup_points": running.min_points,
-        "refits": int(before.get("refits", 0)) + len(running.refits),
-        "refit_s": float(before.get("refit_s", 0.0)) + sum(s for _, s in running.refits),
-        "largest_refit_rows": max([int(before.get("largest_refit_rows", 0)), *sizes])}
+    summary.remeasure = RemeasureSummary(
+        **store.remeasure_counts(run_id), max_remeasures=remeasure.n,
+        warmup_points=running.min_points,
+        refits=int(before.refits or 0) + len(running.refits),
+        refit_s=float(before.refit_s or 0.0) + sum(s for _, s in running.refits),
+        largest_refit_rows=max([int(before.largest_refit_rows or 0), *sizes]))
     store.update_run(run_id, summary=summary)
