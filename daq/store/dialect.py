@@ -71,12 +71,14 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from .addresses import PG_SCHEMES, display_address, is_server_address
+from .errors import StoreError, StoreFull, StoreUnavailable
 from .open_checks import check_store_file
 from .postgres_db import PostgresDatabase, translate
 from .sqlite_db import SqliteDatabase
 
 __all__ = ["PG_SCHEMES", "Cursor", "Database", "PostgresDatabase", "SqliteDatabase",
-           "connect", "display_address", "is_server_address", "translate"]
+           "StoreError", "StoreFull", "StoreUnavailable", "connect", "display_address",
+           "is_server_address", "translate"]
 
 
 class Cursor(Protocol):
