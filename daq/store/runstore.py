@@ -4,8 +4,11 @@ cell, the default) or in a PostgreSQL database (a plant's central store).
 
 :func:`open_store` (and :class:`RunStore` itself) picks the backend from the address
 (docs/formats.md §5): a ``postgresql://user@host/db`` URL is a server, anything else a
-file. The SQL below is written once; what the two databases spell differently lives in
-:mod:`daq.store.dialect`.
+file; :func:`open_if_exists` answers "is there a store yet?" without the caller asking
+which. The SQL below is written once; what the two databases spell differently lives
+below :mod:`daq.store.dialect`. Runs read back as :class:`~daq.store.records.Run`
+(status, summary and interruptions typed: :mod:`daq.store.records`,
+:mod:`daq.store.summary`), samples as :mod:`daq.store.samples`.
 
 Durability
     One transaction per sample (:meth:`RunStore.add_sample`); that commit is the
@@ -27,18 +30,22 @@ Idempotence
     readings are written only with its sample, and a re-measured point's replacement
     is skipped when the point already holds it: a repeated commit doubles nothing.
 
-Lost connections
-    A PostgreSQL server that goes away raises :class:`StoreUnavailable` (a
+Errors
+    Every method raises the store's own errors (:mod:`daq.store.errors`), never a
+    driver's. A PostgreSQL server that goes away raises :class:`StoreUnavailable` (a
     :class:`StoreError`, transient); :meth:`RunStore.reconnect` opens a new connection.
-    The executor waits for the store, then pauses the run (:mod:`daq.executor`).
+    The executor waits for the store, then pauses the run (:mod:`daq.executor`). A full
+    disk raises :class:`StoreFull` (nothing of the write was stored);
+    :meth:`RunStore.release_reserve` then gives up the space a SQLite store keeps so the
+    pause and its reason can still be written.
 
 Schema versions
     :meth:`Database.get_version <daq.store.dialect.Database.get_version>` holds
     :data:`~daq.store.schema.SCHEMA_VERSION` (SQLite's ``PRAGMA user_version``, a
     ``schema_version`` table on PostgreSQL). Opening an older store applies the upgrades
-    of :mod:`daq.store.schema` in order, each in one transaction that holds the
-    store's write lock (two processes opening an old store upgrade it once); a newer
-    store is refused. A read-only store is never upgraded.
+    of :mod:`daq.store.schema` in order (:mod:`daq.store.migration`), each in one
+    transaction that holds the store's write lock (two processes opening an old store
+    upgrade it once); a newer store is refused. A read-only store is never upgraded.
 
 Every run stores its plan, its typed context (:class:`daq.run_context.RunContext`) and
 the robot's identity (``robot_id``). Reading turns a run's samples into calibration
