@@ -25,7 +25,7 @@ from calibration.params_io import save_params
 from calibration.workflow import UNCALIBRATED_LABEL, AutoStory, staged_fit
 from daq.run_data import dataset_from_run
 from daq.service import CaptureRequest, plan_run, start_run
-from daq.store import RunStore
+from daq.store import RunStore, RunSummary
 from drivers.urls import open_robot, open_tracker
 from presentation.html_report import render_report, story_stages
 from presentation.provenance import Provenance
@@ -177,9 +177,10 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
                 dataset_from_run(store, run_id).to_csv(csv_path)
                 n_int = len(store.interruptions(run_id))
                 n_samples = store.n_samples(run_id)
-                beam = store.run(run_id).summary or {}
-            broken = (f", {beam['beam_breaks']} beam breaks, {len(beam['skipped_points'])} "
-                      "points replaced" if beam.get("beam_breaks") else "")
+                summary = store.run(run_id).summary or RunSummary()
+            broken = (f", {summary.beam_breaks} beam breaks, "
+                      f"{len(summary.skipped_points or ())} points replaced"
+                      if summary.beam_breaks else "")
             say(f"      {n_samples} samples stored"
                 f"{f', {n_int} interruptions recovered' if n_int else ''}{broken}; "
                 f"exported {csv_path}")

@@ -47,7 +47,7 @@ from .devices import devices as reach_devices
 from .errors import ConnectFailed, RequestError, TrackerRefused
 from .plans import Plan
 from .run_context import ExecutorOptions, RunContext, TrackerCheck, TrackerSetup
-from .store import Run, RunStore, StoreError, StoreUnavailable
+from .store import InterruptionKind, Run, RunStore, StoreError, StoreUnavailable
 from .store.leases import Leases, held_leases, run_key, take_robot
 from .store.queries import frame_run, measured_in
 from .tracker_checks import check_tracker
@@ -162,7 +162,8 @@ def cell_session(store: RunStore, model, robot_url: str, tracker_url: str,
         another) instead of refused with :class:`OtherCell`.
     """
     def connect_failed(e: ConnectFailed) -> None:
-        store.add_interruption(resumed.id, None, "connection", f"resume: cannot connect: {e}")
+        store.add_interruption(resumed.id, None, InterruptionKind.CONNECTION,
+                               f"resume: cannot connect: {e}")
 
     with held_leases(store, leases) as held:
         if resumed is not None:
@@ -186,7 +187,8 @@ def cell_session(store: RunStore, model, robot_url: str, tracker_url: str,
                 try:
                     found = check_tracker(tracker, setup, options, two_face=False)
                 except TrackerRefused as e:
-                    store.add_interruption(resumed.id, None, "not_ready", f"resume: {e}")
+                    store.add_interruption(resumed.id, None, InterruptionKind.NOT_READY,
+                                           f"resume: {e}")
                     raise
             yield CellSession(store, robot_url, tracker_url, robot, tracker, cell, held,
                               found, why)

@@ -61,6 +61,10 @@ Faults
       that did land before the connection broke is not doubled) and goes on, recording a
       ``store`` interruption; a store still away after that pauses the run (status
       ``paused`` once it can be written; ``cellcal resume`` redoes the points not stored).
+    * a full disk under the store (:class:`~daq.store.StoreFull`: nothing of the
+      commit was stored) pauses the run at once with the reason, written in the room
+      the store keeps in reserve (:meth:`~daq.store.RunStore.release_reserve`);
+      ``cellcal resume`` completes it once there is space.
 
 Beam breaks (the line of sight)
     A beam break is a fault like any other (recorded with the point and the tracker's
@@ -84,7 +88,6 @@ from __future__ import annotations
 
 import contextlib
 import signal
-import sqlite3
 import threading
 import time
 from collections.abc import Callable
@@ -108,7 +111,15 @@ from .motion_guard import MotionGuard, MotionMismatch, MotionRefused
 from .plans import Plan, Target
 from .run_context import ExecutorOptions
 from .stop_signals import StopNow, signal_name, stop_handlers
-from .store import RunStore, Sample, StoreUnavailable
+from .store import (
+    InterruptionKind,
+    RunStatus,
+    RunStore,
+    RunSummary,
+    Sample,
+    StoreFull,
+    StoreUnavailable,
+)
 
 #: beam breaks retried at one point before it is skipped (and a spare measured in its place)
 BEAM_RETRIES = 3
@@ -127,16 +138,17 @@ class _Pause(Exception):  # noqa: N818 - control flow
         super().__init__(reason)
 
 
-def fault_kind(e: BaseException) -> str:
-    """Short name of a fault for the interruptions table."""
+def fault_kind(e: BaseException) -> InterruptionKind:
+    """The kind of a fault for the interruptions table."""
+    K = InterruptionKind  # noqa: N806 - an alias
     if isinstance(e, CaptureError):
-        return e.kind
-    for cls, name in ((ProtectiveStop, "protective_stop"), (BeamBroken, "beam"),
-                      (CommandTimeout, "timeout"), (ConnectionLost, "connection"),
-                      (ProtocolError, "protocol"), (NotReady, "not_ready")):
+        return K(e.kind)
+    for cls, kind in ((ProtectiveStop, K.PROTECTIVE_STOP), (BeamBroken, K.BEAM),
+                      (CommandTimeout, K.TIMEOUT), (ConnectionLost, K.CONNECTION),
+                      (ProtocolError, K.PROTOCOL), (NotReady, K.NOT_READY)):
         if isinstance(e, cls):
-            return name
-    return "rejected" if isinstance(e, DriverError) else "error"
+            return kind
+    return K.REJECTED if isinstance(e, DriverError) else K.ERROR
 
 
 def approach_dirs(prev, cmd_q, deadband_rad: float) -> np.ndarray:
@@ -222,11 +234,11 @@ class PointContext:
         ex._held(jr, self._phase)
         return jr, m
 
-    def summary(self) -> dict:
-        """The run's summary as stored (a copy)."""
-        return dict(self._ex.store.run(self._ex.run_id).summary or {})
+    def summary(self) -> RunSummary:
+        """The run's summary as stored (a copy: :meth:`save_summary` stores a change)."""
+        return self._ex.store.run(self._ex.run_id).summary or RunSummary()
 
-    def save_summary(self, summary: dict) -> None:
+    def save_summary(self, summary: RunSummary) -> None:
         self._ex.store.update_run(self._ex.run_id, summary=summary)
 
 
@@ -356,7 +368,8 @@ class Executor:
                         n_done += 1
                     self._report(n_done)
             except _Pause as p:
-                kind = "sigint" if p.status == "stopped" else "pause"
+                kind = (InterruptionKind.SIGINT if p.status == RunStatus.STOPPED
+                        else InterruptionKind.PAUSE)
                 self._record_stop(getattr(t, "index", None), kind, p.status, p.reason)
                 self.last_error = p.reason
                 self._report(n_done)
@@ -369,20 +382,21 @@ class Executor:
                 where = f"at point {t.index}" if t is not None else "before the first point"
                 reason = (f"stopped at once by {name} {where}: {what}; resume with "
                           "`cellcal resume`")
-                self._record_stop(getattr(t, "index", None), "stop_now", "paused", reason,
-                                  summarise=False)
+                self._record_stop(getattr(t, "index", None), InterruptionKind.STOP_NOW,
+                                  "paused", reason, summarise=False)
                 self.last_error = reason
                 self._report(n_done)
                 return "paused"
             except StoreUnavailable as e:  # the store went away outside a commit
                 reason = (f"run store unreachable at point {getattr(t, 'index', None)}: {e}; "
                           "`cellcal resume` once it is back")
-                self._record_stop(getattr(t, "index", None), "store", "paused", reason)
+                self._record_stop(getattr(t, "index", None), InterruptionKind.STORE, "paused",
+                                  reason)
                 self.last_error = reason
                 self._report(n_done)
                 return "paused"
             except BaseException as e:
-                store.add_interruption(rid, getattr(t, "index", None), "error",
+                store.add_interruption(rid, getattr(t, "index", None), InterruptionKind.ERROR,
                                        f"{type(e).__name__}: {e}")
                 store.set_status(rid, "failed", f"{type(e).__name__}: {e}")
                 raise
@@ -391,7 +405,7 @@ class Executor:
                 extra = self.finalize(self.plan, store.samples(rid), store.run(rid)) or {}
                 store.update_run(rid, **extra)
             except (ValueError, np.linalg.LinAlgError) as e:
-                store.add_interruption(rid, None, "finalize", str(e))
+                store.add_interruption(rid, None, InterruptionKind.FINALIZE, str(e))
                 self._summarise()
                 store.set_status(rid, "failed", f"finalize: {e}")
                 return "failed"
@@ -401,7 +415,8 @@ class Executor:
 
     # ------------------------------------------------------- skips and spares
     def _skipped(self) -> set[int]:
-        return {p for p, _, k, _ in self.store.interruptions(self.run_id) if k == "skipped"}
+        return {i.point_index for i in self.store.interruptions(self.run_id)
+                if i.kind == InterruptionKind.SKIPPED}
 
     def _pending(self):
         """The points to do: those neither stored nor skipped, then spares while fewer
@@ -424,15 +439,15 @@ class Executor:
     def _summarise(self) -> None:
         """The run's summary: beam breaks, skipped points, spares measured, capture time."""
         rid = self.run_id
-        kinds = [(p, k) for p, _, k, _ in self.store.interruptions(rid)]
+        kinds = [(i.point_index, i.kind) for i in self.store.interruptions(rid)]
         done = self.store.done_indices(rid)
-        summary = dict(self.store.run(rid).summary or {})
+        summary = self.store.run(rid).summary or RunSummary()
         session = time.monotonic() - self._t0
         self._t0 = time.monotonic()
-        summary.update(beam_breaks=sum(k == "beam" for _, k in kinds),
-                       skipped_points=sorted({p for p, k in kinds if k == "skipped"}),
-                       spares_measured=sum(self.plan.targets[i].spare for i in done),
-                       capture_s=round(float(summary.get("capture_s", 0.0)) + session, 3))
+        summary.beam_breaks = sum(k == InterruptionKind.BEAM for _, k in kinds)
+        summary.skipped_points = sorted({p for p, k in kinds if k == InterruptionKind.SKIPPED})
+        summary.spares_measured = sum(self.plan.targets[i].spare for i in done)
+        summary.capture_s = round(float(summary.capture_s or 0.0) + session, 3)
         self.store.update_run(rid, summary=summary)
 
     # ---------------------------------------------------------------- point
@@ -465,8 +480,9 @@ class Executor:
                 beams += isinstance(e, BeamBroken)
                 if beams > BEAM_RETRIES and t.move != "zero":
                     self.store.add_interruption(
-                        self.run_id, t.index, "skipped", f"point {t.index} ({t.label}) skipped: "
-                        f"the beam broke {beams} times, last: {e}")
+                        self.run_id, t.index, InterruptionKind.SKIPPED,
+                        f"point {t.index} ({t.label}) skipped: the beam broke {beams} times, "
+                        f"last: {e}")
                     return False
                 if not e.transient:
                     raise _Pause("paused", f"{fault_kind(e)} at point {t.index}: {e}") from e
@@ -492,7 +508,7 @@ class Executor:
                 self.commit_s += time.perf_counter() - t0
                 self.n_committed += 1
                 break
-            except sqlite3.OperationalError as e:  # a full disk: nothing was stored
+            except StoreFull as e:  # a full disk: nothing was stored
                 self.store.release_reserve()  # room to record the pause and why
                 raise _Pause("paused", f"the run store could not be written at point "
                              f"{t.index}: {e}; free space, then `cellcal resume`") from e
@@ -514,7 +530,7 @@ class Executor:
                 time.sleep(min(self.o.backoff_s * 2 ** (attempt - 1), self.o.backoff_max_s,
                                self.o.store_wait_s - waited))
         if lost is not None:
-            self.store.add_interruption(self.run_id, t.index, "store",
+            self.store.add_interruption(self.run_id, t.index, InterruptionKind.STORE,
                                         f"connection lost for {time.monotonic() - t_lost:.1f} "
                                         f"s, point kept and committed after reconnecting: "
                                         f"{lost}")
@@ -524,7 +540,7 @@ class Executor:
             stored = True
         return stored
 
-    def _record_stop(self, index, kind: str, status: str, reason: str, *,
+    def _record_stop(self, index, kind: InterruptionKind, status: str, reason: str, *,
                      summarise: bool = True) -> None:
         """Record why the run stopped and its status; when the store is away (the reason
         it stopped, perhaps) one reconnection is tried, then the record is left out: the
@@ -534,10 +550,10 @@ class Executor:
             try:
                 if retry:
                     self.store.reconnect()
-                with contextlib.suppress(sqlite3.Error):  # a full disk: the status first
+                with contextlib.suppress(StoreFull):  # a full disk: the status first
                     self.store.add_interruption(self.run_id, index, kind, reason)
                 if summarise:
-                    with contextlib.suppress(sqlite3.Error):
+                    with contextlib.suppress(StoreFull):
                         self._summarise()
                 self.store.set_status(self.run_id, status, reason)
                 return
@@ -556,7 +572,7 @@ class Executor:
             dev.close()
             dev.connect(timeout=self.o.connect_timeout_s)
         except DriverError as e:  # counted as one more failed attempt by the caller's loop
-            self.store.add_interruption(self.run_id, t.index, "reconnect", str(e))
+            self.store.add_interruption(self.run_id, t.index, InterruptionKind.RECONNECT, str(e))
             self.last_error = f"reconnect {which}: {e}"
         if which == "robot":
             self._last_cmd_q = None  # the controller may have moved on: read again

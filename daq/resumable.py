@@ -12,7 +12,7 @@ from calibration import ModelError, load_model
 
 from .errors import RequestError
 from .plans import Plan
-from .store import Run, RunStore, StoreError
+from .store import InterruptionKind, Run, RunStore, StoreError
 from .store.leases import Leases, held_leases, run_key
 
 
@@ -68,7 +68,7 @@ def prepare_resume(store: RunStore, run_id: int | None = None, *,
     done = store.n_samples(r.id)
     if r.status == "running":
         owner = "" if taken is None else f" (its owner, {taken.describe()}, is gone)"
-        store.add_interruption(r.id, None, "killed",
+        store.add_interruption(r.id, None, InterruptionKind.KILLED,
                                "found still running on resume: the process was killed or "
                                f"crashed, or lost its run store{owner}")
     try:

@@ -50,7 +50,7 @@ from .resumable import Resumable, prepare_resume
 from .routines import get as get_routine
 from .run_context import ExecutorOptions, RunContext, TrackerSetup
 from .run_request import CaptureRequest, PlannedRun, ProgressFn, RunOutcome
-from .store import RunStore, StoreUnavailable
+from .store import InterruptionKind, RemeasureSummary, RunStore, RunSummary, StoreUnavailable
 from .store.leases import Leases
 
 __all__ = ["CaptureRequest", "ConfirmFn", "OtherCell", "PlannedRun", "ProgressFn",
@@ -174,9 +174,9 @@ def _repeat_elsewhere(session: CellSession, resumable: Resumable, options, acq,
         "tracker_url": resumable.tracker_url,
         **frame_fields(session.frame_run(None, robot_id))})
     run_id = session.create_run(resumable.plan, context, robot_id=robot_id, source_run=r.id)
-    store.add_interruption(r.id, None, "other_cell",
+    store.add_interruption(r.id, None, InterruptionKind.OTHER_CELL,
                            f"not resumed here: {why}; its plan runs again as run {run_id}")
-    store.add_interruption(run_id, None, "other_cell",
+    store.add_interruption(run_id, None, InterruptionKind.OTHER_CELL,
                            f"the plan of run {r.id} again, in another cell ({why})")
     return _go(session, run_id, 0, resumable.plan, resumable.model, context, progress,
                on_started)
@@ -190,7 +190,7 @@ def _go(session: CellSession, run_id: int, done: int, plan: Plan, model, context
     if on_started is not None:
         on_started(run_id, done)
     if note is not None:
-        session.store.add_interruption(run_id, None, "resume", note)
+        session.store.add_interruption(run_id, None, InterruptionKind.RESUME, note)
     return execute(session.store, run_id, plan, session.robot, session.tracker, model=model,
                    context=context, progress=progress)
 
@@ -221,7 +221,8 @@ def execute(store: RunStore, run_id: int, plan: Plan, robot, tracker, *, model,
     elapsed = time.monotonic() - t0
     try:
         run = store.run(run_id)
-        reason, n, frame, summary = run.reason, store.n_samples(run_id), run.frame, run.summary
+        reason, n, frame, summary = (run.reason, store.n_samples(run_id), run.frame,
+                                     run.summary and run.summary.to_json())
         check = run.context.tracker_check
     except StoreUnavailable:  # paused because the store is away: what the executor knows
         reason, n, frame, summary, check = ex.last_error, ex.n_done, None, None, None
@@ -234,14 +235,14 @@ def _remeasure_summary(store: RunStore, run_id: int, remeasure: Remeasure) -> No
     """The run summary's ``remeasure``: the counts of the store
     (:meth:`RunStore.remeasure_counts`), the running model's warm-up and its refits over
     every session."""
-    summary = dict(store.run(run_id).summary or {})
-    before = summary.get("remeasure") or {}
+    summary = store.run(run_id).summary or RunSummary()
+    before = summary.remeasure or RemeasureSummary()
     running = remeasure.running
     sizes = [n for n, _ in running.refits]
-    summary["remeasure"] = {
-        **store.remeasure_counts(run_id), "max_remeasures": remeasure.n,
-        "warmup_points": running.min_points,
-        "refits": int(before.get("refits", 0)) + len(running.refits),
-        "refit_s": float(before.get("refit_s", 0.0)) + sum(s for _, s in running.refits),
-        "largest_refit_rows": max([int(before.get("largest_refit_rows", 0)), *sizes])}
+    summary.remeasure = RemeasureSummary(
+        **store.remeasure_counts(run_id), max_remeasures=remeasure.n,
+        warmup_points=running.min_points,
+        refits=int(before.refits or 0) + len(running.refits),
+        refit_s=float(before.refit_s or 0.0) + sum(s for _, s in running.refits),
+        largest_refit_rows=max([int(before.largest_refit_rows or 0), *sizes]))
     store.update_run(run_id, summary=summary)

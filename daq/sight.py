@@ -21,7 +21,7 @@ import numpy as np
 from calibration.cell import CellSpec, tracker_in_base
 
 from .plans import Plan, estimate_capture_s
-from .store import RunStore, StoreError, StoreUnavailable, is_server_address
+from .store import open_if_exists
 from .store.queries import frame_run
 
 
@@ -43,17 +43,9 @@ def frame_from_store(db: str | Path | None, run_id: int | None) -> tuple[np.ndar
     """The measurement frame (``tracker_T_base``, 4x4) of frame run ``run_id`` (default: the
     latest completed one) in the run store ``db``, and that run's id; (None, None) when the
     store does not exist yet or has no frame."""
-
-    if db is None or (not is_server_address(db) and not Path(db).is_file()):
+    store = None if db is None else open_if_exists(db)
+    if store is None:
         return None, None
-    try:
-        store = RunStore.open_existing(db)
-    except StoreUnavailable:
-        raise
-    except StoreError:
-        if is_server_address(db):  # a database without a run store yet
-            return None, None
-        raise
     with store:
         r = frame_run(store, run_id)
     return (None, None) if r is None else (np.asarray(r.frame["tracker_T_base"], float), r.id)

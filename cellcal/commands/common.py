@@ -298,13 +298,19 @@ def print_outliers(screen, context: str = "fit") -> None:
 
 @contextlib.contextmanager
 def store_errors(path):
-    """Turn an SQLite error while reading a store (damage found late) into a UsageError."""
-    import sqlite3
+    """Turn a store that cannot be read (damage found late: ``PATH: damaged run store``)
+    into a UsageError; a server gone away is left to say so itself (transient). ``path``
+    is the store as given: the store's own message names it already."""
+    from daq.store import StoreError, StoreUnavailable
+
+    del path
 
     try:
         yield
-    except sqlite3.DatabaseError as e:
-        raise UsageError(f"{path}: damaged run store (SQLite: {e})") from None
+    except StoreUnavailable:
+        raise
+    except StoreError as e:
+        raise UsageError(str(e)) from None
 
 
 #: the ``--db`` help of every command that reads or writes a run store

@@ -49,7 +49,8 @@ def _run_dict(store, r) -> dict:
             "robot": r.robot_url, "tracker": r.tracker_url, "robot_desc": r.robot_desc,
             "tracker_desc": r.tracker_desc, "software": r.software, "seed": r.seed,
             "started": r.started, "stopped": r.stopped, "plan_hash": r.plan_hash,
-            "frame": r.frame, "summary": r.summary, "remeasure": store.remeasure_counts(r.id)}
+            "frame": r.frame, "summary": None if r.summary is None else r.summary.to_json(),
+            "remeasure": store.remeasure_counts(r.id)}
 
 
 def _value(v) -> str:
@@ -124,7 +125,7 @@ def print_run(store, r, interruptions) -> None:
     print(f"{'executor':10s} {_executor_text(c)}")
     if c.acquire:
         print(f"{'acquire':10s} " + ", ".join(f"{k} {_value(v)}" for k, v in c.acquire.items()))
-    summary = dict(r.summary or {})
+    summary = {} if r.summary is None else r.summary.to_json()
     if r.frame:
         summary = {**{k: v for k, v in r.frame.items() if k != "tracker_T_base"}, **summary}
     if summary:
@@ -140,7 +141,7 @@ def print_run(store, r, interruptions) -> None:
 
 
 def run(args) -> int:
-    from daq.store import StoreError
+    from daq.store import InterruptionKind, StoreError
 
     from .common import open_store, print_json, store_errors, table
 
@@ -151,8 +152,8 @@ def run(args) -> int:
                 r = store.run(args.run_id)
             except StoreError as e:
                 raise UsageError(str(e)) from None
-            interruptions = [{"point": p, "t": t, "kind": k, "message": m}
-                             for p, t, k, m in store.interruptions(r.id)]
+            interruptions = [{"point": i.point_index, "t": i.t, "kind": i.kind,
+                              "message": i.message} for i in store.interruptions(r.id)]
             rejected = [
                 {"point": x.sample.point_index, "pose_id": x.sample.pose_id, "t": x.sample.t,
                  "xyz": [float(v) for v in x.sample.tracker_p_smr], "reason": x.reason}
@@ -180,10 +181,11 @@ def run(args) -> int:
             return 0
         rows = []
         for r in runs:
-            kinds = [k for _, _, k, _ in store.interruptions(r.id)]
+            kinds = [i.kind for i in store.interruptions(r.id)]
             rows.append([str(r.id), r.routine, r.status, f"{store.n_samples(r.id)}/{r.n_points}",
                          r.model or "-", r.robot_id or "-", _time(r.started), len(kinds),
-                         kinds.count("beam"), kinds.count("skipped"),
+                         kinds.count(InterruptionKind.BEAM),
+                         kinds.count(InterruptionKind.SKIPPED),
                          store.remeasure_counts(r.id)["suspects"], (r.reason or "")[:60]])
         print(table(rows, ["run", "routine", "status", "points", "model", "robot", "started",
                            "interruptions", "beam breaks", "skipped", "remeasured", "reason"],

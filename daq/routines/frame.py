@@ -24,6 +24,7 @@ from calibration.frame_fit import measurement_frame
 
 from ..errors import NotEnoughVisible
 from ..plans import Plan, Target
+from ..store import RunSummary
 from ._common import (
     default_start,
     expected_joints,
@@ -180,6 +181,8 @@ def finalize(plan: Plan, samples, run) -> dict:
         height = float(cmd_z.mean())  # the controller's own nominal TCP height
     fit = measurement_frame(samples.tracker_p_smr[circ], samples.tracker_p_smr[line], height)
     d = fit.to_dict()
-    return {"frame": d, "summary": {**(run.summary or {}), "circle_rms_mm": fit.circle.rms,
-                                    "line_rms_mm": fit.line.rms,
-                                    "orthogonality_deg": fit.orthogonality_deg}}
+    summary = run.summary or RunSummary()
+    summary.circle_rms_mm = fit.circle.rms
+    summary.line_rms_mm = fit.line.rms
+    summary.orthogonality_deg = fit.orthogonality_deg
+    return {"frame": d, "summary": summary}

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..plans import Plan, Target
+from ..store import Iso9283Point, RunSummary
 from ._common import (
     default_start,
     expected_joints,
@@ -108,9 +109,11 @@ def finalize(plan: Plan, samples, run) -> dict:
         mean = X.mean(axis=0)
         ell = np.linalg.norm(X - mean, axis=1)
         s = float(np.std(ell, ddof=1)) if len(ell) > 1 else 0.0
-        entry = {"n": len(X), "RP_mm": float(ell.mean() + 3 * s)}
+        entry = Iso9283Point(n=len(X), RP_mm=float(ell.mean() + 3 * s))
         if T is not None:
             xc = T[:3, :3] @ np.asarray(plan.targets[k - 1].base_p_tcp) + T[:3, 3]
-            entry["AP_mm"] = float(np.linalg.norm(mean - xc))
+            entry.AP_mm = float(np.linalg.norm(mean - xc))
         out[f"P{k}"] = entry
-    return {"summary": {**(run.summary or {}), "iso9283": out}}
+    summary = run.summary or RunSummary()
+    summary.iso9283 = out
+    return {"summary": summary}

@@ -46,6 +46,7 @@ from calibration.transforms import fit_rigid
 
 from ..errors import NotEnoughVisible, ZeroDiverged, ZeroNotReached
 from ..plans import Plan, Target, shortest_order
+from ..store import RunSummary
 from ._common import hidden, knows_tracker, visibility_params
 
 
@@ -200,8 +201,10 @@ def finalize(plan: Plan, samples, run) -> dict:
     """Spread of the measured tips (they should all be on the target)."""
     xyz = samples.tracker_p_smr
     spread = np.linalg.norm(xyz - xyz.mean(axis=0), axis=1)
-    return {"summary": {**(run.summary or {}), "tip_spread_max_mm": float(spread.max()),
-                        "tip_spread_rms_mm": float(np.sqrt(np.mean(spread**2)))}}
+    summary = run.summary or RunSummary()
+    summary.tip_spread_max_mm = float(spread.max())
+    summary.tip_spread_rms_mm = float(np.sqrt(np.mean(spread**2)))
+    return {"summary": summary}
 
 
 # ------------------------------------------------------------ the closed loop
@@ -329,10 +332,10 @@ class ZeroLoop:
         """The zero-point target in the tracker frame: fixed by the run's first zero point
         (kept in the run summary, ``zero_target_tracker_mm``)."""
         summary = ctx.summary()
-        if "zero_target_tracker_mm" not in summary:
-            summary["zero_target_tracker_mm"] = [float(v) for v in m_xyz]
+        if summary.zero_target_tracker_mm is None:
+            summary.zero_target_tracker_mm = [float(v) for v in m_xyz]
             ctx.save_summary(summary)
-        return np.asarray(summary["zero_target_tracker_mm"], float)
+        return np.asarray(summary.zero_target_tracker_mm, float)
 
     def _allowed(self, predicted: np.ndarray, m0, m1) -> float:
         """How far a measured displacement may be from the predicted one (mm)."""
@@ -362,8 +365,8 @@ class ZeroLoop:
         if self.tracker_R_base is not None:
             return np.asarray(self.tracker_R_base, float), jr, m
         summary = ctx.summary()
-        if "zero_tracker_R_base" in summary:
-            return np.asarray(summary["zero_tracker_R_base"], float), jr, m
+        if summary.zero_tracker_R_base is not None:
+            return np.asarray(summary.zero_tracker_R_base, float), jr, m
         from calibration.inverse import ChainFK
 
         fk = ChainFK.from_model(self.model)
@@ -391,7 +394,7 @@ class ZeroLoop:
                 raise ZeroDiverged(f"robot {ctx.robot_url}", self._where(ctx), (
                     f"the probe moves disagree ({miss:.3f} mm from one rotation): the tracker "
                     "reading jumped while probing; nothing was stored"))
-        summary["zero_tracker_R_base"] = R.tolist()
+        summary.zero_tracker_R_base = R.tolist()
         ctx.save_summary(summary)
         return R, jr, m
 

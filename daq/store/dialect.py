@@ -48,49 +48,42 @@ Transactions
     same lock), for code written against SQLite.
 
 Errors
-    :class:`StoreError` for a store that cannot be used (no such file or database, a
-    newer schema, SQL the server refuses); :class:`StoreUnavailable` (a StoreError) when
-    the server cannot be reached or the connection was lost: transient, the caller may
-    :meth:`Database.reconnect` and retry (the capture executor waits, then pauses).
+    No driver error leaves a :class:`Database`: each backend translates its own, on every
+    statement, transaction and fetch (:mod:`daq.store.sqlite_db`,
+    :mod:`daq.store.postgres_db`). :class:`StoreError` for a store that cannot be used
+    (no such file or database, a newer schema, a damaged file, SQL the server refuses);
+    :class:`StoreUnavailable` (a StoreError) when the server cannot be reached or the
+    connection was lost: transient, the caller may :meth:`Database.reconnect` and retry
+    (the capture executor waits, then pauses); :class:`StoreFull` (a StoreUnavailable)
+    when the disk under the store is full: nothing of the write was stored.
+
+Modules
+    ``addresses`` which backend an address names; ``dbapi`` the error-translating
+    cursor and the upsert both share; ``sqlite_db`` and ``postgres_db`` the two
+    databases. This module holds the interface (:class:`Database`) and :func:`connect`.
 """
 
 from __future__ import annotations
 
 import contextlib
-import re
-import sqlite3
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Protocol
-from urllib.parse import urlsplit, urlunsplit
 
-from .errors import StoreError, StoreUnavailable
-from .open_checks import check_store_file, connect_read_only, describe_error
+from .addresses import PG_SCHEMES, display_address, is_server_address
+from .errors import StoreError, StoreFull, StoreUnavailable
+from .open_checks import check_store_file
+from .postgres_db import PostgresDatabase, translate
+from .sqlite_db import SqliteDatabase
 
-#: address schemes of a PostgreSQL server
-PG_SCHEMES = ("postgresql", "postgres")
-
-#: the advisory lock key of serialised write transactions (PostgreSQL): "cellcal" in ASCII
-_LOCK_KEY = 0x63656C6C63616C
-
-
-def is_server_address(address) -> bool:
-    """True for a ``postgresql://`` (or ``postgres://``) URL."""
-    return isinstance(address, str) and urlsplit(address).scheme.lower() in PG_SCHEMES
-
-
-def display_address(address) -> str:
-    """The address as printed: a path as given, a URL without its password."""
-    if not is_server_address(address):
-        return str(address)
-    parts = urlsplit(address)
-    if parts.password is None:
-        return address
-    netloc = parts.netloc.replace(f":{parts.password}@", ":***@", 1)
-    return urlunsplit(parts._replace(netloc=netloc))
+__all__ = ["PG_SCHEMES", "Cursor", "Database", "PostgresDatabase", "SqliteDatabase",
+           "StoreError", "StoreFull", "StoreUnavailable", "connect", "display_address",
+           "is_server_address", "translate"]
 
 
 class Cursor(Protocol):
+    """The rows of a statement (:class:`daq.store.dbapi.Cursor`)."""
+
     rowcount: int
 
     def fetchone(self) -> Any: ...
@@ -105,6 +98,8 @@ class Database(Protocol):
     kind: str
     #: the address as printed (no password)
     address: str
+    #: the SQLite file, or the server's address as printed
+    path: Path | str
     read_only: bool
 
     def execute(self, sql: str, params: Sequence = ()) -> Cursor:
@@ -130,6 +125,11 @@ class Database(Protocol):
     def has_table(self, name: str) -> bool: ...
 
     def columns(self, table: str) -> list[str]: ...
+
+    def opening(self) -> contextlib.AbstractContextManager:
+        """A block in which the store is opened and upgraded: its errors say what the
+        file is (SQLite) rather than that it was found damaged later."""
+        ...
 
     def reconnect(self) -> None:
         """Drop the connection and open a new one (:class:`StoreUnavailable` if it fails)."""
@@ -161,264 +161,3 @@ def connect(address, *, create: bool = True, read_only: bool = False,
     check_store_file(path, must_exist=not create or read_only)
     return SqliteDatabase(path, read_only=read_only, synchronous=synchronous.upper(),
                           timeout_s=max(timeout_s, 30.0), check_file=check_file)
-
-
-def _upsert_sql(table: str, key: Sequence[str], row: dict) -> tuple[str, tuple]:
-    cols = list(row)
-    updates = [c for c in cols if c not in key]
-    action = ("DO UPDATE SET " + ", ".join(f"{c}=excluded.{c}" for c in updates)
-              if updates else "DO NOTHING")
-    sql = (f"INSERT INTO {table} ({', '.join(cols)}) VALUES ({','.join('?' * len(cols))}) "
-           f"ON CONFLICT ({', '.join(key)}) {action}")
-    return sql, tuple(row[c] for c in cols)
-
-
-# ------------------------------------------------------------------- SQLite
-class SqliteDatabase:
-    """A run store file: WAL, ``synchronous`` FULL or NORMAL, foreign keys on."""
-
-    kind = "sqlite"
-
-    def __init__(self, path: Path, *, read_only: bool, synchronous: str,
-                 timeout_s: float, check_file=None) -> None:
-        self.path = Path(path)
-        self.address = str(path)
-        self.read_only = read_only
-        self._synchronous = synchronous
-        self._timeout_s = timeout_s
-        self._in_memory = False  # see copy_to_memory
-        self.con = self._open(check_file)
-
-    def _open(self, check_file=None) -> sqlite3.Connection:
-        try:
-            if self.read_only:  # nothing written, not even side files (store_open)
-                con = connect_read_only(self.path, self._timeout_s)
-            else:
-                con = sqlite3.connect(str(self.path), timeout=self._timeout_s,
-                                      isolation_level=None, check_same_thread=False)
-        except sqlite3.Error as e:
-            raise StoreError(f"{self.address}: cannot open the run store: {e}") from None
-        try:
-            if check_file is not None:
-                check_file(con)
-            if not self.read_only:
-                con.execute("PRAGMA journal_mode=WAL")
-                con.execute(f"PRAGMA synchronous={self._synchronous}")
-            con.execute("PRAGMA foreign_keys=ON")
-        except sqlite3.DatabaseError as e:
-            con.close()
-            raise StoreError(f"{self.address}: {describe_error(e)}") from None
-        except BaseException:
-            con.close()
-            raise
-        return con
-
-    def execute(self, sql: str, params: Sequence = ()):
-        return self.con.execute(sql, tuple(params))
-
-    def executemany(self, sql: str, rows) -> None:
-        self.con.executemany(sql, rows)
-
-    @contextlib.contextmanager
-    def transaction(self, lock: bool = False) -> Iterator[None]:
-        # every write transaction takes the write lock at once: two deferred ones that
-        # both want to write would fail to upgrade (SQLITE_BUSY) instead of waiting
-        self.con.execute("BEGIN IMMEDIATE")
-        try:
-            yield
-        except BaseException:
-            if self.con.in_transaction:  # SQLite may have rolled back itself (a full disk)
-                with contextlib.suppress(sqlite3.Error):
-                    self.con.execute("ROLLBACK")
-            raise
-        self.con.execute("COMMIT")
-
-    def upsert(self, table: str, key: Sequence[str], row: dict) -> None:
-        self.execute(*_upsert_sql(table, key, row))
-
-    def get_version(self) -> int:
-        return int(self.con.execute("PRAGMA user_version").fetchone()[0])
-
-    def set_version(self, version: int) -> None:
-        self.con.execute(f"PRAGMA user_version={int(version)}")
-
-    def has_table(self, name: str) -> bool:
-        return self.con.execute("SELECT count(*) FROM sqlite_master WHERE type='table' AND "
-                                "name=?", (name,)).fetchone()[0] > 0
-
-    def columns(self, table: str) -> list[str]:
-        return [r[1] for r in self.con.execute(f"PRAGMA table_info({table})")]
-
-    def copy_to_memory(self) -> None:
-        """Go on with a copy of the file in memory, writable (an old schema opened
-        read-only is upgraded there); the file is left alone, never reopened."""
-        mem = sqlite3.connect(":memory:", isolation_level=None, check_same_thread=False)
-        self.con.backup(mem)
-        self.con.close()
-        self.con, self.read_only, self._in_memory = mem, False, True
-
-    def reconnect(self) -> None:
-        if self._in_memory:
-            return  # the copy is the store: nothing to reconnect to
-        with contextlib.suppress(sqlite3.Error):
-            self.con.close()
-        self.con = self._open()
-
-    def close(self) -> None:
-        self.con.close()
-
-
-# --------------------------------------------------------------- PostgreSQL
-_DDL = re.compile(r"^\s*(CREATE|ALTER)\s+TABLE\b", re.I)
-_AUTOINC = re.compile(r"\bINTEGER\s+PRIMARY\s+KEY\s+AUTOINCREMENT\b", re.I)
-_TYPES = [(re.compile(r"\bINTEGER\b", re.I), "BIGINT"),
-          (re.compile(r"\bREAL\b", re.I), "DOUBLE PRECISION"),
-          (re.compile(r"\bBLOB\b", re.I), "BYTEA")]
-_OR_IGNORE = re.compile(r"^\s*INSERT\s+OR\s+IGNORE\s+INTO\b", re.I)
-_OR_REPLACE = re.compile(r"^\s*(INSERT\s+OR\s+REPLACE|REPLACE)\s+INTO\b", re.I)
-_RETURNING = re.compile(r"\bRETURNING\b", re.I)
-_BEGIN_IMMEDIATE = re.compile(r"^\s*BEGIN\s+(IMMEDIATE|EXCLUSIVE)\s*;?\s*$", re.I)
-
-
-def _placeholders(sql: str) -> str:
-    """``?`` → ``%s`` and ``%`` → ``%%`` outside quoted strings and identifiers."""
-    out, quote_char = [], None
-    for ch in sql:
-        if quote_char:
-            out.append("%%" if ch == "%" else ch)
-            if ch == quote_char:
-                quote_char = None
-        elif ch in "'\"":
-            quote_char = ch
-            out.append(ch)
-        elif ch == "?":
-            out.append("%s")
-        elif ch == "%":
-            out.append("%%")
-        else:
-            out.append(ch)
-    return "".join(out)
-
-
-def translate(sql: str) -> str:
-    """The store's SQL (SQLite spelling) as PostgreSQL runs it (see the module docstring).
-
-    >>> translate("INSERT OR IGNORE INTO t (a) VALUES (?)")
-    'INSERT INTO t (a) VALUES (%s) ON CONFLICT DO NOTHING'
-    """
-    if _OR_REPLACE.match(sql):
-        raise StoreError("INSERT OR REPLACE has no PostgreSQL translation: use "
-                         "Database.upsert(table, key, row)")
-    if _DDL.match(sql):
-        sql = _AUTOINC.sub("BIGINT GENERATED BY DEFAULT AS IDENTITY PRIMARY KEY", sql)
-        for pattern, pg in _TYPES:
-            sql = pattern.sub(pg, sql)
-    elif _OR_IGNORE.match(sql):
-        sql = _OR_IGNORE.sub("INSERT INTO", sql, count=1)
-        m = _RETURNING.search(sql)
-        if m:
-            sql = f"{sql[:m.start()]}ON CONFLICT DO NOTHING {sql[m.start():]}"
-        else:
-            sql = f"{sql.rstrip().rstrip(';')} ON CONFLICT DO NOTHING"
-    return _placeholders(sql)
-
-
-class PostgresDatabase:
-    """A run store in a PostgreSQL database (psycopg 3, autocommit)."""
-
-    kind = "postgresql"
-
-    def __init__(self, url: str, *, read_only: bool, synchronous: str,
-                 timeout_s: float) -> None:
-        self.url = url
-        self.address = display_address(url)
-        self.read_only = read_only
-        self._synchronous = synchronous
-        self._timeout_s = timeout_s
-        self.con = self._open()
-
-    def _open(self):
-        import psycopg
-
-        options = []
-        if self.read_only:
-            options.append("-c default_transaction_read_only=on")
-        if self._synchronous == "NORMAL":
-            options.append("-c synchronous_commit=off")
-        kwargs = {"options": " ".join(options)} if options else {}
-        try:
-            return psycopg.connect(self.url, autocommit=True,
-                                   connect_timeout=max(1, round(self._timeout_s)),
-                                   application_name="cellcal", **kwargs)
-        except psycopg.OperationalError as e:
-            msg = " ".join(str(e).split())
-            if "does not exist" in msg or "authentication" in msg or "role" in msg:
-                raise StoreError(f"{self.address}: {msg}") from None
-            raise StoreUnavailable(f"{self.address}: cannot connect: {msg}") from None
-        except psycopg.Error as e:  # a malformed URL
-            raise StoreError(f"{self.address}: {' '.join(str(e).split())}") from None
-
-    @contextlib.contextmanager
-    def _errors(self) -> Iterator[None]:
-        import psycopg
-
-        try:
-            yield
-        except (psycopg.OperationalError, psycopg.InterfaceError) as e:
-            if self.con.closed or self.con.broken or isinstance(e, psycopg.InterfaceError):
-                raise StoreUnavailable(f"{self.address}: connection lost: "
-                                       f"{' '.join(str(e).split())}") from e
-            raise StoreError(f"{self.address}: {' '.join(str(e).split())}") from e
-        except psycopg.Error as e:
-            raise StoreError(f"{self.address}: {' '.join(str(e).split())}") from e
-
-    def execute(self, sql: str, params: Sequence = ()):
-        if _BEGIN_IMMEDIATE.match(sql):  # SQLite code taking the write lock
-            with self._errors():
-                self.con.execute("BEGIN")
-                return self.con.execute("SELECT pg_advisory_xact_lock(%s)", (_LOCK_KEY,))
-        with self._errors():
-            return self.con.execute(translate(sql), tuple(params))
-
-    def executemany(self, sql: str, rows) -> None:
-        with self._errors(), self.con.cursor() as cur:
-            cur.executemany(translate(sql), rows)
-
-    @contextlib.contextmanager
-    def transaction(self, lock: bool = False) -> Iterator[None]:
-        with self._errors(), self.con.transaction():
-            if lock:
-                self.con.execute("SELECT pg_advisory_xact_lock(%s)", (_LOCK_KEY,))
-            yield
-
-    def upsert(self, table: str, key: Sequence[str], row: dict) -> None:
-        self.execute(*_upsert_sql(table, key, row))
-
-    def get_version(self) -> int:
-        if not self.has_table("schema_version"):
-            return 0
-        row = self.execute("SELECT max(version) FROM schema_version").fetchone()
-        return int(row[0] or 0)
-
-    def set_version(self, version: int) -> None:
-        if not self.has_table("schema_version"):
-            self.execute("CREATE TABLE schema_version (version INTEGER NOT NULL)")
-        self.execute("DELETE FROM schema_version")
-        self.execute("INSERT INTO schema_version (version) VALUES (?)", (int(version),))
-
-    def has_table(self, name: str) -> bool:
-        return self.execute("SELECT to_regclass(?) IS NOT NULL", (name,)).fetchone()[0]
-
-    def columns(self, table: str) -> list[str]:
-        rows = self.execute(
-            "SELECT column_name FROM information_schema.columns WHERE table_name=? AND "
-            "table_schema=current_schema() ORDER BY ordinal_position", (table,)).fetchall()
-        return [r[0] for r in rows]
-
-    def reconnect(self) -> None:
-        with contextlib.suppress(Exception):
-            self.con.close()
-        self.con = self._open()
-
-    def close(self) -> None:
-        self.con.close()

@@ -24,7 +24,6 @@ import contextlib
 import os
 import secrets
 import socket
-import sqlite3
 import threading
 import time
 from collections.abc import Iterator
@@ -36,8 +35,9 @@ from ..errors import RequestError
 from .dialect import connect
 from .errors import StoreError
 
-#: what a best-effort write (release, heartbeat, close) may meet and shrug off
-_DB_ERRORS = (StoreError, sqlite3.Error)
+#: what a best-effort write (release, heartbeat, close) may meet and shrug off (the
+#: store's databases raise nothing else: :mod:`daq.store.dialect`)
+_DB_ERRORS = (StoreError,)
 
 #: seconds without a heartbeat after which a lease counts as abandoned
 DEFAULT_TTL_S = 30.0

@@ -4,8 +4,11 @@ cell, the default) or in a PostgreSQL database (a plant's central store).
 
 :func:`open_store` (and :class:`RunStore` itself) picks the backend from the address
 (docs/formats.md §5): a ``postgresql://user@host/db`` URL is a server, anything else a
-file. The SQL below is written once; what the two databases spell differently lives in
-:mod:`daq.store.dialect`.
+file; :func:`open_if_exists` answers "is there a store yet?" without the caller asking
+which. The SQL below is written once; what the two databases spell differently lives
+below :mod:`daq.store.dialect`. Runs read back as :class:`~daq.store.records.Run`
+(status, summary and interruptions typed: :mod:`daq.store.records`,
+:mod:`daq.store.summary`), samples as :mod:`daq.store.samples`.
 
 Durability
     One transaction per sample (:meth:`RunStore.add_sample`); that commit is the
@@ -27,18 +30,22 @@ Idempotence
     readings are written only with its sample, and a re-measured point's replacement
     is skipped when the point already holds it: a repeated commit doubles nothing.
 
-Lost connections
-    A PostgreSQL server that goes away raises :class:`StoreUnavailable` (a
+Errors
+    Every method raises the store's own errors (:mod:`daq.store.errors`), never a
+    driver's. A PostgreSQL server that goes away raises :class:`StoreUnavailable` (a
     :class:`StoreError`, transient); :meth:`RunStore.reconnect` opens a new connection.
-    The executor waits for the store, then pauses the run (:mod:`daq.executor`).
+    The executor waits for the store, then pauses the run (:mod:`daq.executor`). A full
+    disk raises :class:`StoreFull` (nothing of the write was stored);
+    :meth:`RunStore.release_reserve` then gives up the space a SQLite store keeps so the
+    pause and its reason can still be written.
 
 Schema versions
     :meth:`Database.get_version <daq.store.dialect.Database.get_version>` holds
     :data:`~daq.store.schema.SCHEMA_VERSION` (SQLite's ``PRAGMA user_version``, a
     ``schema_version`` table on PostgreSQL). Opening an older store applies the upgrades
-    of :mod:`daq.store.schema` in order, each in one transaction that holds the
-    store's write lock (two processes opening an old store upgrade it once); a newer
-    store is refused. A read-only store is never upgraded.
+    of :mod:`daq.store.schema` in order (:mod:`daq.store.migration`), each in one
+    transaction that holds the store's write lock (two processes opening an old store
+    upgrade it once); a newer store is refused. A read-only store is never upgraded.
 
 Every run stores its plan, its typed context (:class:`daq.run_context.RunContext`) and
 the robot's identity (``robot_id``). Reading turns a run's samples into calibration
@@ -64,7 +71,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import sqlite3
 import time
 from pathlib import Path
 
@@ -73,19 +79,16 @@ import numpy as np
 from calibration.version import software_version
 
 from ..run_context import RunContext
-from .dialect import (
-    Database,
-    StoreError,
-    StoreUnavailable,
-    connect,
-    display_address,
-)
-from .open_checks import describe_error
-from .records import STATUSES, Calibration, Reading, Run, Sample, Samples
-from .schema import RESERVE_BYTES, SCHEMA_V1, SCHEMA_VERSION, UPGRADES
+from .addresses import display_address, is_server_address
+from .dialect import Database, connect
+from .errors import StoreError, StoreFull, StoreUnavailable
+from .migration import check_file, migrate
+from .records import STATUSES, Calibration, Interruption, InterruptionKind, Run, RunStatus, known
+from .samples import Reading, Sample, Samples
+from .schema import RESERVE_BYTES
+from .summary import RunSummary
 
-__all__ = ["STATUSES", "Calibration", "Reading", "Run", "RunStore", "Sample", "Samples",
-           "StoreError", "StoreUnavailable", "open_store"]
+__all__ = ["RunStore", "open_if_exists", "open_store"]
 
 
 def _f(v) -> float | None:
@@ -128,6 +131,25 @@ def open_store(address, *, create: bool = True, read_only: bool = False,
     return RunStore(address, synchronous, create=create, read_only=read_only)
 
 
+def open_if_exists(address, *, read_only: bool = False,
+                   synchronous: str = "FULL") -> RunStore | None:
+    """The existing run store at ``address``, or None when there is none yet: no file at
+    the path (or no regular file), or a PostgreSQL database that cannot be opened as a
+    store (no store's tables yet). A server that cannot be reached is
+    :class:`StoreUnavailable`; a file that is not a store (or a damaged one) is
+    :class:`StoreError`."""
+    if not is_server_address(address):
+        if not Path(address).is_file():
+            return None
+        return RunStore(address, synchronous, create=False, read_only=read_only)
+    try:
+        return RunStore(address, synchronous, create=False, read_only=read_only)
+    except StoreUnavailable:
+        raise
+    except StoreError:  # a database without a run store yet
+        return None
+
+
 class RunStore:
     """The run store (see the module docstring).
 
@@ -147,16 +169,17 @@ class RunStore:
                  create: bool = True, read_only: bool = False) -> None:
         #: the address as printed (a URL without its password)
         self.address = display_address(address)
-        self.db: Database = connect(address, create=create, read_only=read_only,
-                                    synchronous=synchronous,
-                                    check_file=lambda con: self._check_file(con, read_only))
+        self.db: Database = connect(
+            address, create=create, read_only=read_only, synchronous=synchronous,
+            check_file=lambda con: check_file(con, self.address, read_only))
         self._open_args = (address, read_only, synchronous)
         try:
-            self._migrate(create=create)
-            self._refill_reserve()
-        except sqlite3.DatabaseError as e:
+            with self.db.opening():
+                migrate(self.db, self.address, create)
+                self._refill_reserve()
+        except StoreFull as e:  # no room to create or upgrade the store
             self.db.close()
-            raise StoreError(f"{self.address}: {describe_error(e)}") from None
+            raise StoreError(f"{self.address}: cannot use the run store: {e}") from None
         except BaseException:
             self.db.close()
             raise
@@ -171,7 +194,7 @@ class RunStore:
     @property
     def path(self) -> Path | str:
         """The SQLite file, or the server's address (no password)."""
-        return self.db.path if self.db.kind == "sqlite" else self.address
+        return self.db.path
 
     @property
     def con(self):
@@ -182,30 +205,6 @@ class RunStore:
     def kind(self) -> str:
         """``sqlite`` or ``postgresql``."""
         return self.db.kind
-
-    def _check_file(self, con, read_only: bool) -> None:
-        """A SQLite file's first look, before anything is written to it: refuse a file of
-        another program, a newer schema, and a damaged file opened read-only. (A
-        PostgreSQL database may hold other programs' tables besides the store's.)"""
-        tables = {r[0] for r in con.execute(
-            "SELECT name FROM sqlite_master WHERE type='table' AND name NOT LIKE 'sqlite_%'")}
-        if not tables:
-            if read_only:
-                raise StoreError(f"{self.address}: an empty database, not a cellcal run store "
-                                 "(no runs)")
-            return
-        if not {"runs", "samples"} <= tables:
-            shown = ", ".join(sorted(tables)[:5])
-            raise StoreError(f"{self.address}: not a cellcal run store (an SQLite database "
-                             f"with the tables {shown}); give the run store of a capture")
-        v = int(con.execute("PRAGMA user_version").fetchone()[0])
-        if v > SCHEMA_VERSION:
-            raise StoreError(f"{self.address}: schema version {v} is newer than this cellcal "
-                             f"({SCHEMA_VERSION}); update cellcal to read it")
-        if read_only:  # a damaged file shows on a full read, not always on open
-            bad = con.execute("PRAGMA quick_check").fetchone()[0]
-            if bad != "ok":
-                raise StoreError(f"{self.address}: damaged run store (SQLite: {bad})")
 
     # ------------------------------------------------------------ lifecycle
     def close(self) -> None:
@@ -235,43 +234,6 @@ class RunStore:
     def version(self) -> int:
         return self.db.get_version()
 
-    def _migrate(self, create: bool) -> None:
-        db = self.db
-        v = db.get_version()
-        if v == 0 and (not create or db.read_only):
-            raise StoreError(f"{self.address}: no run store here (an empty database)")
-        if v > SCHEMA_VERSION:
-            raise StoreError(f"{self.address}: schema version {v} is newer than this "
-                             f"cellcal ({SCHEMA_VERSION})")
-        if db.read_only and v < SCHEMA_VERSION:
-            if db.kind != "sqlite":
-                raise StoreError(f"{self.address}: schema version {v}, this cellcal reads "
-                                 f"{SCHEMA_VERSION}: open it once with write access (any "
-                                 "capture, runs or export) to upgrade it")
-            self._upgrade_in_memory()  # the file is left alone
-        if db.read_only:
-            return
-        while v < SCHEMA_VERSION:
-            # one step per transaction, under the store's write lock; the version is read
-            # again inside it, so two processes opening an old store upgrade it once
-            with db.transaction(lock=True):
-                v = db.get_version()
-                if v == 0:
-                    if db.has_table("runs"):
-                        raise StoreError(f"{self.address}: has a runs table but no schema "
-                                         "version")
-                    for statement in SCHEMA_V1.split(";"):
-                        if statement.strip():
-                            db.execute(statement)
-                elif v < SCHEMA_VERSION:
-                    UPGRADES[v - 1](db)
-                if v < SCHEMA_VERSION:
-                    db.set_version(v + 1)
-                    v += 1
-        if v > SCHEMA_VERSION:
-            raise StoreError(f"{self.address}: schema version {v} is newer than this "
-                             f"cellcal ({SCHEMA_VERSION})")
-
     # ------------------------------------------------------------- reserve
     def release_reserve(self) -> bool:
         """Give up the reserve of free space (a full disk: SQLite): the pages it held let
@@ -283,7 +245,7 @@ class RunStore:
             with self.db.transaction():
                 cur = self.db.execute("DELETE FROM reserve")
             return cur.rowcount > 0
-        except sqlite3.Error:
+        except StoreError:
             return False
 
     def _refill_reserve(self) -> None:
@@ -295,15 +257,8 @@ class RunStore:
                 if self.db.execute("SELECT count(*) FROM reserve").fetchone()[0] == 0:
                     self.db.execute("INSERT INTO reserve (id, pad) VALUES (1, zeroblob(?))",
                                     (RESERVE_BYTES,))
-        except sqlite3.OperationalError:  # still no space: the capture will say so
+        except StoreError:  # still no space (or busy): the capture will say so
             pass
-
-    def _upgrade_in_memory(self) -> None:
-        """An older schema opened read-only (SQLite): work on an upgraded copy in memory;
-        the file is left alone."""
-        if self.version == 0:
-            raise StoreError(f"{self.address}: not a cellcal run store (no schema version)")
-        self.db.copy_to_memory()
 
     # ------------------------------------------------------------------ runs
     def create_run(
@@ -359,9 +314,9 @@ class RunStore:
         return Run(
             id=r[0], routine=r[1], plan_json=r[2], plan_hash=r[3], n_points=r[4],
             robot_desc=r[5], tracker_desc=r[6], software=r[7], started=r[8], stopped=r[9],
-            status=r[10], reason=r[11],
+            status=known(RunStatus, r[10]), reason=r[11],
             frame=json.loads(r[12]) if r[12] else None,
-            summary=json.loads(r[13]) if r[13] else None,
+            summary=RunSummary.from_json(r[13]) if r[13] else None,
             context=RunContext.from_json(r[14]), robot_id=r[15],
             robot_identity=json.loads(r[16]) if r[16] else None,
             tracker_identity=json.loads(r[17]) if r[17] else None,
@@ -393,16 +348,18 @@ class RunStore:
                                    "ORDER BY id", (robot_id,))
         return [self._row_to_run(r) for r in rows.fetchall()]
 
-    def set_status(self, run_id: int, status: str, reason: str | None = None) -> None:
+    def set_status(self, run_id: int, status: RunStatus | str,
+                   reason: str | None = None) -> None:
         """Record the run's status (and why); a final status also sets the stop time."""
         if status not in STATUSES:
             raise ValueError(f"status must be one of {STATUSES}, got {status!r}")
-        stopped = None if status == "running" else time.time()
+        stopped = None if status == RunStatus.RUNNING else time.time()
         self.db.execute("UPDATE runs SET status=?, reason=?, stopped=? WHERE id=?",
-                        (status, reason, stopped, run_id))
+                        (str(status), reason, stopped, run_id))
 
     def update_run(self, run_id: int, **fields) -> None:
-        """Set ``frame``, ``summary``, ``robot_identity``/``tracker_identity`` (dicts),
+        """Set ``frame`` (a dict), ``summary`` (a :class:`RunSummary`, or a dict of its
+        keys), ``robot_identity``/``tracker_identity`` (dicts),
         ``robot_desc``/``tracker_desc``, ``robot_id``, or ``robot_url``/``tracker_url`` (in
         the run's context and its columns)."""
         cols, vals = [], []
@@ -411,9 +368,12 @@ class RunStore:
             if k in ("robot_identity", "tracker_identity"):
                 cols.append(f"{k}=?")
                 vals.append(_json(v))
-            elif k in ("frame", "summary"):
-                cols.append(f"{k}_json=?")
-                vals.append(json.dumps(v) if v is not None else None)
+            elif k == "frame":
+                cols.append("frame_json=?")
+                vals.append(_json(v))
+            elif k == "summary":
+                cols.append("summary_json=?")
+                vals.append(None if v is None else RunSummary.model_validate(v).dumps())
             elif k in ("robot_desc", "tracker_desc", "robot_id"):
                 cols.append(f"{k}=?")
                 vals.append(v)
@@ -613,20 +573,21 @@ class RunStore:
                 "unresolved": by.get("unresolved", 0)}
 
     # --------------------------------------------------------- interruptions
-    def add_interruption(self, run_id: int, point_index: int | None, kind: str,
+    def add_interruption(self, run_id: int, point_index: int | None, kind: InterruptionKind,
                          message: str) -> None:
-        """Record an interruption (fault, retry, pause, Ctrl-C, kill found on resume)."""
+        """Record an interruption (fault, retry, pause, Ctrl-C, kill found on resume),
+        stored as its kind's string."""
         self.db.execute(
             "INSERT INTO interruptions (run_id, point_index, t, kind, message) "
             "VALUES (?,?,?,?,?)",
-            (run_id, point_index, time.time(), kind, message),
+            (run_id, point_index, time.time(), str(kind), message),
         )
 
-    def interruptions(self, run_id: int) -> list[tuple[int | None, float, str, str]]:
-        """(point index, time, kind, message) of every interruption of the run, in order."""
-        return [tuple(r) for r in self.db.execute(
-            "SELECT point_index, t, kind, message FROM interruptions WHERE run_id=? ORDER BY id",
-            (run_id,)).fetchall()]
+    def interruptions(self, run_id: int) -> list[Interruption]:
+        """Every interruption of the run, in order: (point index, time, kind, message)."""
+        rows = self.db.execute("SELECT point_index, t, kind, message FROM interruptions "
+                               "WHERE run_id=? ORDER BY id", (run_id,)).fetchall()
+        return [Interruption(p, t, known(InterruptionKind, k), m) for p, t, k, m in rows]
 
     # ---------------------------------------------------------- calibrations
     def add_calibration(self, robot_id: str, params: dict, *, t: float | None = None,

@@ -4,7 +4,7 @@ The database holds the version (SQLite's ``PRAGMA user_version``, a ``schema_ver
 table on PostgreSQL: :mod:`daq.store.dialect`). A new store is created at version 1
 (:data:`SCHEMA_V1`) and brought to :data:`SCHEMA_VERSION` by the same upgrade functions
 an old one goes through (:data:`UPGRADES`, each run in one transaction by
-:class:`daq.store.RunStore`). An upgrade function is frozen once released: it writes
+:func:`daq.store.migration.migrate`). An upgrade function is frozen once released: it writes
 plain SQL and JSON, never through today's classes, so an old store upgrades the same
 way whatever the code around it has become.
 
@@ -38,15 +38,19 @@ Versions
        up when the disk is full, so that the run can still be marked paused with the
        reason (:meth:`daq.store.RunStore.release_reserve`); empty on PostgreSQL.
 
-The version list is :data:`UPGRADES` alone (:data:`SCHEMA_VERSION` is its length + 1): a
-new upgrade is one function appended there, named for what it adds, so upgrades made on
-parallel branches are renumbered by ordering that list.
+The versions are :data:`UPGRADES` alone, a registry keyed by the version each upgrade
+starts from and checked when this module is imported (:func:`checked_upgrades`:
+contiguous from 1, one upgrade per version, each with a one-line description);
+:data:`SCHEMA_VERSION` is the last one's target. A new upgrade is one function, named for
+what it adds, and one :class:`Upgrade` entry from today's version: two made on parallel
+branches claim the same version and are refused until one is renumbered.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 #: what an upgrade gets: a daq.store.dialect.Database (anything with ``execute(sql, params)``)
@@ -243,16 +247,49 @@ def _upgrade_reserve(con: Connection) -> None:
         con.execute("INSERT INTO reserve (id, pad) VALUES (1, zeroblob(?))", (RESERVE_BYTES,))
 
 
-#: UPGRADES[k] takes a database from version k+1 to k+2 (the one list of versions)
-UPGRADES: list[Callable[[Connection], None]] = [
-    _upgrade_1_to_2,            # 2: frame, summary, interruptions
-    _upgrade_2_to_3,            # 3: run contexts
-    _upgrade_3_to_4,            # 4: reflector, face, covariance per sample
-    _upgrade_4_to_5,            # 5: leases, device identities
-    _upgrade_5_to_6,            # 6: re-measure (verdicts, readings)
-    _upgrade_robot_history,     # 7: runs.robot_id, calibrations
-    _upgrade_reserve,           # 8: the reserve for a full disk
-]
+@dataclass(frozen=True)
+class Upgrade:
+    """One step of the schema: ``apply(con)`` takes a database from ``version`` to
+    ``version + 1``; ``description`` says in one line what it adds."""
+
+    version: int
+    description: str
+    apply: Callable[[Connection], None]
+
+    def __call__(self, con: Connection) -> None:
+        self.apply(con)
+
+
+def checked_upgrades(upgrades: list[Upgrade]) -> dict[int, Upgrade]:
+    """The upgrades keyed by the version they upgrade from, refused (``ValueError``)
+    unless they are contiguous from version 1, one per version, each described in one
+    line."""
+    out: dict[int, Upgrade] = {}
+    for up in upgrades:
+        if up.version in out:
+            raise ValueError(f"two upgrades from schema version {up.version}: "
+                             f"{out[up.version].apply.__name__} and {up.apply.__name__}")
+        if not up.description.strip() or "\n" in up.description:
+            raise ValueError(f"the upgrade from version {up.version} needs a one-line "
+                             "description")
+        out[up.version] = up
+    missing = sorted(set(range(1, len(out) + 1)) - set(out))
+    if missing:
+        raise ValueError(f"no upgrade from schema version {missing[0]} (the upgrades "
+                         f"start at 1 and leave no gap; given {sorted(out)})")
+    return dict(sorted(out.items()))
+
+
+#: the schema's versions: UPGRADES[v] takes a database from version v to v + 1
+UPGRADES: dict[int, Upgrade] = checked_upgrades([
+    Upgrade(1, "frame, summary, interruptions", _upgrade_1_to_2),
+    Upgrade(2, "run contexts", _upgrade_2_to_3),
+    Upgrade(3, "reflector, face, covariance per sample", _upgrade_3_to_4),
+    Upgrade(4, "leases, device identities", _upgrade_4_to_5),
+    Upgrade(5, "re-measure (verdicts, readings)", _upgrade_5_to_6),
+    Upgrade(6, "runs.robot_id, calibrations", _upgrade_robot_history),
+    Upgrade(7, "the reserve for a full disk", _upgrade_reserve),
+])
 
 #: current schema version (SQLite's PRAGMA user_version, PostgreSQL's schema_version)
-SCHEMA_VERSION = len(UPGRADES) + 1
+SCHEMA_VERSION = max(UPGRADES) + 1

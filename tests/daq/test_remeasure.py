@@ -192,8 +192,8 @@ def _schema5_store(tmp_path):
     shutil.copy(DATA / "schema_v2" / "cell.db", db)
     con = sqlite3.connect(db)
     with con:
-        for up in UPGRADES[1:4]:
-            up(con)
+        for v in (2, 3, 4):
+            UPGRADES[v](con)
         con.execute("PRAGMA user_version=5")
     con.close()
     return db

@@ -122,8 +122,8 @@ def test_upgrade_from_a_schema_3_store(tmp_path):
     path = tmp_path / "v3.db"
     con = sqlite3.connect(path, isolation_level=None)
     con.executescript(SCHEMA_V1)
-    UPGRADES[0](con)
     UPGRADES[1](con)
+    UPGRADES[2](con)
     ctx = RunContext(routine="poses", model="toyarm", robot_url="socket://127.0.0.1:1")
     con.execute("INSERT INTO runs (routine, plan_json, plan_hash, n_points, status, model, "
                 "context_json) VALUES ('poses', '{}', 'abc', 2, 'paused', 'toyarm', ?)",

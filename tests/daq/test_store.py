@@ -37,8 +37,8 @@ def _at_version(address, version: int) -> None:
             for statement in SCHEMA_V1.split(";"):
                 if statement.strip():
                     db.execute(statement)
-            for up in UPGRADES[:version - 1]:
-                up(db)
+            for v in range(1, version):
+                UPGRADES[v](db)
             db.set_version(version)
     finally:
         db.close()

@@ -157,7 +157,7 @@ def test_an_upgrade_adds_the_reserve_and_keeps_every_run(tmp_path):
     p = tmp_path / "v3.db"
     shutil.copyfile(V2, p)
     con = sqlite3.connect(p, isolation_level=None)
-    UPGRADES[1](con)  # 2 -> 3, as a schema-3 cellcal left it
+    UPGRADES[2](con)  # 2 -> 3, as a schema-3 cellcal left it
     con.execute("PRAGMA user_version=3")
     before = con.execute("SELECT id, routine, status, plan_hash FROM runs").fetchall()
     n_samples = con.execute("SELECT count(*) FROM samples").fetchone()[0]

@@ -160,7 +160,7 @@ def v3_db(v2_db):
     con = sqlite3.connect(v2_db, isolation_level=None)
     try:
         con.execute("BEGIN")
-        UPGRADES[1](con)
+        UPGRADES[2](con)
         con.execute("PRAGMA user_version=3")
         con.execute("COMMIT")
     finally:
