@@ -17,4 +17,12 @@ outputs             check_outputs: the guard on output paths; existing_paths
 stores              open_store: an existing run store, or a UsageError naming it
 calibrate           CalibrateRequest, calibrate: identify the error parameters
 calibration_record  calibrate --db: record a calibration in a run store
+diagnose            DiagnoseRequest, diagnose: rank the missing effects, or add them (--auto)
+report              ReportRequest, write_report: the HTML report
+compensate          CompensateRequest, compensate_targets: joints and corrected targets
+model_exports       write_exports: the calibrated model as YAML, URDF, UR files, DH table,
+                    each checked by its parity
+simulate            SimulateRequest, simulate_dataset: a measurement CSV of a simulated robot
+models              builtin_model_summaries: the built-in robot models
+history             HistoryRequest, robot_history: a robot's calibrations over time
 """
