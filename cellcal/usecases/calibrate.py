@@ -3,7 +3,7 @@
 :class:`CalibrateRequest` is what the command was asked; :func:`calibrate` loads the data,
 fits the error model (and the uncalibrated baseline on the same points), records the fit
 in a run store when asked (:mod:`.calibration_record`), draws the ridge plot, runs the
-Monte-Carlo check and writes params.json; it returns a :class:`Calibration`.
+Monte-Carlo check and writes params.json; it returns a :class:`Calibrated`.
 """
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ class CalibrateRequest(DataInputs):
 
 
 @dataclass
-class Calibration:
+class Calibrated:
     """What :func:`calibrate` did.
 
     Attributes
@@ -73,7 +73,7 @@ class Calibration:
 
 
 def calibrate(request: CalibrateRequest,
-              on_note: Callable[[str], None] | None = None) -> Calibration:
+              on_note: Callable[[str], None] | None = None) -> Calibrated:
     """Run the calibration ``request`` asks for and write its files.
 
     ``on_note`` is called with each remark as soon as it is known (before the fit, which
@@ -107,7 +107,7 @@ def calibrate(request: CalibrateRequest,
                          seed=request.seed if request.seed is not None else 0)
     if request.out:
         save_params(fit, request.out, list(request.effect_file), capture=fit.data.capture)
-    return Calibration(fit, baseline, mc, recorded, notes)
+    return Calibrated(fit, baseline, mc, recorded, notes)
 
 
 def _fit(request: CalibrateRequest, on_note) -> tuple[Fit, Fit, list[str]]:
