@@ -128,6 +128,25 @@ class Dataset:
         v = self.meta.get("tracker_sigma_mm")
         return float(v) if v is not None else None
 
+    def with_tracker_sigma(self, sigma_mm: float) -> Dataset:
+        """This data set with the tracker's standard uncertainty per axis, mm, set to
+        ``sigma_mm`` for every point (a user's ``--sigma`` over the file's): the per-point
+        ``sigma_mm`` column is dropped and the capture metadata says it, so :meth:`sigma`,
+        the noise floor and :attr:`capture` (kept in params.json) agree. The value is kept
+        exactly (shortest round-trip text, as :func:`calibration.simulate.simulate` writes).
+
+        Raises
+        ------
+        DataError
+            ``sigma_mm`` is not a positive finite number.
+        """
+        sigma_mm = float(sigma_mm)
+        if not (sigma_mm > 0 and math.isfinite(sigma_mm)):
+            raise DataError(f"{self.source}: tracker sigma {sigma_mm!r} mm is not a positive "
+                            "number")
+        return replace(self, sigma_mm=None,
+                       meta={**self.meta, "tracker_sigma_mm": repr(sigma_mm)})
+
     @property
     def capture(self) -> CaptureMeta:
         """What the file's metadata says about its capture (tool, frame, run...)."""

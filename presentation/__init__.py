@@ -15,6 +15,14 @@ plot_base    what the figures share: style, Stage, deterministic PNGs, binned me
 residual_points  the poses as a fit sees them (joint-equivalent residual, lever arm, torque)
 provenance   Provenance: software, date, data file and SHA-256, run id, model
 ridge_plot   plot_ridge: L-curve, GCV and ridge trace of a ridge fit
-summaries    fit_summary (calibrate --json), zero_summary (zero --json)
+summaries    fit_summary, calibration_summary (calibrate --json), zero_summary (zero --json)
 plan_figure  plan_figure: a capture plan with the robot, the tracker and the beams
+text_table   table, fmt: plain-text tables and numbers for the command line
+calibration_text   calibrate's text; tool_text, blunder_lines (shared with diagnose)
+diagnosis_text     diagnose's ranking, and the steps of diagnose --auto
+report_summary     what report prints about the page (text, --json)
+compensation_text  compensate's CSV, text, export lines and --json object
+history_text       history's tables and --json object
+simulation_text    the line simulate prints
+models_text        the table of built-in models
 """

@@ -1,6 +1,8 @@
 """The JSON objects the command line prints for a result of the calibration core
-(docs/formats.md §4): :func:`fit_summary` (``calibrate --json``) and :func:`zero_summary`
-(``zero --json``). Numbers rounded and units in degrees where a person reads them."""
+(docs/formats.md §4): :func:`fit_summary` (a fit), :func:`calibration_summary`
+(``calibrate --json``: the fit, its parameters, the baseline, a Monte-Carlo check) and
+:func:`zero_summary` (``zero --json``). Numbers rounded and units in degrees where a
+person reads them."""
 
 from __future__ import annotations
 
@@ -9,6 +11,8 @@ import math
 import numpy as np
 
 from calibration.identify import Fit
+from calibration.params_io import params_by_name, solver_summary
+from calibration.uncertainty import MonteCarlo, correlations
 from calibration.zero_point import ZeroResult, assess
 
 
@@ -39,6 +43,40 @@ def fit_summary(fit: Fit) -> dict:
         }
     )
     return out
+
+
+def calibration_summary(fit: Fit, baseline: Fit, *, params_file: str | None,
+                        mc: MonteCarlo | None = None, ridge_plot: str | None = None) -> dict:
+    """The ``calibrate --json`` object (docs/formats.md §4): :func:`fit_summary`, the
+    parameters by name, the blunders, the uncalibrated ``baseline``, the strongest
+    correlations, the solver's details and a Monte-Carlo check (``mc``)."""
+    out = fit_summary(fit)
+    out["params_file"] = params_file
+    out["params"] = params_by_name(fit)
+    out["weakly_identified"] = fit.weakly_identified()
+    out["outliers"] = fit.outliers.to_json() if fit.outliers else []
+    if fit.outliers:
+        out["outlier_check"] = fit.outliers.check_json()
+    out["uncalibrated"] = {"calib": baseline.calib, "valid": baseline.valid}
+    out["strongest_correlations"] = correlations(fit)["strongest"]
+    info = solver_summary(fit)
+    if info:
+        out["solver_info"] = info
+    if mc is not None:
+        out["monte_carlo"] = monte_carlo_summary(mc, fit)
+    if ridge_plot:
+        out["ridge_plot"] = ridge_plot
+    return out
+
+
+def monte_carlo_summary(mc: MonteCarlo, fit: Fit) -> dict:
+    """The ``monte_carlo`` object of ``calibrate --json``."""
+    return {
+        "n": int(mc.samples.shape[0]), "sigma_mm": mc.sigma_mm, "n_failed": mc.n_failed,
+        "parameters": mc.rows(fit),
+        "position_uncertainty_mm": {k: mc.position[k] for k in ("mean_mm", "max_mm")},
+        "position_uncertainty_mc_mm": {k: mc.position_mc[k] for k in ("mean_mm", "max_mm")},
+    }
 
 
 def zero_summary(result: ZeroResult, model_name: str, n_poses: int, *, tolerance_deg: float,

@@ -1,10 +1,12 @@
 """The ``cellcal`` sub-commands: each parses its arguments, calls the layer below with typed
-inputs and prints; none passes the argparse namespace on.
+inputs and prints; none passes the argparse namespace on. calibrate, diagnose, report,
+compensate, simulate, models and history build a typed request, call one use-case
+function (:mod:`cellcal.usecases`) and print what :mod:`presentation` makes of its result.
 
 Modules (sub-command in brackets)
-    ``common``            shared helpers: loading inputs with user-facing errors, the guards
-                          on outputs (never an input, never a run store) and on numbers,
-                          printing
+    ``common``            shared helpers: the argparse types of numbers, shared options,
+                          printing; the guard on outputs and opening a store (from
+                          :mod:`cellcal.usecases`)
     ``choices``           the parser's defaults and choices (equal to the core's, import-free)
     ``demo``              [demo] the whole workflow on the simulated cell
     ``capture``           [capture ROUTINE] plan, dry-run and run a routine into the store

@@ -26,3 +26,6 @@ OUTLIER_MODES = ("exclude", "flag", "keep")
 def solver_help(what: str = "identification method") -> str:
     """The ``--solver`` help text: the choices and what each is."""
     return f"{what} (default lm): " + "; ".join(f"{k}: {v}" for k, v in SOLVERS.items())
+
+#: the most poses one ``cellcal simulate`` CSV holds (calibration plus validation)
+MAX_SIMULATED_POSES = 1_000_000

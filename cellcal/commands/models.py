@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..cli import command_parser
-from .common import print_json, table
+from .common import print_json
 
 
 def register(sub) -> None:
@@ -17,18 +17,13 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from calibration import builtin_models, load_model
+    from presentation.models_text import models_table
 
-    rows = []
-    for name in builtin_models():
-        m = load_model(name)
-        reach = sum(abs(j.a) + abs(j.d) for j in m.joints)
-        rows.append({"name": name, "convention": m.convention, "joints": m.n_joints,
-                     "mass_model": m.links is not None, "reach_mm": round(reach, 1)})
+    from ..usecases.models import builtin_model_summaries
+
+    models = builtin_model_summaries()
     if args.json:
-        print_json(rows)
-        return 0
-    print(table([[r["name"], r["convention"], r["joints"], "yes" if r["mass_model"] else "no",
-                  f"{r['reach_mm']:.0f}"] for r in rows],
-                ["model", "convention", "joints", "mass model", "sum |a|+|d| mm"]))
+        print_json([m.to_json() for m in models])
+    else:
+        print(models_table(models))
     return 0

@@ -1,24 +1,11 @@
-"""``cellcal simulate``: write a measurement CSV from a simulated robot with hidden errors."""
+"""``cellcal simulate``: write a measurement CSV from a simulated robot with hidden errors
+(:mod:`cellcal.usecases.simulate`)."""
 
 from __future__ import annotations
 
-import json
-
-from ..cli import UsageError, command_parser
-from .choices import DEFAULT_EFFECTS
-from .common import (
-    bounded_float,
-    bounded_int,
-    check_outputs,
-    error_model_of,
-    input_paths,
-    load_inputs,
-    positive_float,
-    seed_int,
-)
-
-#: the most poses one simulated CSV holds
-MAX_POSES = 1_000_000
+from ..cli import command_parser
+from .choices import MAX_SIMULATED_POSES as MAX_POSES
+from .common import bounded_float, bounded_int, positive_float, seed_int
 
 
 def register(sub) -> None:
@@ -48,46 +35,15 @@ def register(sub) -> None:
     p.add_argument("--seed", type=seed_int, default=1, help="random seed (default 1)")
     p.add_argument("--out", required=True, metavar="FILE.csv", help="the CSV to write")
     p.add_argument("--truth", metavar="FILE.json", help="write the hidden parameters here")
-    p.set_defaults(func=run, data=None, json=False)
+    p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    import numpy as np
+    from presentation.simulation_text import simulation_line
 
-    from calibration.effects import display_unit
-    from calibration.files import write_atomic
-    from calibration.simulate import add_blunders, random_joints, realistic_truth, simulate
+    from ..usecases.simulate import SimulateRequest, simulate_dataset
 
-    check_outputs({"--out": args.out, "--truth": args.truth},
-                  input_paths(args, "model", "effect_file"))
-    model, _ = load_inputs(args)
-    if args.poses + args.valid > MAX_POSES:
-        raise UsageError(f"--poses plus --valid must be at most {MAX_POSES}")
-    spec = DEFAULT_EFFECTS + ("," + args.hidden if args.hidden else "")
-    em = error_model_of(model, spec, "--hidden")
-    rng = np.random.default_rng(args.seed)
-    x = realistic_truth(em, rng)
-    n = args.poses + args.valid
-    q = random_joints(model, n, rng)
-    data = simulate(em, x, q, args.sigma, rng, is_valid=np.arange(n) >= args.poses)
-    blunders = None
-    if args.blunders > 0:
-        data, blunders = add_blunders(data, args.blunders, np.random.default_rng([args.seed, 1]),
-                                      rows=~data.is_valid)
-    data.meta = {"source": f"cellcal simulate --model {args.model} --seed {args.seed}"
-                 + (f" --hidden {args.hidden}" if args.hidden else "")
-                 + (f" --blunders {args.blunders:g}" if args.blunders else ""), **data.meta}
-    data.to_csv(args.out)
-    if args.truth:
-        rows = []
-        for k, name in enumerate(em.names):
-            unit, f = display_unit(em.units[k])
-            rows.append({"name": name, "value": float(x[k] * f), "unit": unit})
-        truth = {"effects": em.labels, "parameters": rows}
-        if blunders is not None:
-            truth["blunders"] = blunders.to_json()
-        write_atomic(args.truth, json.dumps(truth, indent=1))
-    print(f"wrote {args.out}: {args.poses} calibration + {args.valid} validation poses of a "
-          f"simulated {model.name} ({','.join(em.labels)} hidden), tracker sigma {args.sigma} mm"
-          + (f"; {len(blunders.index)} blunders" if blunders is not None else ""))
+    request = SimulateRequest.from_args(args)
+    sim = simulate_dataset(request)
+    print(simulation_line(request.out, sim.data, sim.error_model, request.sigma, sim.blunders))
     return 0

@@ -1,0 +1,143 @@
+"""``compensate``: the joints and corrected Cartesian targets that make the real robot
+reach target points, from a calibration (params.json), and the exports of the calibrated
+model (:mod:`.model_exports`).
+
+:class:`CompensateRequest` is what the command was asked; :func:`compensate_targets`
+writes the exports, compensates the targets and writes the compensated CSV; it returns a
+:class:`Compensated`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydantic import Field
+
+from calibration import ErrorModel, RobotModel
+from calibration.capture_meta import CaptureMeta
+from calibration.compensation import Compensation, Targets, compensate, load_targets
+from calibration.effects import load_effect_file
+from calibration.files import write_atomic
+from calibration.params_io import capture_of, load_params
+from presentation.compensation_text import compensated_csv
+
+from ..cli import UsageError
+from ..request import Request
+from .model_exports import Exports, write_exports
+from .outputs import check_outputs, existing_paths
+
+
+class CompensateRequest(Request):
+    """The flags of ``cellcal compensate`` (defaults as the parser's)."""
+
+    targets: str | None = Field(None, alias="TARGETS.csv")
+    params: str = Field(alias="--params")
+    effect_file: tuple[str, ...] = Field((), alias="--effect-file")
+    out: str | None = Field(None, alias="--out")
+    start: str | None = Field(None, alias="--start")
+    position_only: bool = Field(False, alias="--position-only")
+    export_model: str | None = Field(None, alias="--export-model")
+    export_ur: str | None = Field(None, alias="--export-ur")
+    export_urdf: str | None = Field(None, alias="--export-urdf")
+    export_ur_yaml: str | None = Field(None, alias="--export-ur-yaml")
+    export_dh: str | None = Field(None, alias="--export-dh")
+
+    def outputs(self) -> dict[str, str | None]:
+        """Every output, by flag."""
+        return {"--out": self.out, "--export-model": self.export_model,
+                "--export-ur": self.export_ur, "--export-urdf": self.export_urdf,
+                "--export-ur-yaml": self.export_ur_yaml, "--export-dh": self.export_dh}
+
+
+@dataclass
+class Compensated:
+    """What :func:`compensate_targets` did.
+
+    Attributes
+    ----------
+    model : the calibration's nominal model (with the capture's tool)
+    capture : what the calibration's data said about their capture
+    notes : remarks for the user (a far tool, export limits, backlash without directions)
+    exports : the files exported (None: none asked)
+    targets, result : the targets read and their compensation (None without targets)
+    csv_text : the compensated CSV (written to ``--out`` when given)
+    """
+
+    model: RobotModel
+    capture: CaptureMeta
+    notes: list[str] = field(default_factory=list)
+    exports: Exports | None = None
+    targets: Targets | None = None
+    result: Compensation | None = None
+    csv_text: str | None = None
+
+
+def compensate_targets(request: CompensateRequest) -> Compensated:
+    """Export the calibrated model and compensate the targets, as ``request`` asks.
+
+    Raises
+    ------
+    UsageError, calibration.errors.InputError
+        Bad input (exit 2).
+    """
+    if not request.targets and not any(v for k, v in request.outputs().items()
+                                       if k != "--out"):
+        raise UsageError("give TARGETS.csv, --export-model, --export-ur, --export-urdf, "
+                         "--export-ur-yaml or --export-dh")
+    check_outputs(request.outputs(),
+                  existing_paths(request.params, request.targets, request.effect_file))
+    for f in request.effect_file:
+        load_effect_file(f)
+    em, x, _ = load_params(request.params)
+    done = Compensated(em.model, capture_of(request.params), notes=_tool_notes(em, x))
+    done.exports = write_exports(em, x, model_yaml=request.export_model,
+                                 ur_conf=request.export_ur, urdf=request.export_urdf,
+                                 ur_yaml=request.export_ur_yaml, dh_table=request.export_dh,
+                                 known_notes=done.notes)
+    if done.exports is not None:
+        done.notes += done.exports.notes
+    if not request.targets:
+        return done
+    t = load_targets(request.targets, em.model)
+    if "dirs" not in t.columns and any(e.family == "backlash" for e in em.effects):
+        done.notes.append(
+            "the calibration has backlash: give dir1..dirN in the targets (the direction "
+            "each joint will approach from); without them they are derived from the "
+            "targets' order")
+    start = _parse_start(request.start, em.model.n_joints) if request.start else None
+    c = compensate(em, x, t.base_p_tcp, t.q, q_start=start,
+                   keep_orientation=not request.position_only, columns=t.columns)
+    done.targets, done.result, done.csv_text = t, c, compensated_csv(t, c)
+    if request.out:
+        write_atomic(request.out, done.csv_text)
+    return done
+
+
+def _tool_notes(em: ErrorModel, x: np.ndarray) -> list[str]:
+    """A warning when the calibrated tool is far from the nominal one: a params.json from a
+    CSV without the capture's tool (its corrections would include the tool offset)."""
+    if "tool.x" not in em.names:
+        return []
+    k = em.index("tool.x")
+    tool, nominal = np.asarray(x[k:k + 3]), em.model.tool_mm()
+    if np.linalg.norm(tool - nominal) <= 5.0:
+        return []
+    return [f"the calibrated tool ({', '.join(f'{v:.1f}' for v in tool)} mm) is "
+            f"{np.linalg.norm(tool - nominal):.0f} mm from the nominal tool "
+            f"({', '.join(f'{v:g}' for v in nominal)} mm) the controller is assumed to use: "
+            "the corrections include that difference. Calibrate from a CSV that `cellcal "
+            "export` wrote (its `# tool_mm:` line), or with --model set to the controller's "
+            "tool"]
+
+
+def _parse_start(text: str, n: int) -> np.ndarray:
+    """``--start``: n comma-separated angles, deg, as radians."""
+    try:
+        v = [float(s) for s in text.split(",")]
+    except ValueError:
+        raise UsageError(f"--start {text!r}: give {n} comma-separated angles in deg") from None
+    if len(v) != n or not all(math.isfinite(a) for a in v):
+        raise UsageError(f"--start needs {n} finite angles (deg), got {len(v)}")
+    return np.radians(v)
