@@ -7,6 +7,7 @@ It imports every layer below it (``calibration``, ``drivers``, ``sim_drivers``, 
 Modules
     ``cli``             the ``cellcal`` parser, its error-to-exit-code mapping
     ``commands/``       one module per ``cellcal`` sub-command (see its package)
-    ``demo_workflow``   the whole cell on the simulator, from capture to a better robot
+    ``usecases/``       one module per use case: its typed request and its function (the
+                        demo's whole cell on the simulator among them)
     ``progress``        the progress line of a capture on a terminal
 """
