@@ -23,7 +23,7 @@ from .flag_errors import aliases, build
 from .values import parse_floats
 
 
-def _numbers(n: int):
+def comma_numbers(n: int):
     """A before-validator: ``"1,2,3"`` as a tuple of ``n`` floats (None stays None)."""
     def parse(v):
         return v if v is None or isinstance(v, tuple) else tuple(parse_floats(v, n))
@@ -88,11 +88,11 @@ class CaptureArgs(Request):
     check_paths: bool = Field(False, alias="--check-paths")
     frame_run: int | None = Field(None, alias="--frame-run")
     dry_run: bool = Field(False, alias="--dry-run")
-    tracker_at: Annotated[Point | None, _numbers(3)] = Field(None, alias="--tracker-at")
+    tracker_at: Annotated[Point | None, comma_numbers(3)] = Field(None, alias="--tracker-at")
     cell: str | None = Field(None, alias="--cell")
     no_visibility: bool = Field(False, alias="--no-visibility")
     plot: str | None = Field(None, alias="--plot")
-    meteo: Annotated[Point | None, _numbers(3)] = Field(None, alias="--meteo")
+    meteo: Annotated[Point | None, comma_numbers(3)] = Field(None, alias="--meteo")
     reflector: str | None = Field(None, alias="--reflector")
     two_face_tol_mm: float | None = Field(None, gt=0, alias="--two-face-tol-mm")
     no_two_face_check: bool = Field(False, alias="--no-two-face-check")

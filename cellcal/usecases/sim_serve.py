@@ -16,7 +16,7 @@ from pydantic import Field
 from ..cli import UsageError
 from ..commands.sim_serve import DEFAULT_PORTS, PORT_FLAGS
 from ..request import Request
-from .capture import Point, _numbers
+from .capture import Point, comma_numbers
 
 
 def ports_of(args) -> dict[str, int]:
@@ -43,7 +43,7 @@ class SimServeRequest(Request):
 
     seed: int = Field(0, alias="--seed")
     model: str = Field("ur10e", alias="--model")
-    tracker_at: Annotated[Point | None, _numbers(3)] = Field(None, alias="--tracker-at")
+    tracker_at: Annotated[Point | None, comma_numbers(3)] = Field(None, alias="--tracker-at")
     cell: str | None = Field(None, alias="--cell")
     hidden: str | None = Field(None, alias="--hidden")
     faults: str | None = Field(None, alias="--faults")
