@@ -461,6 +461,39 @@ def load_params(path: str | Path, *, model: RobotModel | None = None
     return p.error_model, p.values, p.std
 
 
+# ---------------------------------------------------------------- zero-point update
+def with_zero_offsets(doc: dict, offsets_rad, source: str = "<params>") -> dict:
+    """A params document (as read, unknown keys kept) with joint zero corrections applied:
+    each ``geometric.jN.theta`` shifted by offset N (rad; written in degrees), and the
+    update recorded in ``history`` as ``{"zero_point": {"offsets_deg": [...]}}``.
+
+    Raises
+    ------
+    ParamsError
+        The document has no ``geometric.jN.theta`` for a joint (no geometric effect).
+    """
+    out = json.loads(json.dumps(doc))  # a deep copy of plain JSON
+    rows = {r["name"]: r for r in out["parameters"]}
+    for j, v in enumerate(offsets_rad):
+        name = f"geometric.j{j + 1}.theta"
+        if name not in rows:
+            raise ParamsError(f"{source}: no parameter {name} (no geometric effect); write a "
+                              "model YAML instead")
+        rows[name]["value"] = rows[name]["value"] + math.degrees(v)
+    out.setdefault("history", []).append(
+        {"zero_point": {"offsets_deg": [math.degrees(v) for v in offsets_rad]}})
+    return out
+
+
+def write_zero_update(params_path: str | Path, out: str | Path, offsets_rad) -> None:
+    """Write ``out`` (atomically): the params file ``params_path`` with the joint zero
+    corrections ``offsets_rad`` applied (:func:`with_zero_offsets`)."""
+    doc = _read_json(params_path)
+    write_atomic(out, json.dumps(with_zero_offsets(doc, offsets_rad, str(params_path)),
+                                 indent=1) + "\n")
+
+
 __all__ = ["FORMAT", "VERSION", "LoadedParams", "ParamsError", "auto_steps_json", "capture_of",
            "fit_to_dict", "load_params", "params_by_name", "params_from_dict", "params_json",
-           "read_auto_steps", "read_outliers", "read_params", "save_params", "solver_summary"]
+           "read_auto_steps", "read_outliers", "read_params", "save_params", "solver_summary",
+           "with_zero_offsets", "write_zero_update"]

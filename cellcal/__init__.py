@@ -7,7 +7,8 @@ It imports every layer below it (``calibration``, ``drivers``, ``sim_drivers``, 
 Modules
     ``cli``             the ``cellcal`` parser, its error-to-exit-code mapping
     ``commands/``       one module per ``cellcal`` sub-command (see its package)
-    ``demo_workflow``   the whole cell on the simulator, from capture to a better robot
+    ``usecases/``       one module per use case: its typed request and its function (the
+                        demo's whole cell on the simulator among them)
     ``progress``        the progress line of a capture on a terminal
     ``request``         typed requests: what a command was asked, naming the user's flags
     ``url_schemes``     the URL schemes the application adds to the drivers' (``sim://``)

@@ -11,6 +11,9 @@ Modules (sub-command in brackets)
     ``demo``              [demo] the whole workflow on the simulated cell
     ``capture``           [capture ROUTINE] plan, dry-run and run a routine into the store
     ``routine_args``      the command-line options of each capture routine
+    ``capture_flags``     the flags capture and resume share (store, devices, executor, tracker)
+    ``motion_prompt``     asking before anything moves (capture, resume)
+    ``run_outcome``       the progress line and the printed outcome of a run (capture, resume)
     ``runs``              [runs] list the runs of a store, or show one
     ``resume``            [resume] continue an interrupted run
     ``export_run``        [export] a run's samples as a measurement or postures CSV

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..cli import UsageError, command_parser
+from ..cli import command_parser
 from .common import bounded_int, seed_int
 
 
@@ -37,24 +37,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from calibration.effects import EffectError, parse_effect
-    from calibration.model_loading import load_model
+    from ..progress import Progress
+    from ..usecases.demo import DemoRequest, demo
 
-    if args.poses < 50 or args.valid < 20:
-        raise UsageError("--poses must be >= 50 and --valid >= 20")
-    if args.hidden:
-        try:
-            parse_effect(args.hidden, load_model("ur10e"))
-        except EffectError as e:
-            raise UsageError(f"--hidden {args.hidden!r}: {e}") from None
-    from pathlib import Path
-
-    from ..demo_workflow import DemoFolderError, check_demo_folder, run_demo
-
-    try:
-        check_demo_folder(Path(args.out), args.force)
-    except DemoFolderError as e:
-        raise UsageError(str(e)) from None
-    result = run_demo(args.out, seed=args.seed, hidden=args.hidden, poses=args.poses,
-                      valid=args.valid, progress=not args.quiet, force=args.force)
+    result = demo(DemoRequest.from_args(args), say=lambda text: print(text, flush=True),
+                  progress=None if args.quiet else Progress)
     return 0 if result.found == result.hidden else 1

@@ -30,8 +30,8 @@ from __future__ import annotations
 
 import sys
 
-from ..cli import UsageError, command_parser
-from .common import check_outputs, positive_int
+from ..cli import command_parser
+from .common import positive_int
 
 
 def register(sub) -> None:
@@ -64,61 +64,28 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from daq.run_data import dataset_from_run
-    from daq.store import StoreError
+    from ..usecases.export_run import ExportRequest, export_run
 
-    from .common import open_store, store_errors
-
-    check_outputs({"--out": args.out}, [args.db], stdout=True)
-    store = open_store(args.db, read_only=True)
-    with store, store_errors(args.db):
-        if args.postures:
-            return _postures(store, args)
-        try:
-            r = store.run(args.run_id)
-            extra = None
-            if args.all_readings:
-                data, reading, reason = dataset_from_run(store, r.id, sigma_mode=args.sigma_mode,
-                                                         all_readings=True)
-                extra = {"reading": reading, "reason": reason}
-            else:
-                data = dataset_from_run(store, r.id, sigma_mode=args.sigma_mode)
-        except StoreError as e:
-            raise UsageError(str(e)) from None
-        text = data.to_csv(None if args.out == "-" else args.out, extra=extra)
-        if args.out == "-":
-            sys.stdout.write(text)
-        else:
-            note = "" if r.status == "completed" else f" (run is {r.status})"
-            what = f"{data.n}/{r.n_points} points"
-            if extra is not None:
-                n_rej = extra["reading"].count("rejected")
-                what = f"{data.n - n_rej}/{r.n_points} points and {n_rej} rejected readings"
-            unresolved = store.remeasure_counts(r.id)["unresolved"]
-            if unresolved:
-                note += (f" ({unresolved} unresolved point(s) left out: their readings agree "
-                         "neither with each other nor with the model)")
-            print(f"run {r.id}: {what} written to {args.out}{note}", file=sys.stderr)
-        return 0
-
-
-def _postures(store, args) -> int:
-    """Write a zero20 run's postures CSV (docs/formats.md §1)."""
-    from daq.run_data import postures_from_run
-    from daq.store import StoreError
-
-    try:
-        post, r = postures_from_run(store, args.run_id)  # default: the latest zero20
-    except StoreError as e:
-        raise UsageError(str(e)) from None
-    from daq.run_data import run_meta
-
-    meta = {"run": r.id, "routine": r.routine, **run_meta(store, r), "plan_hash": r.plan_hash,
-            "robot": r.robot_url or "", "tracker": r.tracker_url or ""}
-    text = post.to_csv(None if args.out == "-" else args.out, meta=meta)
-    if args.out == "-":
-        sys.stdout.write(text)
+    res = export_run(ExportRequest.from_args(args))
+    if res.text is not None:
+        sys.stdout.write(res.text)
     else:
-        print(f"run {r.id}: {post.n} postures written to {args.out} (tips in the "
-              f"{post.tip_frame} frame)", file=sys.stderr)
+        print(written(res, args.out), file=sys.stderr)
     return 0
+
+
+def written(res, out: str) -> str:
+    """``run 3: 120/120 points written to data.csv``: what an export wrote, and what it
+    left out."""
+    if res.postures:
+        return (f"run {res.run_id}: {res.rows} postures written to {out} (tips in the "
+                f"{res.tip_frame} frame)")
+    note = "" if res.status == "completed" else f" (run is {res.status})"
+    what = f"{res.rows}/{res.n_points} points"
+    if res.rejected is not None:
+        what = (f"{res.rows - res.rejected}/{res.n_points} points and {res.rejected} rejected "
+                "readings")
+    if res.unresolved:
+        note += (f" ({res.unresolved} unresolved point(s) left out: their readings agree "
+                 "neither with each other nor with the model)")
+    return f"run {res.run_id}: {what} written to {out}{note}"

@@ -17,23 +17,10 @@ from __future__ import annotations
 import sys
 
 from ..cli import command_parser
-from .capture import (
-    EXEC_FLAGS,
-    add_common,
-    add_tracker_flags,
-    check_urls,
-    confirm_motion,
-    executor_options,
-    flag_values,
-    metavar,
-    run_and_report,
-    tracker_setup,
-)
+from .capture_flags import EXEC_FLAGS, add_common, add_flag_table, add_tracker_flags
 from .common import positive_int
-from .routine_args import ROUTINE_ARGS
-
-#: every routine's acquisition flags (given, they apply to a run of that routine)
-ACQUIRE_FLAGS = [f for spec in ROUTINE_ARGS.values() for f in spec.acquire_flags]
+from .motion_prompt import confirm_with
+from .routine_args import ACQUIRE_FLAGS
 
 
 def register(sub) -> None:
@@ -49,8 +36,7 @@ def register(sub) -> None:
                    help="the run to continue (default: the latest run of the store)")
     add_common(p, resume=True)
     add_tracker_flags(p, resume=True)
-    for flag, _, typ, hlp in EXEC_FLAGS + ACQUIRE_FLAGS:
-        p.add_argument(flag, type=typ, default=None, help=hlp, metavar=metavar(typ))
+    add_flag_table(p, EXEC_FLAGS + ACQUIRE_FLAGS)
     p.add_argument("--other-cell", action="store_true",
                    help="the robot or tracker given is not the run's (another model or "
                    "serial number): start a new run of the same plan with them instead of "
@@ -59,45 +45,28 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from daq.service import prepare_resume, resume_run
-    from daq.store.leases import Leases
+    from ..usecases.resume import ResumeArgs, resume
+    from .run_outcome import print_outcome, with_progress
 
-    from ..cli import UsageError
-    from .common import open_store
+    req = ResumeArgs.from_args(args)
 
-    executor_options(flag_values(args, EXEC_FLAGS))  # checked before anything else
-    check_urls(args.robot, args.tracker)
-    store = open_store(args.db, synchronous=args.synchronous)
-    try:
-        with Leases(store) as leases:
-            res = prepare_resume(store, args.run_id, robot_url=args.robot,
-                                 tracker_url=args.tracker, leases=leases,
-                                 robot_id=args.robot_id)
-            r = res.run
-            if res.completed:
-                print(f"run {r.id} is already completed ({res.done}/{r.n_points} points)",
-                      file=sys.stderr)
-                return 0
-            try:
-                setup = tracker_setup(args, r.context.tracker.model_dump())
-            except ValueError as e:
-                raise UsageError(str(e)) from None
+    def started(r, run_id: int, done: int) -> None:
+        if args.json:
+            return
+        if run_id != r.id:
+            print(f"run {run_id}: the plan of run {r.id} ({r.routine}, {r.n_points} "
+                  "points) in another cell", file=sys.stderr)
+        else:
+            print(f"run {run_id}: resuming {r.routine}, {done}/{r.n_points} points "
+                  "stored", file=sys.stderr)
 
-            def started(run_id: int, done: int) -> None:
-                if args.json:
-                    return
-                if run_id != r.id:
-                    print(f"run {run_id}: the plan of run {r.id} ({r.routine}, {r.n_points} "
-                          "points) in another cell", file=sys.stderr)
-                else:
-                    print(f"run {run_id}: resuming {r.routine}, {done}/{r.n_points} points "
-                          "stored", file=sys.stderr)
-
-            return run_and_report("resume", args.json, lambda progress: resume_run(
-                store, res, executor=flag_values(args, EXEC_FLAGS),
-                acquire=flag_values(args, ROUTINE_ARGS[r.routine].acquire_flags),
-                tracker_setup=setup, progress=progress, on_started=started, leases=leases,
-                other_cell=args.other_cell, confirm=lambda cell, robot, tracker:
-                confirm_motion(cell, [robot, tracker], args.yes)))
-    finally:
-        store.close()
+    result, failed = with_progress("resume", args.json, lambda progress: resume(
+        req, progress=progress, on_started=started, confirm=confirm_with(args.yes)))
+    if failed is not None:
+        return failed
+    if result.outcome is None:
+        r = result.resumable.run
+        print(f"run {r.id} is already completed ({result.resumable.done}/{r.n_points} points)",
+              file=sys.stderr)
+        return 0
+    return print_outcome(result.outcome, args.json)

@@ -6,7 +6,8 @@ routine's ``make_plan`` keyword arguments (a pure conversion: no I/O; a run a fl
 to, like zero20's ``--replay RUN``, stays a reference the service resolves), and
 ``acquire_flags`` are the flags of the routine's acquisition options ``(flag, option,
 type, help)``, given to ``capture`` and ``resume``. Common flags (``--seed``,
-``--floor-z-mm``, ``--max-reach-mm``...) come from :mod:`cellcal.commands.capture`.
+``--floor-z-mm``, ``--max-reach-mm``...) come from :mod:`cellcal.commands.capture`; the
+executor's and the devices' from :mod:`cellcal.commands.capture_flags`.
 """
 
 from __future__ import annotations
@@ -14,18 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-
-def floats(text: str | None, n: int | None, what: str) -> list[float] | None:
-    """Parse ``"1,2,3"`` into floats (exactly ``n`` when given); ValueError naming ``what``."""
-    if text is None:
-        return None
-    try:
-        v = [float(s) for s in str(text).replace(" ", "").split(",") if s]
-    except ValueError:
-        raise ValueError(f"{what}: expected comma-separated numbers, got {text!r}") from None
-    if n is not None and len(v) != n:
-        raise ValueError(f"{what}: expected {n} numbers, got {len(v)}")
-    return v
+from ..usecases.values import floats
 
 
 @dataclass(frozen=True)
@@ -205,3 +195,6 @@ ROUTINE_ARGS = {
     "iso9283": RoutineArgs(_iso9283_add, _iso9283_params, "pose accuracy and repeatability "
                            "cycles (ISO 9283 cube points).", _ISO9283),
 }
+
+#: every routine's acquisition flags (given to ``resume``, they apply to a run of that routine)
+ACQUIRE_FLAGS = [f for spec in ROUTINE_ARGS.values() for f in spec.acquire_flags]

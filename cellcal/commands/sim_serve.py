@@ -14,14 +14,15 @@ import signal
 import sys
 import threading
 
-from ..cli import UsageError, add_subcommands, command_parser
+from ..cli import add_subcommands, command_parser
 from .common import bounded_float, bounded_int, nonneg_float, seed_int
 
 #: the default ports (also in :data:`sim_drivers.serve.DEFAULT_PORTS`, kept equal by
-#: tests/cellcal/test_cli_help.py): Modbus robot, line robot, line tracker, emScon tracker
+#: tests/cellcal/test_cli_help.py) and their flags: Modbus robot, line robot, line tracker,
+#: emScon tracker
 DEFAULT_PORTS = {"modbus": 15020, "line_robot": 15021, "tracker": 15700, "emscon": 15701}
-_PORT_FLAGS = {"modbus": "--modbus-port", "line_robot": "--line-robot-port",
-               "tracker": "--tracker-port", "emscon": "--emscon-port"}
+PORT_FLAGS = {"modbus": "--modbus-port", "line_robot": "--line-robot-port",
+              "tracker": "--tracker-port", "emscon": "--emscon-port"}
 
 
 def register(sub) -> None:
@@ -63,7 +64,7 @@ def register(sub) -> None:
     s.add_argument("--port-base", type=bounded_int(0, 65532), default=None, metavar="N",
                    help="serve on ports N (Modbus robot), N+1 (line robot), N+2 (tracker), "
                    "N+3 (emScon); 0: any free ports")
-    for name, flag in _PORT_FLAGS.items():
+    for name, flag in PORT_FLAGS.items():
         s.add_argument(flag, type=bounded_int(0, 65535), default=None, metavar="PORT",
                        help=f"port of the {name.replace('_', ' ')} server (default "
                        f"{DEFAULT_PORTS[name]}; 0: any free port)")
@@ -83,23 +84,6 @@ def register(sub) -> None:
     s.set_defaults(func=run)
 
 
-def ports(args) -> dict[str, int]:
-    """The ports asked for: the defaults, or from --port-base, then the port flags."""
-    out = dict(DEFAULT_PORTS)
-    if args.port_base is not None:
-        out = {name: args.port_base + k if args.port_base else 0
-               for k, name in enumerate(DEFAULT_PORTS)}
-    for name in DEFAULT_PORTS:
-        v = getattr(args, _PORT_FLAGS[name].lstrip("-").replace("-", "_"))
-        if v is not None:
-            out[name] = v
-    bad = {name: v for name, v in out.items() if not 0 <= v <= 65535}
-    if bad:
-        raise UsageError("ports must be 0..65535 (0: any free port), got "
-                         + ", ".join(f"{k} {v}" for k, v in bad.items()))
-    return out
-
-
 def export_line(urls: list[str]) -> str:
     """``export R='modbus+tcp://...' T='tracker+tcp://...'``: the robot and tracker URLs the
     README's commands use, ready to paste."""
@@ -109,67 +93,22 @@ def export_line(urls: list[str]) -> str:
 
 
 def run(args) -> int:
-    from calibration.cell import load_cell
-    from sim_drivers.serve import ServeConfig, SimStack
+    from ..usecases.sim_serve import SimServeRequest, serve_cell
 
-    from .routine_args import floats
+    req = SimServeRequest.from_args(args)
 
-    if args.hidden and args.model != "toy":
-        from calibration import EffectError, load_model, parse_effects
+    def ready(urls: list[str], notes: list[str]) -> None:
+        for url in urls:
+            print(url)
+        print(export_line(urls))
+        for note in notes:
+            print(f"cellcal sim: {note}", file=sys.stderr)
+        sys.stdout.flush()
 
-        model = load_model(args.model)  # a bad model: ModelError, exit 2
-        try:
-            parse_effects(args.hidden, model)
-        except EffectError as e:
-            raise UsageError(f"--hidden {args.hidden!r}: {e}") from None
-    config = ServeConfig(seed=args.seed, hidden=args.hidden, faults=args.faults,
-                         time_scale=args.time_scale, host=args.host, ports=ports(args),
-                         pty=not args.no_pty, rtde=not args.no_rtde, any_port=args.any_port)
-    try:
-        tracker_at = floats(args.tracker_at, 3, "--tracker-at")
-        cell = load_cell(args.cell) if args.cell else None
-    except ValueError as e:
-        raise UsageError(str(e)) from None
-    if args.model == "toy":
-        from sim_drivers.inprocess import default_truth as factory
-    else:
-        from sim_drivers.model_truth import DEFAULT_TRACKER_AT_MM, ModelTruth
-
-        at = tracker_at or (cell.tracker_mm if cell is not None and cell.tracker is not None
-                            else DEFAULT_TRACKER_AT_MM)
-        axis = (0.0, 0.0, 1.0) if cell is None else cell.smr.axis
-
-        def factory(seed, hidden):
-            return ModelTruth.from_spec(args.model, hidden, seed, tracker_at=at, smr_axis=axis)
-
-    try:
-        stack = SimStack(config, truth_factory=factory, cell=cell,
-                         weather_station=not args.no_weather_station,
-                         tracker_collimation_rad=args.tracker_collimation_urad * 1e-6,
-                         warmup_s=args.tracker_warmup_s)
-    except ValueError as e:  # ModelError and EffectError are ValueErrors too
-        raise UsageError(str(e)) from e
     stop = threading.Event()
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
     try:
-        try:
-            stack.start()
-        except ValueError as e:  # PortInUse
-            raise UsageError(str(e)) from None
-        try:
-            for url in stack.urls:
-                print(url)
-            print(export_line(stack.urls))
-            for note in stack.notes:
-                print(f"cellcal sim: {note}", file=sys.stderr)
-            sys.stdout.flush()
-            try:
-                while not stop.wait(0.2):
-                    pass
-            except KeyboardInterrupt:
-                pass
-        finally:
-            stack.stop()
+        serve_cell(req, stop, ready)
     finally:
         signal.signal(signal.SIGTERM, previous)
     print("cellcal sim: stopped", file=sys.stderr)

@@ -2,7 +2,8 @@
 :class:`cellcal.request.Request`, its fields named by the flags) and one function that
 does the work and returns a typed result; the command module parses, calls it and prints
 what :mod:`presentation` makes of the result. A use-case function prints nothing (its
-remarks are returned as notes) and raises the layers' errors (UsageError, the core's
+remarks are returned as notes, or passed to a callback as they come; progress
+likewise) and raises the layers' errors (UsageError, the core's
 input errors, InsufficientData).
 
 Imported inside a command's ``run`` (they import pydantic and the calibration core; the
@@ -25,4 +26,15 @@ model_exports       write_exports: the calibrated model as YAML, URDF, UR files,
 simulate            SimulateRequest, simulate_dataset: a measurement CSV of a simulated robot
 models              builtin_model_summaries: the built-in robot models
 history             HistoryRequest, robot_history: a robot's calibrations over time
+values              parsing of comma-separated numbers (no heavy imports)
+flag_errors         a model's validation errors reported with the user's flags
+capture             [capture] plan, dry-run and run a routine into the run store
+resume              [resume] continue an interrupted run
+runs                [runs] the runs of a store, or one in detail
+export_run          [export] a run's samples or postures as CSV
+zero                [zero] joint zero offsets from 20 postures (zero_inputs: the
+                    postures, the chain and the replayed offsets)
+sim_serve           [sim serve] the simulated cell behind its wire protocols
+demo                [demo] the whole workflow on the simulated cell (demo_folder: the
+                    guard on its output folder)
 """

@@ -232,3 +232,31 @@ def test_a_user_effect_replaces_a_builtin_only_when_it_says_so(tmp_path):
     finally:
         effects.REGISTRY.clear()
         effects.REGISTRY.update(registry)
+
+
+def test_zero_offsets_shift_the_joint_angles_and_are_recorded(fitted, tmp_path):
+    from calibration.params_io import with_zero_offsets, write_zero_update
+
+    p, out = tmp_path / "p.json", tmp_path / "rezeroed.json"
+    save_params(fitted, p)
+    doc = json.loads(p.read_text())
+    doc["unknown_key"] = {"kept": True}
+    p.write_text(json.dumps(doc))
+    offsets = np.radians([0.0, 0.1, -0.2, 0.0, 0.3, 0.0])
+    write_zero_update(p, out, offsets)
+    new = json.loads(out.read_text())
+    before = {r["name"]: r["value"] for r in doc["parameters"]}
+    after = {r["name"]: r["value"] for r in new["parameters"]}
+    for j, deg in enumerate([0.0, 0.1, -0.2, 0.0, 0.3, 0.0]):
+        name = f"geometric.j{j + 1}.theta"
+        assert after[name] == pytest.approx(before[name] + deg)
+    assert {k: v for k, v in after.items() if ".theta" not in k} == {
+        k: v for k, v in before.items() if ".theta" not in k}
+    assert new["history"][-1]["zero_point"]["offsets_deg"] == pytest.approx(
+        [0.0, 0.1, -0.2, 0.0, 0.3, 0.0])
+    assert new["unknown_key"] == {"kept": True} and "history" not in doc
+    load_params(out)  # still a valid params file
+    no_geometric = {**doc, "parameters": [r for r in doc["parameters"]
+                                          if not r["name"].startswith("geometric.")]}
+    with pytest.raises(ParamsError, match=r"no parameter geometric.j1.theta .*model YAML"):
+        with_zero_offsets(no_geometric, offsets, "p.json")

@@ -5,15 +5,15 @@ import json
 import pytest
 
 from cellcal.cli import main
-from cellcal.demo_workflow import DEMO_EFFECTS, pick_hidden, run_demo
+from cellcal.usecases.demo import DEMO_EFFECTS, pick_hidden, run_demo
 
 
 @pytest.mark.slow
 def test_demo_finds_the_hidden_effect_and_reaches_the_noise_floor(tmp_path):
     hidden = pick_hidden(3)
     with open(tmp_path / "demo.txt", "w") as stream:
-        r = run_demo(tmp_path / "demo", seed=3, poses=150, valid=60, progress=False,
-                     stream=stream)
+        r = run_demo(tmp_path / "demo", seed=3, poses=150, valid=60, progress=None,
+                     say=lambda text: print(text, file=stream, flush=True))
     assert r.hidden == hidden and r.found == hidden
     final = list(r.rms.values())[-1]
     assert final < 1.15 * r.noise_floor_mm
@@ -57,7 +57,7 @@ def test_the_demo_writes_only_into_a_folder_it_owns(tmp_path):
     run store the demo did not create. A folder of an earlier demo is the demo's."""
     import pytest
 
-    from cellcal.demo_workflow import DemoFolderError, check_demo_folder
+    from cellcal.usecases.demo_folder import DemoFolderError, check_demo_folder
 
     check_demo_folder(tmp_path / "new")  # a folder still to be made
     mine = tmp_path / "mine"

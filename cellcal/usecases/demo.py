@@ -6,16 +6,20 @@ hidden physical effect) behind its wire protocols on loopback, connects the real
 captures calibration and validation poses into a SQLite run store, exports the
 measurement CSV, calibrates the default model, diagnoses, lets the automatic diagnosis
 add the missing effects one at a time, and writes the HTML report, which tells that story
-step by step.
+step by step. :func:`demo` is the use case of ``cellcal demo``: its :class:`DemoRequest`
+checked, then :func:`run_demo`.
 """
 
 from __future__ import annotations
 
 import json
-import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
+
+from pydantic import Field
 
 from calibration import load_csv
 from calibration.auto_diagnosis import auto_diagnose
@@ -27,12 +31,14 @@ from daq.run_data import dataset_from_run
 from daq.service import CaptureRequest, plan_run, start_run
 from daq.store import RunStore, RunSummary
 from drivers.urls import open_robot, open_tracker
+from presentation.demo_text import before_after
 from presentation.html_report import render_report, story_stages
 from presentation.provenance import Provenance
 from sim_drivers.model_truth import ModelTruth
 from sim_drivers.serve import ServeConfig, SimStack
 
-from .progress import Progress
+from ..request import Request
+from .demo_folder import MANIFEST_KEY, DemoFolderError, check_demo_folder
 
 #: hidden effects the demo draws from (by seed): each 0.05-0.5 mm at the tool
 DEMO_EFFECTS = ("compliance:3", "compliance:2", "harmonic:1", "backlash:2", "scale:3",
@@ -43,51 +49,8 @@ DEMO_EFFECTS = ("compliance:3", "compliance:2", "harmonic:1", "backlash:2", "sca
 #: simulated cell puts it (:data:`~sim_drivers.model_truth.DEFAULT_TRACKER_AT_MM`)
 TRACKER_AT_MM = (2500.0, 0.0, 500.0)
 
-#: the files the demo writes in its folder (with SQLite's side files of the store); it
-#: writes no others and replaces these only in a folder it made (see check_demo_folder)
-DEMO_FILES = ("cell.db", "cell.db-wal", "cell.db-shm", "cell.db-journal", "capture.csv",
-              "params.json", "report.html", "demo.json")
-#: marks demo.json as the demo's manifest
-MANIFEST_KEY = "cellcal_demo"
-
-
-class DemoFolderError(ValueError):
-    """The demo's output folder holds files the demo did not write (exit 2)."""
-
-
-def _manifest(folder: Path) -> dict | None:
-    """The demo's manifest (demo.json) in ``folder``, or None when there is none."""
-    try:
-        doc = json.loads((folder / "demo.json").read_text())
-    except (OSError, ValueError):
-        return None
-    return doc if isinstance(doc, dict) and isinstance(doc.get("files"), dict) else None
-
-
-def check_demo_folder(out: Path, force: bool = False) -> None:
-    """Refuse an output folder the demo would damage.
-
-    A folder holding files the demo did not write (no demo manifest, or files besides
-    :data:`DEMO_FILES`) is refused unless ``force``; even then a run store the demo did
-    not create (``cell.db`` without the demo's manifest) is never deleted."""
-    if out.exists() and not out.is_dir():
-        raise DemoFolderError(f"--out {out}: a file, not a folder; give a new or empty folder")
-    if not out.exists():
-        return
-    entries = sorted(p.name for p in out.iterdir())
-    manifest = _manifest(out)
-    foreign = [e for e in entries if manifest is None or e not in DEMO_FILES]
-    if foreign and not force:
-        shown = ", ".join(foreign[:5]) + (f" and {len(foreign) - 5} more" if len(foreign) > 5
-                                          else "")
-        raise DemoFolderError(
-            f"--out {out} holds files the demo did not write ({shown}); give a new or empty "
-            "folder, or --force to write the demo's files (capture.csv, params.json, "
-            "report.html, ...) there anyway")
-    if manifest is None and (out / "cell.db").exists():
-        raise DemoFolderError(
-            f"--out {out}: cell.db there is a run store the demo did not create; the demo "
-            "never deletes one, even with --force: give another folder")
+#: a progress reporter per capture: called with (done, total, last_error), then closed
+ProgressFactory = Callable[[], Any]
 
 
 @dataclass
@@ -116,14 +79,14 @@ def pick_hidden(seed: int) -> str:
 
 
 def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | None = None,
-             poses: int = 300, valid: int = 150, progress: bool = True,
-             stream=None, force: bool = False) -> DemoResult:
-    """Run the demo; returns what it measured. ``stream`` receives the step-by-step text.
+             poses: int = 300, valid: int = 150, progress: ProgressFactory | None = None,
+             say: Callable[[str], None] | None = None, force: bool = False) -> DemoResult:
+    """Run the demo; returns what it measured. ``say`` receives the step-by-step text, line
+    by line; ``progress()`` makes each capture's progress reporter (None: none).
 
     :class:`DemoFolderError` for a folder holding other files (see
     :func:`check_demo_folder`; ``force`` writes there anyway, never over a foreign store).
     """
-    stream = stream or sys.stdout
     t_start = time.perf_counter()
     out = Path(out)
     check_demo_folder(out, force)
@@ -137,8 +100,9 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     for name in ("cell.db", "cell.db-wal", "cell.db-shm", "cell.db-journal"):
         (out / name).unlink(missing_ok=True)
 
-    def say(text: str = "") -> None:
-        print(text, file=stream, flush=True)
+    if say is None:
+        def say(text: str) -> None:
+            pass
 
     truth = ModelTruth.from_spec("ur10e", hidden, seed)
     model = truth.model  # what the controller knows: nominal UR10e, SMR on a 60 mm holder
@@ -224,25 +188,9 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
                     "report": str(report_path)}
     write_atomic(out / "demo.json",
                  json.dumps({MANIFEST_KEY: 1, **result.to_json()}, indent=1) + "\n")
-    say()
+    say("")
     say(before_after(result))
     return result
-
-
-def before_after(r: DemoResult) -> str:
-    """The closing table: validation RMS stage by stage against the noise floor."""
-    labels = list(r.rms)
-    width = max(len(s) for s in labels)
-    lines = [f"{'model':<{width}}  RMS on the validation poses"]
-    for label in labels:
-        lines.append(f"{label:<{width}}  {r.rms[label]:8.4f} mm  "
-                     f"({r.rms[label] / r.noise_floor_mm:5.2f} x noise floor)")
-    lines.append(f"{'noise floor':<{width}}  {r.noise_floor_mm:8.4f} mm  (sqrt(3) x tracker sigma)")
-    verdict = ("found it" if r.found == r.hidden else
-               f"the diagnosis proposed {r.found or 'nothing'}")
-    lines.append(f"hidden effect: {r.hidden} -> {verdict}; {r.seconds:.0f} s in all; "
-                 f"open {r.files.get('report', 'report.html')}")
-    return "\n".join(lines)
 
 
 def _capture(store, routine, params, model, robot, tracker, urls, progress, seed,
@@ -253,12 +201,47 @@ def _capture(store, routine, params, model, robot, tracker, urls, progress, seed
     request = CaptureRequest(routine=routine, model=model.name, params=params, seed=seed,
                              tracker_at=tracker_at)
     planned = plan_run(request, model=model, db=store.path)
-    prog = Progress(enabled=progress)
+    prog = progress() if progress else None
     try:
         out = start_run(store, planned, robot_url=urls[0], tracker_url=urls[1],
                         devices=(robot, tracker), progress=prog)
     finally:
-        prog.close()
+        if prog is not None:
+            prog.close()
     if out.status != "completed":
         raise RuntimeError(f"{routine} run {out.run_id} {out.status}: {out.reason}")
     return out.run_id
+
+
+class DemoRequest(Request):
+    """The demo's cell (``seed``, ``hidden``: default chosen by the seed), its folder
+    (``force``: one holding other files), and the calibration and validation poses."""
+
+    seed: int = Field(1, alias="--seed")
+    hidden: str | None = Field(None, alias="--hidden")
+    out: str = Field("cellcal-demo", alias="--out")
+    poses: int = Field(300, ge=50, alias="--poses")
+    valid: int = Field(150, ge=20, alias="--valid")
+    force: bool = Field(False, alias="--force")
+
+
+def demo(req: DemoRequest, *, say: Callable[[str], None] | None = None,
+         progress: ProgressFactory | None = None) -> DemoResult:
+    """Check the request (the hidden effect, the folder: UsageError), then
+    :func:`run_demo`."""
+    from calibration.effects import EffectError, parse_effect
+    from calibration.model_loading import load_model
+
+    from ..cli import UsageError
+
+    if req.hidden:
+        try:
+            parse_effect(req.hidden, load_model("ur10e"))
+        except EffectError as e:
+            raise UsageError(f"--hidden {req.hidden!r}: {e}") from None
+    try:
+        check_demo_folder(Path(req.out), req.force)
+    except DemoFolderError as e:
+        raise UsageError(str(e)) from None
+    return run_demo(req.out, seed=req.seed, hidden=req.hidden, poses=req.poses,
+                    valid=req.valid, progress=progress, say=say, force=req.force)

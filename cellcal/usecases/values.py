@@ -1,0 +1,29 @@
+"""Values the user types as text: ``"1,2,3"`` as numbers.
+
+Free of heavy imports: the parser's helpers (:mod:`cellcal.commands.routine_args`) use it
+too.
+"""
+
+from __future__ import annotations
+
+
+def parse_floats(text: str, n: int | None = None) -> list[float]:
+    """``"1,2,3"`` as floats (exactly ``n`` when given); ValueError saying what was
+    expected."""
+    try:
+        v = [float(s) for s in str(text).replace(" ", "").split(",") if s]
+    except ValueError:
+        raise ValueError(f"expected comma-separated numbers, got {text!r}") from None
+    if n is not None and len(v) != n:
+        raise ValueError(f"expected {n} numbers, got {len(v)}")
+    return v
+
+
+def floats(text: str | None, n: int | None, what: str) -> list[float] | None:
+    """:func:`parse_floats` of ``text`` (None stays None); ValueError naming ``what``."""
+    if text is None:
+        return None
+    try:
+        return parse_floats(text, n)
+    except ValueError as e:
+        raise ValueError(f"{what}: {e}") from None
