@@ -20,7 +20,7 @@ the traceback).
 Start-up is kept short (``--help`` and argument errors well under 0.3 s): building the
 parser imports no numpy, scipy, matplotlib or pydantic. A command module imports what
 its work needs inside its ``run`` function, and the parser's constants (default effects,
-solver names, routine summaries) come from :mod:`cellcal.commands.choices`, which
+solver names, routine summaries) come from :mod:`cellcal.flags.choices`, which
 ``tests/cellcal/test_cli_help.py`` keeps equal to the calibration core's. The error
 families are caught only once their module is loaded (:func:`_Loaded`).
 """
@@ -31,9 +31,10 @@ import argparse
 import errno
 import importlib
 import os
-import re
 import sys
-import textwrap
+
+from .commands.parsers import HelpFormatter, add_subcommands
+from .errors import UsageError
 
 #: sub-command modules, in the order ``cellcal --help`` lists them
 COMMANDS = [
@@ -54,26 +55,6 @@ COMMANDS = [
 ]
 
 
-class UsageError(Exception):
-    """Bad input from the user: printed without a traceback, exit code 2."""
-
-    exit_code = 2
-
-
-class HelpFormatter(argparse.HelpFormatter):
-    """Descriptions and epilogs keep their paragraphs (blank-line separated) and their
-    indented lines (examples); option defaults are said by the help texts themselves."""
-
-    def _fill_text(self, text, width, indent):
-        out = []
-        for para in re.split(r"\n\s*\n", text.strip("\n")):
-            if para.startswith("  "):  # an example block: kept as written
-                out.append("\n".join(indent + line for line in para.splitlines()))
-            else:
-                out.append(textwrap.fill(" ".join(para.split()), width,
-                                         initial_indent=indent, subsequent_indent=indent))
-        return "\n\n".join(out)
-
 
 
 class _Version(argparse.Action):
@@ -89,22 +70,6 @@ class _Version(argparse.Action):
         print(software_version())
         parser.exit()
 
-
-def add_subcommands(parser: argparse.ArgumentParser, dest: str, metavar: str):
-    """Sub-parsers of ``parser``; without one given, the command prints ``parser``'s help
-    (see :func:`main`) instead of an error."""
-    sub = parser.add_subparsers(dest=dest, metavar=metavar, title="commands"
-                                if dest == "command" else None)
-    parser.set_defaults(func=None, help_parser=parser)
-    return sub
-
-
-def command_parser(sub, name: str, *, help: str, description: str | None = None,
-                   epilog: str | None = None) -> argparse.ArgumentParser:
-    """A sub-command parser with the project's formatter; its description defaults to the
-    one-line ``help`` (every sub-command has one)."""
-    return sub.add_parser(name, help=help, description=description or help, epilog=epilog,
-                          formatter_class=HelpFormatter)
 
 
 def build_parser() -> argparse.ArgumentParser:

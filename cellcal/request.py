@@ -24,7 +24,7 @@ from typing import Annotated, Any, Self
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError
 
-from .cli import UsageError
+from .errors import UsageError
 
 
 def _finite(v: float) -> float:

@@ -1,17 +1,16 @@
-"""The ``cellcal`` sub-commands: each parses its arguments, calls the layer below with typed
-inputs and prints; none passes the argparse namespace on. calibrate, diagnose, report,
-compensate, simulate, models and history build a typed request, call one use-case
-function (:mod:`cellcal.usecases`) and print what :mod:`presentation` makes of its result.
+"""The ``cellcal`` sub-commands: each declares its flags, builds one typed request from
+them (:mod:`cellcal.request`), calls one use-case function (:mod:`cellcal.usecases`) and
+prints what :mod:`presentation` makes of its result; none passes the argparse namespace
+beyond its request. The flags' vocabulary (defaults, choices, flag tables) is
+:mod:`cellcal.flags`, shared with the requests.
 
 Modules (sub-command in brackets)
     ``common``            shared helpers: the argparse types of numbers, shared options,
                           printing; the guard on outputs and opening a store (from
                           :mod:`cellcal.usecases`)
-    ``choices``           the parser's defaults and choices (equal to the core's, import-free)
+    ``parsers``           the help formatter, sub-command parsers and command groups
     ``demo``              [demo] the whole workflow on the simulated cell
     ``capture``           [capture ROUTINE] plan, dry-run and run a routine into the store
-    ``routine_args``      the command-line options of each capture routine
-    ``capture_flags``     the flags capture and resume share (store, devices, executor, tracker)
     ``motion_prompt``     asking before anything moves (capture, resume)
     ``run_outcome``       the progress line and the printed outcome of a run (capture, resume)
     ``runs``              [runs] list the runs of a store, or show one

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from ..cli import command_parser
-from .choices import DEFAULT_EFFECTS, OUTLIER_MODES, SOLVERS, solver_help
+from ..flags.choices import DEFAULT_EFFECTS, OUTLIER_MODES, SOLVERS, solver_help
 from .common import add_model_args, bounded_int, print_json, print_note, seed_int
+from .parsers import command_parser
 
 
 def register(sub) -> None:

@@ -24,10 +24,10 @@ from __future__ import annotations
 
 import sys
 
-from ..cli import add_subcommands, command_parser
-from .capture_flags import EXEC_FLAGS, add_common, add_flag_table, add_tracker_flags
+from ..flags.capture_flags import EXEC_FLAGS, add_common, add_flag_table, add_tracker_flags
+from ..flags.routine_args import ROUTINE_ARGS
 from .motion_prompt import confirm_motion, confirm_with
-from .routine_args import ROUTINE_ARGS
+from .parsers import add_subcommands, command_parser
 
 __all__ = ["confirm_motion", "register", "run"]
 

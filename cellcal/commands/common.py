@@ -18,16 +18,15 @@ The commands' typed requests and the functions that do their work are in
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import math
 import sys
 from pathlib import Path
 
-from ..cli import UsageError
+from ..flags.choices import DB_HELP, DEFAULT_EFFECTS, solver_help
+from ..usecases.input_errors import wrap_errors
 from ..usecases.outputs import check_outputs, existing_paths
-from ..usecases.stores import open_store
-from .choices import DEFAULT_EFFECTS, solver_help
+from ..usecases.stores import open_store, store_errors
 
 __all__ = ["DB_HELP", "MODEL_HELP", "add_current_model_args", "add_model_args", "bounded_float",
            "bounded_int", "check_outputs", "finite_float", "fmt", "input_paths", "nonneg_float",
@@ -103,7 +102,7 @@ def add_current_model_args(p, params_help: str, solver_what: str = "identificati
                            ) -> None:
     """``--effects``, ``--params`` and ``--solver``: the current model, as
     :func:`calibration.workflow.current_fit` takes it (given parameters, or fitted)."""
-    from .choices import SOLVERS
+    from ..flags.choices import SOLVERS
 
     p.add_argument("--effects", default=DEFAULT_EFFECTS, metavar="LIST",
                    help=f"the current model's effects, comma-separated (default "
@@ -116,18 +115,6 @@ def add_current_model_args(p, params_help: str, solver_what: str = "identificati
 def print_note(text: str) -> None:
     """A remark for the user on stderr (stdout stays for results and JSON)."""
     print(f"note: {text}", file=sys.stderr)
-
-
-def wrap_errors(fn, *exc):
-    """Run fn(); turn the given exception types into UsageError."""
-    from calibration import DataError, ModelError
-    from calibration.effects import EffectError
-    from calibration.params_io import ParamsError
-
-    try:
-        return fn()
-    except (ModelError, DataError, EffectError, ParamsError, *exc) as e:
-        raise UsageError(str(e)) from None
 
 
 def print_json(obj) -> None:
@@ -158,23 +145,3 @@ def table(rows: list[list[str]], header: list[str], left: tuple[int, ...] = (0,)
     return text_table(rows, header, left)
 
 
-@contextlib.contextmanager
-def store_errors(path):
-    """Turn a store that cannot be read (damage found late: ``PATH: damaged run store``)
-    into a UsageError; a server gone away is left to say so itself (transient). ``path``
-    is the store as given: the store's own message names it already."""
-    from daq.store import StoreError, StoreUnavailable
-
-    del path
-
-    try:
-        yield
-    except StoreUnavailable:
-        raise
-    except StoreError as e:
-        raise UsageError(str(e)) from None
-
-
-#: the ``--db`` help of every command that reads or writes a run store
-DB_HELP = ("run store: a SQLite file or a PostgreSQL URL postgresql://user@host[:port]/db "
-           "(password from PGPASSWORD or ~/.pgpass)")

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import sys
 
-from ..cli import command_parser
 from .common import print_json
+from .parsers import command_parser
 
 
 def register(sub) -> None:

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from ..cli import command_parser
 from .common import bounded_int, seed_int
+from .parsers import command_parser
 
 
 def register(sub) -> None:

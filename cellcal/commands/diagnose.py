@@ -4,7 +4,6 @@
 
 from __future__ import annotations
 
-from ..cli import command_parser
 from .common import (
     add_current_model_args,
     add_model_args,
@@ -13,6 +12,7 @@ from .common import (
     print_json,
     print_note,
 )
+from .parsers import command_parser
 
 
 def register(sub) -> None:

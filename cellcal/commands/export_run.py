@@ -30,8 +30,8 @@ from __future__ import annotations
 
 import sys
 
-from ..cli import command_parser
 from .common import positive_int
+from .parsers import command_parser
 
 
 def register(sub) -> None:

@@ -17,8 +17,8 @@ input (no such store or robot). The work is :mod:`cellcal.usecases.history`'s, t
 
 from __future__ import annotations
 
-from ..cli import command_parser
 from .common import positive_float
+from .parsers import command_parser
 
 #: flag a change larger than this many combined sigma (:data:`calibration.history.DEFAULT_SIGMA`,
 #: kept equal by tests/cellcal/test_cli_help.py)

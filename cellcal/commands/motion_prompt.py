@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 
-from ..cli import UsageError
+from ..errors import UsageError
 
 
 def confirm_motion(cell, urls: list[str], yes: bool, stdin=None, stderr=None) -> None:

@@ -5,8 +5,8 @@ data file and SHA-256, capture run, model) (:mod:`cellcal.usecases.report`)."""
 
 from __future__ import annotations
 
-from ..cli import command_parser
 from .common import add_current_model_args, add_model_args, print_json, print_note
+from .parsers import command_parser
 
 
 def register(sub) -> None:

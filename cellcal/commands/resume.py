@@ -16,11 +16,11 @@ from __future__ import annotations
 
 import sys
 
-from ..cli import command_parser
-from .capture_flags import EXEC_FLAGS, add_common, add_flag_table, add_tracker_flags
+from ..flags.capture_flags import EXEC_FLAGS, add_common, add_flag_table, add_tracker_flags
+from ..flags.routine_args import ACQUIRE_FLAGS
 from .common import positive_int
 from .motion_prompt import confirm_with
-from .routine_args import ACQUIRE_FLAGS
+from .parsers import command_parser
 
 
 def register(sub) -> None:

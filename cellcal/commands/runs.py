@@ -9,8 +9,8 @@ reading was out of line with the running model and re-measured (:mod:`daq.remeas
 
 from __future__ import annotations
 
-from ..cli import command_parser
 from .common import positive_int
+from .parsers import command_parser
 
 
 def register(sub) -> None:

@@ -14,15 +14,9 @@ import signal
 import sys
 import threading
 
-from ..cli import add_subcommands, command_parser
+from ..flags.sim_ports import DEFAULT_PORTS, PORT_FLAGS
 from .common import bounded_float, bounded_int, nonneg_float, seed_int
-
-#: the default ports (also in :data:`sim_drivers.serve.DEFAULT_PORTS`, kept equal by
-#: tests/cellcal/test_cli_help.py) and their flags: Modbus robot, line robot, line tracker,
-#: emScon tracker
-DEFAULT_PORTS = {"modbus": 15020, "line_robot": 15021, "tracker": 15700, "emscon": 15701}
-PORT_FLAGS = {"modbus": "--modbus-port", "line_robot": "--line-robot-port",
-              "tracker": "--tracker-port", "emscon": "--emscon-port"}
+from .parsers import add_subcommands, command_parser
 
 
 def register(sub) -> None:

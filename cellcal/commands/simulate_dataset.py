@@ -3,9 +3,9 @@
 
 from __future__ import annotations
 
-from ..cli import command_parser
-from .choices import MAX_SIMULATED_POSES as MAX_POSES
+from ..flags.choices import MAX_SIMULATED_POSES as MAX_POSES
 from .common import bounded_float, bounded_int, positive_float, seed_int
+from .parsers import command_parser
 
 
 def register(sub) -> None:

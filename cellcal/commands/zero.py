@@ -24,8 +24,8 @@ convergence), 2 bad input.
 
 from __future__ import annotations
 
-from ..cli import command_parser
 from .common import positive_float, positive_int, print_json, print_note, seed_int, table
+from .parsers import command_parser
 
 #: tip scatter per axis of taught postures, mm (:data:`calibration.zero_point.DEFAULT_SIGMA_MM`,
 #: kept equal by tests/cellcal/test_cli_help.py)

@@ -12,6 +12,7 @@ nothing heavy at load.
 
 Modules
 -------
+input_errors        wrap_errors: a reader's input error as a usage error (light at import)
 inputs              the measurement CSV, its model and the current model: request fields
                     and loaders (calibrate, diagnose, report)
 outputs             check_outputs: the guard on output paths; existing_paths

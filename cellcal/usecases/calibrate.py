@@ -21,7 +21,7 @@ from calibration.params_io import read_params, save_params
 from calibration.uncertainty import MonteCarlo, monte_carlo
 from calibration.workflow import fit_uncalibrated
 
-from ..cli import UsageError
+from ..errors import UsageError
 from .calibration_record import open_history_store, record_calibration
 from .inputs import DataInputs, check_data, error_model_of, load_inputs
 from .outputs import check_outputs, existing_paths

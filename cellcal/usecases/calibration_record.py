@@ -12,7 +12,7 @@ from calibration.identify import Fit
 from calibration.params_io import fit_to_dict
 from daq.store import RunStore, StoreError, open_store
 
-from ..cli import UsageError
+from ..errors import UsageError
 
 
 def open_history_store(address: str) -> RunStore:

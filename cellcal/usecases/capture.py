@@ -15,12 +15,12 @@ from typing import Annotated, Any, Self
 
 from pydantic import AfterValidator, BeforeValidator, Field
 
-from ..cli import UsageError
-from ..commands.capture_flags import EXEC_FLAGS, flag_values
-from ..commands.routine_args import ROUTINE_ARGS
+from ..errors import UsageError
+from ..flags.capture_flags import EXEC_FLAGS, flag_values
+from ..flags.routine_args import ROUTINE_ARGS
+from ..flags.values import parse_floats
 from ..request import Request
 from .flag_errors import aliases, build
-from .values import parse_floats
 
 
 def comma_numbers(n: int):
@@ -66,7 +66,7 @@ def check_urls(robot: str | None, tracker: str | None) -> None:
 
 class CaptureArgs(Request):
     """What ``cellcal capture ROUTINE`` was asked (docs: ``cellcal capture ROUTINE
-    --help``). ``params`` are the routine's own (:mod:`cellcal.commands.routine_args`),
+    --help``). ``params`` are the routine's own (:mod:`cellcal.flags.routine_args`),
     ``executor`` and ``acquire`` the settings given (attribute -> value)."""
 
     routine: str = Field(alias="ROUTINE")

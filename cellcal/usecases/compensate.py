@@ -23,7 +23,7 @@ from calibration.files import write_atomic
 from calibration.params_io import capture_of, load_params
 from presentation.compensation_text import compensated_csv
 
-from ..cli import UsageError
+from ..errors import UsageError
 from ..request import Request
 from .model_exports import Exports, write_exports
 from .outputs import check_outputs, existing_paths

@@ -232,7 +232,7 @@ def demo(req: DemoRequest, *, say: Callable[[str], None] | None = None,
     from calibration.effects import EffectError, parse_effect
     from calibration.model_loading import load_model
 
-    from ..cli import UsageError
+    from ..errors import UsageError
 
     if req.hidden:
         try:

@@ -23,7 +23,7 @@ from calibration.identify import Fit
 from calibration.params_io import fit_to_dict
 from calibration.workflow import current_fit
 
-from ..cli import UsageError
+from ..errors import UsageError
 from ..request import FiniteFloat
 from .inputs import CurrentModelInputs, DataInputs, check_data, current_model, load_inputs
 from .outputs import check_outputs, existing_paths

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from pydantic import Field
 
-from ..cli import UsageError
+from ..errors import UsageError
 from ..request import Request
 
 
@@ -88,7 +88,8 @@ def _samples(store, req: ExportRequest) -> ExportResult:
 def export_run(req: ExportRequest) -> ExportResult:
     """Write the run's CSV (``req.out`` checked first: never the store, never an input).
     UsageError for a missing store, an unknown run, a damaged store."""
-    from ..commands.common import check_outputs, open_store, store_errors
+    from .outputs import check_outputs
+    from .stores import open_store, store_errors
 
     check_outputs({"--out": req.out}, [req.db], stdout=True)
     store = open_store(req.db, read_only=True)

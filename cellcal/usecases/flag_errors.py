@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ValidationError
 
-from ..cli import UsageError
+from ..errors import UsageError
 
 
 def aliases(request: type[BaseModel]) -> dict[str, str]:

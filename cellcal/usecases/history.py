@@ -23,7 +23,7 @@ from calibration.history import (
 from daq.store import Calibration, StoreError
 from presentation.history_text import flagged_rows
 
-from ..cli import UsageError
+from ..errors import UsageError
 from ..request import FiniteFloat, Request
 from .outputs import check_outputs
 from .stores import open_store

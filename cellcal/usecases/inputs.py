@@ -17,8 +17,9 @@ from pydantic import Field
 
 from calibration.effects import DEFAULT_EFFECTS
 
-from ..cli import UsageError
+from ..errors import UsageError
 from ..request import FiniteFloat, Request
+from .input_errors import wrap_errors  # noqa: F401 - the loaders' error wrapper
 
 if TYPE_CHECKING:
     from calibration import Dataset, ErrorModel, RobotModel

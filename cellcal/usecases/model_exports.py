@@ -21,7 +21,7 @@ from calibration.model_export import calibrated_model, write_model_yaml, write_u
 from calibration.parity import Parity, model_file_parity
 from calibration.urdf_export import mount_note, write_urdf
 
-from ..cli import UsageError
+from ..errors import UsageError
 
 
 @dataclass(frozen=True)

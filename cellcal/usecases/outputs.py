@@ -11,7 +11,7 @@ import os
 from collections.abc import Iterable
 from pathlib import Path
 
-from ..cli import UsageError
+from ..errors import UsageError
 
 
 def _same_file(a: Path, b: Path) -> bool:

@@ -18,7 +18,7 @@ from pydantic import Field
 from presentation.html_report import Report, ReportError, build_report
 from presentation.provenance import Provenance
 
-from ..cli import UsageError
+from ..errors import UsageError
 from .inputs import CurrentModelInputs, DataInputs, check_data, current_model, load_inputs
 from .outputs import check_outputs, existing_paths
 

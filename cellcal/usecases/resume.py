@@ -13,12 +13,12 @@ from typing import Any, Self
 
 from pydantic import Field
 
-from ..cli import UsageError
-from ..commands.capture_flags import EXEC_FLAGS, flag_values
-from ..commands.routine_args import ACQUIRE_FLAGS, ROUTINE_ARGS
+from ..errors import UsageError
+from ..flags.capture_flags import EXEC_FLAGS, flag_values
+from ..flags.routine_args import ACQUIRE_FLAGS, ROUTINE_ARGS
+from ..flags.values import floats
 from ..request import Request
 from .capture import check_urls, executor_options, tracker_setup
-from .values import floats
 
 
 class ResumeArgs(Request):
@@ -76,7 +76,7 @@ def resume(req: ResumeArgs, *, progress=None,
     from daq.service import prepare_resume, resume_run
     from daq.store.leases import Leases
 
-    from ..commands.common import open_store
+    from .stores import open_store
 
     store = open_store(req.db, synchronous=req.synchronous)
     try:

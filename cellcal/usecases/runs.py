@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 from pydantic import Field
 
-from ..cli import UsageError
+from ..errors import UsageError
 from ..request import Request
 
 
@@ -74,7 +74,7 @@ def _detail(store, run_id: int) -> RunDetail:
 def read_runs(req: RunsRequest) -> RunListing | RunDetail:
     """Run ``req.run_id`` in detail, or the list of the store's runs (read-only; a missing
     store, an unknown run or a damaged store is a UsageError)."""
-    from ..commands.common import open_store, store_errors
+    from .stores import open_store, store_errors
 
     store = open_store(req.db, read_only=True)
     with store, store_errors(req.db):

@@ -13,8 +13,8 @@ from typing import Annotated, Any, Self
 
 from pydantic import Field
 
-from ..cli import UsageError
-from ..commands.sim_serve import DEFAULT_PORTS, PORT_FLAGS
+from ..errors import UsageError
+from ..flags.sim_ports import DEFAULT_PORTS, PORT_FLAGS
 from ..request import Request
 from .capture import Point, comma_numbers
 

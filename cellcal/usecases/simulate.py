@@ -24,8 +24,8 @@ from calibration.simulate import (
     simulate,
 )
 
-from ..cli import UsageError
-from ..commands.choices import MAX_SIMULATED_POSES
+from ..errors import UsageError
+from ..flags.choices import MAX_SIMULATED_POSES
 from ..request import FiniteFloat, Request
 from .inputs import error_model_of, load_model_with
 from .outputs import check_outputs, existing_paths

@@ -6,7 +6,9 @@ Imports nothing heavy at load (the store is imported when one is opened).
 
 from __future__ import annotations
 
-from ..cli import UsageError
+import contextlib
+
+from ..errors import UsageError
 
 
 def open_store(address, synchronous: str = "FULL", *, read_only: bool = False):
@@ -23,3 +25,18 @@ def open_store(address, synchronous: str = "FULL", *, read_only: bool = False):
     except (StoreError, OSError) as e:
         raise UsageError(str(e)) from None
 
+@contextlib.contextmanager
+def store_errors(path):
+    """Turn a store that cannot be read (damage found late: ``PATH: damaged run store``)
+    into a UsageError; a server gone away is left to say so itself (transient). ``path``
+    is the store as given: the store's own message names it already."""
+    from daq.store import StoreError, StoreUnavailable
+
+    del path
+
+    try:
+        yield
+    except StoreUnavailable:
+        raise
+    except StoreError as e:
+        raise UsageError(str(e)) from None

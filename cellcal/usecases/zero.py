@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
-from ..cli import UsageError
+from ..errors import UsageError
 from ..request import Request
 
 
@@ -45,12 +45,12 @@ class ZeroRequest(Request):
     def out_path(self) -> Path | None:
         """``out``, checked: never an input, a store or a folder; a .yaml or .json file (a
         .json one needs ``params``). UsageError otherwise."""
-        from ..commands.common import check_outputs, input_paths
+        from .outputs import check_outputs, existing_paths
 
         if not self.out:
             return None
-        check_outputs({"--out": self.out}, input_paths(
-            self, "model", "params", "postures", "replay", "db", "effect_file"))
+        check_outputs({"--out": self.out}, existing_paths(
+            self.model, self.params, self.postures, self.replay, self.db, self.effect_file))
         path = Path(self.out)
         if path.suffix not in (".yaml", ".yml", ".json"):
             raise UsageError(f"--out {self.out}: give a .yaml (model) or .json (params) file")
@@ -135,8 +135,8 @@ def recalibrate_zero(req: ZeroRequest, note: Callable[[str], None] = lambda _: N
     the result are in ``doc["notes"]``). UsageError (or a reader's error) for bad input."""
     from calibration.effects import load_effect_file
 
-    from ..commands.common import wrap_errors
     from . import zero_inputs
+    from .input_errors import wrap_errors
 
     if (req.postures is None) == (req.db is None):
         raise UsageError("give a postures CSV or --db cell.db (not both)")

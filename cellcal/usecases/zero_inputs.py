@@ -17,8 +17,9 @@ from calibration import load_model
 from calibration.dataset import Dataset
 from calibration.zero_point import Postures
 
-from ..cli import UsageError
-from ..commands.common import open_store, wrap_errors
+from ..errors import UsageError
+from .input_errors import wrap_errors
+from .stores import open_store
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ and optionally
     in place of the single read-joints → measure (zero20's closed loop).
 
 A routine's command-line options (``cellcal capture ROUTINE ...``) live with the
-command line: :mod:`cellcal.commands.routine_args`.
+command line: :mod:`cellcal.flags.routine_args`.
 """
 
 from __future__ import annotations

@@ -61,8 +61,9 @@ def test_parser_constants_agree_with_the_core():
     from calibration.outliers import MODES as OUTLIER_MODES
     from calibration.solvers import SOLVERS
     from calibration.zero_point import DEFAULT_SIGMA_MM
-    from cellcal.commands import choices, history, sim_serve, zero
-    from cellcal.commands.routine_args import ROUTINE_ARGS
+    from cellcal.commands import history, sim_serve, zero
+    from cellcal.flags import choices
+    from cellcal.flags.routine_args import ROUTINE_ARGS
     from daq.routines import ROUTINES, get
     from sim_drivers.serve import DEFAULT_PORTS
 

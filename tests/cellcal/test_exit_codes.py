@@ -16,7 +16,7 @@ import daq.motion_guard
 import daq.store.errors
 import daq.store.leases
 import drivers.errors
-from cellcal.cli import UsageError
+from cellcal.errors import UsageError
 
 FAMILIES = [calibration.errors.CalibrationError, daq.errors.DaqError,
             daq.store.errors.StoreError, drivers.errors.DriverError, UsageError]

@@ -197,7 +197,7 @@ def test_quality_threshold_remeasures_then_gives_up(tmp_path):
 
 # ------------------------------------------------------------------ CLI
 def test_only_identified_simulators_move_without_confirmation():
-    from cellcal.cli import UsageError
+    from cellcal.errors import UsageError
 
     class NoTTY(io.StringIO):
         def isatty(self):
@@ -280,7 +280,7 @@ def test_progress_lines():
 
 # ------------------------------------------------------ layout contracts
 def test_every_routine_has_its_command_line_options():
-    from cellcal.commands.routine_args import ROUTINE_ARGS
+    from cellcal.flags.routine_args import ROUTINE_ARGS
     from daq.routines import ROUTINES
 
     assert set(ROUTINE_ARGS) == set(ROUTINES)

@@ -7,7 +7,7 @@ to, like zero20's ``--replay RUN``, stays a reference the service resolves), and
 ``acquire_flags`` are the flags of the routine's acquisition options ``(flag, option,
 type, help)``, given to ``capture`` and ``resume``. Common flags (``--seed``,
 ``--floor-z-mm``, ``--max-reach-mm``...) come from :mod:`cellcal.commands.capture`; the
-executor's and the devices' from :mod:`cellcal.commands.capture_flags`.
+executor's and the devices' from :mod:`cellcal.flags.capture_flags`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from ..usecases.values import floats
+from .values import floats
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """Values the user types as text: ``"1,2,3"`` as numbers.
 
-Free of heavy imports: the parser's helpers (:mod:`cellcal.commands.routine_args`) use it
+Free of heavy imports: the parser's helpers (:mod:`cellcal.flags.routine_args`) use it
 too.
 """
 

@@ -51,7 +51,7 @@ def flag_values(args, flags) -> dict:
 
 def add_common(p, *, resume: bool = False) -> None:
     """``--db``, ``--robot``, ``--tracker``, ``--yes``, ``--json``, ``--robot-id``."""
-    from .common import DB_HELP
+    from .choices import DB_HELP
 
     p.add_argument("--db", required=True, metavar="cell.db|URL",
                    help=DB_HELP + ("; a file is created when missing" if not resume else ""))

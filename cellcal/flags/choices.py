@@ -29,3 +29,7 @@ def solver_help(what: str = "identification method") -> str:
 
 #: the most poses one ``cellcal simulate`` CSV holds (calibration plus validation)
 MAX_SIMULATED_POSES = 1_000_000
+
+#: the ``--db`` help of every command that reads or writes a run store
+DB_HELP = ("run store: a SQLite file or a PostgreSQL URL postgresql://user@host[:port]/db "
+           "(password from PGPASSWORD or ~/.pgpass)")

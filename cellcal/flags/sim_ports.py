@@ -1,0 +1,10 @@
+"""The simulated cell's default ports and their flags (``cellcal sim serve``)."""
+
+from __future__ import annotations
+
+#: the default ports (also in :data:`sim_drivers.serve.DEFAULT_PORTS`, kept equal by
+#: tests/cellcal/test_cli_help.py) and their flags: Modbus robot, line robot, line tracker,
+#: emScon tracker
+DEFAULT_PORTS = {"modbus": 15020, "line_robot": 15021, "tracker": 15700, "emscon": 15701}
+PORT_FLAGS = {"modbus": "--modbus-port", "line_robot": "--line-robot-port",
+              "tracker": "--tracker-port", "emscon": "--emscon-port"}
