@@ -39,6 +39,7 @@ from .effects import Effect, EffectError
 from .effects.table import SMOOTHING_GRID, Table, penalised_path
 from .error_model import Bound, ErrorModel
 from .identify import Fit
+from .leverage import solve3
 
 #: knot spacings (degrees) a table candidate is tried at; GCV picks one per joint
 TABLE_SPACINGS_DEG = (10, 5, 3, 2)
@@ -129,18 +130,7 @@ def _cholesky(A: np.ndarray) -> np.ndarray:
 
 def _loo(H: np.ndarray, e: np.ndarray) -> np.ndarray:
     """Leave-one-pose-out residuals (I - H_ii)⁻¹ e_i for blocks H (..., 3, 3), e (..., 3)."""
-    return _solve3(np.eye(3) - H + 1e-12 * np.eye(3), e)
-
-
-def _solve3(A: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """x = A⁻¹ b for stacks of 3 × 3 systems (Cramer's rule, vectorised), A (..., 3, 3)."""
-    c0 = np.cross(A[..., 1, :], A[..., 2, :])
-    c1 = np.cross(A[..., 2, :], A[..., 0, :])
-    c2 = np.cross(A[..., 0, :], A[..., 1, :])
-    det = np.sum(A[..., 0, :] * c0, axis=-1)
-    det = np.where(np.abs(det) > 1e-300, det, 1e-300)
-    # A⁻¹ = [c0 c1 c2] / det (columns)
-    return (c0 * b[..., :1] + c1 * b[..., 1:2] + c2 * b[..., 2:3]) / det[..., None]
+    return solve3(np.eye(3) - H + 1e-12 * np.eye(3), e)
 
 
 @dataclass
