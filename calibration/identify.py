@@ -231,14 +231,20 @@ def _structural(error_model: ErrorModel, calib: Dataset, rtol: float):
     x_nominal = error_model.initial(bound)
     P0, J0 = error_model.evaluate(x_nominal, bound, jacobian=True)
     families = [error_model.effect_of(k).family for k in range(error_model.n_params)]
+    J2 = J0.reshape(-1, error_model.n_params)
+    groups = penalised_groups(error_model)
     ident = analyse(
-        J0.reshape(-1, error_model.n_params),
+        J2,
         error_model.names,
         np.asarray(error_model.scales),
         families,
         rtol=rtol,
         n_poses=calib.n,
-        penalised=penalised_groups(error_model),
+        penalised=groups,
+        # the normal matrix (one p x p product) instead of a QR of the 3n x p J; with
+        # penalised groups the QR: their columns need not be of full rank, and the
+        # redundancies' coefficients over them would depend on the factor's rounding
+        normal=None if groups else J2.T @ J2,
     )
     for e, st in zip(error_model.effects, bound.states, strict=True):
         for local, why in e.pinned(st).items():

@@ -79,7 +79,8 @@ class Problem:
         x = self.full(xf)
         P, J = self.evaluate(x)
         r = self.bound.data.tracker_p_smr - P
-        Jr = -J[:, :, self.free]
+        Jr = J[:, :, self.free]  # a copy: negated in place
+        np.negative(Jr, out=Jr)
         if self.weights is not None:
             w = np.sqrt(self.weights)[:, None]
             r = r * w
