@@ -242,7 +242,8 @@ class ErrorModel:
                 J[:, :, sls[i]] = block.reshape(-1, 3, n).transpose(2, 1, 0)
             grow = None if scale is None else (1.0 + scale)[:, None, None]
             for i in self._by_stage["tool"]:
-                cols = r.base_R_flange @ c.partials[i]
+                # (n, 3, 3) x (3, k) as one product, not n small ones
+                cols = np.tensordot(r.base_R_flange, c.partials[i], axes=(2, 0))
                 J[:, :, sls[i]] = cols if grow is None else cols * grow
             for i in self._by_stage["length"]:
                 lengths = dP[:, :, :, D] * table[:, D] + dP[:, :, :, A] * table[:, A]

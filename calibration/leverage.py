@@ -49,10 +49,14 @@ def residual_factors(fit, rows, included: np.ndarray, jacobian: np.ndarray | Non
 
 
 def hat_factor(C: np.ndarray) -> np.ndarray:
-    """M with ``M M^T = C`` for a symmetric positive semi-definite C (eigenvalues below
-    zero, rounding, clipped)."""
-    w, V = np.linalg.eigh(0.5 * (C + C.T))
-    return V * np.sqrt(np.clip(w, 0.0, None))
+    """M with ``M M^T = C`` for a symmetric positive semi-definite C: its Cholesky factor,
+    or (singular C) from its eigen-decomposition, eigenvalues below zero clipped."""
+    C = 0.5 * (C + C.T)
+    try:
+        return np.linalg.cholesky(C)
+    except np.linalg.LinAlgError:
+        w, V = np.linalg.eigh(C)
+        return V * np.sqrt(np.clip(w, 0.0, None))
 
 
 def studentise(r: np.ndarray, factors: np.ndarray) -> np.ndarray:
@@ -103,10 +107,17 @@ def studentised_norms(r: np.ndarray, factors: np.ndarray) -> np.ndarray:
 
 def solve3(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     """x = A⁻¹ b for stacks of 3 × 3 systems (Cramer's rule, vectorised), A (..., 3, 3)."""
-    c0 = np.cross(A[..., 1, :], A[..., 2, :])
-    c1 = np.cross(A[..., 2, :], A[..., 0, :])
-    c2 = np.cross(A[..., 0, :], A[..., 1, :])
-    det = np.sum(A[..., 0, :] * c0, axis=-1)
+    a = [[A[..., i, j] for j in range(3)] for i in range(3)]
+    # the adjugate's columns are the cross products of A's rows: A⁻¹ = [c0 c1 c2] / det
+    c0 = _cross(a[1], a[2])
+    c1 = _cross(a[2], a[0])
+    c2 = _cross(a[0], a[1])
+    det = a[0][0] * c0[0] + a[0][1] * c0[1] + a[0][2] * c0[2]
     det = np.where(np.abs(det) > 1e-300, det, 1e-300)
-    # A⁻¹ = [c0 c1 c2] / det (columns)
-    return (c0 * b[..., :1] + c1 * b[..., 1:2] + c2 * b[..., 2:3]) / det[..., None]
+    b0, b1, b2 = b[..., 0] / det, b[..., 1] / det, b[..., 2] / det
+    return np.stack([c0[i] * b0 + c1[i] * b1 + c2[i] * b2 for i in range(3)], axis=-1)
+
+
+def _cross(u: list, v: list) -> list:
+    """Cross product of two 3-vectors given as lists of their component arrays."""
+    return [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
