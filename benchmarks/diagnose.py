@@ -14,6 +14,7 @@
 
     python benchmarks/diagnose.py            # both parts
     python benchmarks/diagnose.py auto       # only the automatic loop
+    python benchmarks/diagnose.py --quick    # a tiny loop of one step: that it works
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import sys
 import time
 
 import numpy as np
+from reference_lm import textbook_lm  # beside this script
 
 from calibration import ErrorModel, identify, load_model
 from calibration.auto_diagnosis import auto_diagnose
@@ -59,7 +61,9 @@ def ranking() -> None:
               f"{statistics.median(totals) * 1000:>9.0f}  {d.best.effect if d.best else '-'}")
 
 
-def auto_loop(n: int) -> None:
+def auto_problem(n: int):
+    """The automatic loop's data: UR10e with the fifteen hidden effects, ``n`` calibration
+    + 40 % validation poses (seeded)."""
     m = load_model("ur10e")
     effects = parse_effects("geometric,base,tool," + HIDDEN, m)
     effects += [Bump(m, 2, 30.0, 4.0), Bump(m, 4, -60.0, 3.0)]
@@ -73,7 +77,13 @@ def auto_loop(n: int) -> None:
     dirs[1:] = np.sign(np.diff(q, axis=0))
     is_valid = np.zeros(total, bool)
     is_valid[rng.choice(total, nv, replace=False)] = True
-    data = simulate(em, x, q, 0.015, rng, is_valid=is_valid, dirs=dirs)
+    return simulate(em, x, q, 0.015, rng, is_valid=is_valid, dirs=dirs)
+
+
+def auto_loop(n: int, max_steps: int = 12) -> None:
+    m = load_model("ur10e")
+    data = auto_problem(n)
+    nv = int(data.is_valid.sum())
     load0 = os.getloadavg()[0]
     fit = identify(ErrorModel(m), data)
     print(f"\n--auto, {n} calibration + {nv} validation poses, 15 hidden effects "
@@ -91,15 +101,21 @@ def auto_loop(n: int) -> None:
               f"{s.seconds:>7.2f}", flush=True)
 
     show.i = 0
-    res = auto_diagnose(fit, data, max_steps=12, progress=show)
+    res = auto_diagnose(fit, data, max_steps=max_steps, progress=show)
     final = res.steps[-1].heldout_rms_mm if res.steps else res.start_heldout_rms_mm
+    _, it, ref_s = textbook_lm(res.fit.error_model, data.calib(), res.fit.free)
     print(f"total {res.total_s:.1f} s for {len(res.steps)} steps; held-out "
           f"{final / data.noise_floor_mm():.2f} x the noise floor; load average "
           f"{os.getloadavg()[0]:.1f}")
+    print(f"reference: one textbook numpy LM fit of the final model ({it} iterations) "
+          f"{ref_s:.2f} s; the loop takes {res.total_s / ref_s:.0f} x that")
     print(f"stopped: {res.stop_reason}")
 
 
 def main() -> None:
+    if "--quick" in sys.argv[1:]:  # that the script works: a tiny loop, one step
+        auto_loop(60, max_steps=1)
+        return
     if "auto" not in sys.argv[1:]:
         ranking()
     for n in (500, 2000):

@@ -11,6 +11,7 @@ sqrt(3)*sigma. The claim: pinned, the loaded time stays within 1.5x of the idle 
 
     python benchmarks/identify.py            # all sizes
     python benchmarks/identify.py 1000       # one size
+    python benchmarks/identify.py --quick    # a tiny problem, one run: that it works
 """
 
 from __future__ import annotations
@@ -67,7 +68,18 @@ def median_solve_s(em, data, runs: int, pinned: bool) -> tuple[float, object]:
     return statistics.median(f.solve_s for f in fits), fits[-1]
 
 
-def main(sizes=(100, 1000, 10000)) -> None:
+def problem(n: int, n_valid: int = 2000):
+    """The benchmark's data: UR10e, default model, ``n`` calibration + ``n_valid``
+    validation poses, sigma :data:`SIGMA` (seeded by ``n``)."""
+    m = load_model("ur10e")
+    em = ErrorModel(m)
+    rng = np.random.default_rng(n)
+    x = realistic_truth(em, rng)
+    q = random_joints(m, n + n_valid, rng)
+    return simulate(em, x, q, SIGMA, rng, is_valid=np.arange(n + n_valid) >= n)
+
+
+def main(sizes=(100, 1000, 10000), runs: int | None = None) -> None:
     m = load_model("ur10e")
     em = ErrorModel(m)
     print(f"model ur10e, effects {','.join(em.labels)}, {em.n_params} parameters, "
@@ -78,11 +90,8 @@ def main(sizes=(100, 1000, 10000)) -> None:
     print(head)
     print("-" * len(head))
     for n in sizes:
-        rng = np.random.default_rng(n)
-        x = realistic_truth(em, rng)
-        q = random_joints(m, n + 2000, rng)
-        data = simulate(em, x, q, SIGMA, rng, is_valid=np.arange(n + 2000) >= n)
-        runs = 15 if n <= 1000 else 5
+        data = problem(n)
+        n_runs = runs or (15 if n <= 1000 else 5)
         identify(em, data)  # warm-up (imports, the BLAS controller)
         tracemalloc.start()
         fit = identify(em, data)
@@ -90,15 +99,18 @@ def main(sizes=(100, 1000, 10000)) -> None:
         tracemalloc.stop()
         ratio = fit.valid["rms_mm"] / data.noise_floor_mm()
         for pinned in (True, False):
-            idle, _ = median_solve_s(em, data, runs, pinned)
+            idle, _ = median_solve_s(em, data, n_runs, pinned)
             with load(True):
-                loaded, _ = median_solve_s(em, data, runs, pinned)
+                loaded, _ = median_solve_s(em, data, n_runs, pinned)
             label = ("1 thread" if 3 * (n + 2000) * em.n_params
                      <= calibration.blas.SMALL_ELEMENTS else "default") if pinned else "default"
             print(f"{n:>6} {label:>8} {idle * 1000:>8.1f} {loaded * 1000:>10.1f} "
-                  f"{loaded / idle:>12.2f} {runs:>5} {fit.iterations:>6} {peak:>8.1f} "
+                  f"{loaded / idle:>12.2f} {n_runs:>5} {fit.iterations:>6} {peak:>8.1f} "
                   f"{ratio:>16.3f}")
 
 
 if __name__ == "__main__":
-    main(tuple(int(a) for a in sys.argv[1:]) or (100, 1000, 10000))
+    if "--quick" in sys.argv[1:]:  # that the script works: a tiny problem, one run each
+        main((30,), runs=1)
+    else:
+        main(tuple(int(a) for a in sys.argv[1:]) or (100, 1000, 10000))

@@ -100,7 +100,7 @@ class Dataset:
             self,
             q=self.q[idx],
             tracker_p_smr=self.tracker_p_smr[idx],
-            pose_id=[self.pose_id[i] for i in idx],
+            pose_id=[self.pose_id[i] for i in idx.tolist()],
             cmd=pick(self.cmd),
             temp_c=pick(self.temp_c),
             t_s=pick(self.t_s),

@@ -151,10 +151,11 @@ class ErrorModel:
             t = x[st_].copy()
             for _ in range(8):
                 R, c = fit_rigid(pf + Rf @ t, meas)
-                # meas = R (pf + Rf t) + c  ->  (R Rf) t = meas - c - R pf, linear in t
-                A = (R @ Rf).reshape(-1, 3)
-                b = (meas - c - pf @ R.T).ravel()
-                t_new = np.linalg.lstsq(A, b, rcond=None)[0]
+                # meas = R (pf + Rf t) + c  ->  (R Rf) t = meas - c - R pf, linear in t;
+                # its columns are orthonormal per pose (sum of (R Rf)ᵀ(R Rf) = n I), so
+                # the least-squares t is the mean of Rfᵀ (Rᵀ (meas - c) - pf)
+                v = (meas - c) @ R - pf
+                t_new = np.einsum("nji,nj->i", Rf, v) / len(v)
                 done = np.linalg.norm(t_new - t) < 1e-9
                 t = t_new
                 if done:
@@ -241,7 +242,8 @@ class ErrorModel:
                 J[:, :, sls[i]] = block.reshape(-1, 3, n).transpose(2, 1, 0)
             grow = None if scale is None else (1.0 + scale)[:, None, None]
             for i in self._by_stage["tool"]:
-                cols = r.base_R_flange @ c.partials[i]
+                # (n, 3, 3) x (3, k) as one product, not n small ones
+                cols = np.tensordot(r.base_R_flange, c.partials[i], axes=(2, 0))
                 J[:, :, sls[i]] = cols if grow is None else cols * grow
             for i in self._by_stage["length"]:
                 lengths = dP[:, :, :, D] * table[:, D] + dP[:, :, :, A] * table[:, A]

@@ -81,6 +81,7 @@ def analyse(
     always_free: np.ndarray | None = None,
     n_poses: int | None = None,
     penalised: list[tuple[np.ndarray, np.ndarray]] | None = None,
+    normal: np.ndarray | None = None,
 ) -> Identifiability:
     """Rank the columns of a Jacobian ``J`` (m, p) and decide which parameters are free.
 
@@ -88,9 +89,14 @@ def analyse(
     ``families`` (per parameter) sets the tie-breaking preference; ``penalised`` lists
     groups (parameter indices (k,), null space of their penalty (k, d)) determined with
     the help of a penalty (see the module docstring and :func:`penalised_groups`).
+    ``normal``: ``JᵀJ`` (p, p) when the caller has it (the solver's normal matrix at the
+    same point): the column geometry then comes from its eigen-decomposition, a p x p
+    factor ``F`` with ``FᵀF = JᵀJ``, instead of a QR of the m x p ``J`` (the same
+    geometry: a pivot is exact to ~1e-8 of a unit column, far below ``rtol``).
     """
     m, p = J.shape
-    norms = np.linalg.norm(J, axis=0)
+    norms = np.linalg.norm(J, axis=0) if normal is None else \
+        np.sqrt(np.clip(np.diag(normal), 0.0, None))
     fixed: dict[str, str] = {}
     live = norms > 1e-12 * max(float(norms.max()), 1e-300)
     for k in np.flatnonzero(~live):
@@ -101,9 +107,12 @@ def analyse(
     tiers = np.array([_tier(f) for f in (families or [""] * p)])
     # all that follows depends only on the column geometry, which the p x p triangular
     # factor of the normalised Jacobian keeps: work on it instead of the 3n x p matrix
-    scaled = np.zeros_like(J, dtype=float)
-    scaled[:, live] = J[:, live] / norms[live]
-    Jn = np.linalg.qr(scaled, mode="r") if m > p else scaled
+    if normal is not None and m > p:
+        Jn = _normal_factor(normal, norms, live)
+    else:
+        scaled = np.zeros_like(J, dtype=float)
+        scaled[:, live] = J[:, live] / norms[live]
+        Jn = np.linalg.qr(scaled, mode="r") if m > p else scaled
     free = np.zeros(p, bool)
     basis = np.zeros((Jn.shape[0], 0))
     for tier in sorted(set(tiers[live & ~in_group])):
@@ -152,6 +161,16 @@ def analyse(
     fixed = dict(sorted(fixed.items(), key=lambda kv: order[kv[0]]))
     pen_names = [names[k] for k in np.flatnonzero(free & in_group)]
     return Identifiability(free, list(names), fixed, cond, obs, pen_names)
+
+
+def _normal_factor(normal: np.ndarray, norms: np.ndarray, live: np.ndarray) -> np.ndarray:
+    """F (p, p) with ``FᵀF`` the normal matrix of the unit-normalised live columns (the
+    others zero): ``sqrt(w) Vᵀ`` from its eigen-decomposition (semi-definite: eigenvalues
+    below zero, rounding, are clipped)."""
+    s = np.where(live, 1.0 / np.where(live, norms, 1.0), 0.0)
+    G = normal * np.outer(s, s)
+    w, V = np.linalg.eigh(0.5 * (G + G.T))
+    return np.sqrt(np.clip(w, 0.0, None))[:, None] * V.T
 
 
 def _penalised_group(Jn, norms, idx, null, basis, rtol) -> dict[int, str]:

@@ -14,6 +14,7 @@ from .blas import blas_threads
 from .dataset import Dataset
 from .effects import display_unit
 from .error_model import Bound, ErrorModel
+from .heap import keep_freed_memory
 from .identifiability import Identifiability, analyse, penalised_groups
 from .outliers import MODES as OUTLIER_MODES
 from .outliers import BlunderScreen, screen_fit
@@ -55,6 +56,11 @@ class Fit:
     info : solver-specific extras (robust weights, ridge parameter...)
     outliers : the blunder test (:class:`~calibration.outliers.BlunderScreen`): the points
         left out of ``data`` (or only named), None when not tested
+    hat_factor : (m, m) M with ``covariance / sigma_mm**2 = M Mᵀ`` over the free
+        parameters (from the covariance's factorisation): a point's hat-matrix block is
+        ``Q_i Q_iᵀ`` with ``Q_i = J_i M`` (the blunder test's leverage)
+    jacobian : (n, 3, p) the Jacobian at ``values`` on the calibration rows, kept for the
+        blunder test while :func:`identify` runs (None after it)
     """
 
     error_model: ErrorModel
@@ -78,6 +84,8 @@ class Fit:
     info: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     outliers: BlunderScreen | None = None
+    hat_factor: np.ndarray | None = field(default=None, repr=False)
+    jacobian: np.ndarray | None = field(default=None, repr=False)
 
     # ---- access --------------------------------------------------------------
     @property
@@ -169,6 +177,14 @@ def covariance(J: np.ndarray, r: np.ndarray, free: np.ndarray, sigma: float | No
     RSS / (3 n - m). Penalty rows (regularised effects) join the normal matrix, so the
     covariance is that of the regularised estimate. Returns (covariance (p, p), sigma).
     """
+    return covariance_and_factor(J, r, free, sigma, penalty)[:2]
+
+
+def covariance_and_factor(J: np.ndarray, r: np.ndarray, free: np.ndarray,
+                          sigma: float | None = None,
+                          penalty: tuple[np.ndarray, np.ndarray] | None = None):
+    """:func:`covariance`, and M (m, m) with ``M Mᵀ`` the free block of the covariance over
+    sigma², from the same factorisation (see :attr:`Fit.hat_factor`)."""
     p = J.shape[-1]
     Jf = J[:, :, free].reshape(-1, int(free.sum()))
     m = Jf.shape[1]
@@ -177,16 +193,22 @@ def covariance(J: np.ndarray, r: np.ndarray, free: np.ndarray, sigma: float | No
     if penalty is not None:
         Jf = np.vstack([Jf, penalty[1][:, free]])
     cov = np.zeros((p, p))
+    M = np.zeros((m, m))
     if m:
         d = np.linalg.norm(Jf, axis=0)
         d[d == 0] = 1.0
         A = (Jf / d).T @ (Jf / d)
         try:
-            inv = scipy.linalg.cho_solve(scipy.linalg.cho_factor(A), np.eye(m))
+            U, lower = scipy.linalg.cho_factor(A)
+            inv = scipy.linalg.cho_solve((U, lower), np.eye(m))
+            # A = Uᵀ U, so A⁻¹ = U⁻¹ U⁻ᵀ
+            M = scipy.linalg.solve_triangular(np.triu(U), np.eye(m)) / d[:, None]
         except np.linalg.LinAlgError:
             inv = np.linalg.pinv(A)
+            w, V = np.linalg.eigh(0.5 * (inv + inv.T))
+            M = V * np.sqrt(np.clip(w, 0.0, None)) / d[:, None]
         cov[np.ix_(free, free)] = s2 * inv / np.outer(d, d)
-    return cov, float(np.sqrt(s2))
+    return cov, float(np.sqrt(s2)), M
 
 
 def structural_identifiability(error_model: ErrorModel, calib: Dataset, rtol: float = 1e-3
@@ -198,18 +220,31 @@ def structural_identifiability(error_model: ErrorModel, calib: Dataset, rtol: fl
     Identifiability is structural: judged at the nominal geometry, where exact
     redundancies (parallel axes) are exact, not at a warm start that blurs them.
     """
+    bound, x_nominal, ident, _ = _structural(error_model, calib, rtol)
+    return bound, x_nominal, ident
+
+
+def _structural(error_model: ErrorModel, calib: Dataset, rtol: float):
+    """:func:`structural_identifiability`, and the evaluation at the nominal geometry
+    ``(P, J)`` it made (the solver's first when it starts there)."""
     bound: Bound = error_model.bind(calib)
     x_nominal = error_model.initial(bound)
-    _, J0 = error_model.evaluate(x_nominal, bound, jacobian=True)
+    P0, J0 = error_model.evaluate(x_nominal, bound, jacobian=True)
     families = [error_model.effect_of(k).family for k in range(error_model.n_params)]
+    J2 = J0.reshape(-1, error_model.n_params)
+    groups = penalised_groups(error_model)
     ident = analyse(
-        J0.reshape(-1, error_model.n_params),
+        J2,
         error_model.names,
         np.asarray(error_model.scales),
         families,
         rtol=rtol,
         n_poses=calib.n,
-        penalised=penalised_groups(error_model),
+        penalised=groups,
+        # the normal matrix (one p x p product) instead of a QR of the 3n x p J; with
+        # penalised groups the QR: their columns need not be of full rank, and the
+        # redundancies' coefficients over them would depend on the factor's rounding
+        normal=None if groups else J2.T @ J2,
     )
     for e, st in zip(error_model.effects, bound.states, strict=True):
         for local, why in e.pinned(st).items():
@@ -217,7 +252,7 @@ def structural_identifiability(error_model: ErrorModel, calib: Dataset, rtol: fl
             k = error_model.index(name)
             ident.free[k] = False
             ident.fixed[name] = why
-    return bound, x_nominal, ident
+    return bound, x_nominal, ident, (P0, J0)
 
 
 def identify(
@@ -235,7 +270,8 @@ def identify(
     """Identify the parameters of ``error_model`` from ``data``.
 
     A small problem runs on one BLAS thread (:func:`calibration.blas.blas_threads`), so
-    ``solve_s`` does not depend on what else the machine runs.
+    ``solve_s`` does not depend on what else the machine runs; the heap keeps freed
+    memory for the next temporaries (:func:`calibration.heap.keep_freed_memory`).
 
     Parameters
     ----------
@@ -258,6 +294,7 @@ def identify(
         raise ValueError(f"unknown solver {solver!r}; available: {', '.join(SOLVERS)}")
     if outliers not in OUTLIER_MODES:
         raise ValueError(f"outliers must be one of {', '.join(OUTLIER_MODES)}, not {outliers!r}")
+    keep_freed_memory()
     with blas_threads(3 * data.n * error_model.n_params):
         return _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
                          outliers)
@@ -283,7 +320,7 @@ def _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
         held = valid if held is None else held.concat(valid)
     if calib.n == 0:
         raise ValueError(f"{data.source}: no calibration rows")
-    bound, x_nominal, ident = structural_identifiability(error_model, calib, rtol)
+    bound, x_nominal, ident, at_nominal = _structural(error_model, calib, rtol)
     x_start = x_nominal if x0 is None else np.asarray(x0, float).copy()
     for name in fixed or []:
         k = error_model.index(name)
@@ -291,14 +328,15 @@ def _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
             ident.free[k] = False
             ident.fixed[name] = "fixed by the user"
     problem = Problem(error_model, bound, x_start, ident.free.copy())
+    problem.remember(x_nominal, *at_nominal)
     result = SOLVERS[solver](problem, **(solver_options or {}))
     x = problem.full(result.xf)
-    P, J = error_model.evaluate(x, bound, jacobian=True)
+    P, J = problem.evaluate(x)  # the solver's last evaluation: no new pass
     resid = calib.tracker_p_smr - P
     weights = result.info.get("weights")
     r_w = resid if weights is None else resid * np.sqrt(weights)[:, None]
     J_w = J if weights is None else J * np.sqrt(weights)[:, None, None]
-    cov, sigma = covariance(J_w, r_w, ident.free, penalty=error_model.penalty(x))
+    cov, sigma, hat = covariance_and_factor(J_w, r_w, ident.free, penalty=error_model.penalty(x))
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     fit = Fit(
         error_model=error_model,
@@ -316,6 +354,8 @@ def _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
         iterations=result.iterations,
         history=result.history,
         info=result.info,
+        hat_factor=hat,
+        jacobian=J,
     )
     for e, st in zip(error_model.effects, bound.states, strict=True):
         fit.notes.extend(e.describe(st))
@@ -328,6 +368,7 @@ def _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
                             fixed=fixed, solver_options=solver_options, outliers="keep")
 
         fit = screen_fit(fit, outliers, refit)
+        fit.jacobian = None
     fit.solve_s = time.perf_counter() - t0
     return fit
 

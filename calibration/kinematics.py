@@ -169,9 +169,10 @@ def run_chain(
     n_rot = sum(1 for kind, _, _ in seq if kind == "r") * N
     n_tra = N * len(seq) - n_rot
     if jacobian:
-        U = np.empty((n_rot, 3, n))  # rotation axes
-        O = np.empty((n_rot, 3, n))  # a point on each
-        T = np.empty((n_tra, 3, n))  # translation directions
+        # component-major like the frames: row-wise arithmetic on (n_rot, n) planes below
+        U = np.empty((3, n_rot, n))  # rotation axes
+        O = np.empty((3, n_rot, n))  # a point on each
+        T = np.empty((3, n_tra, n))  # translation directions
     rot_at: list[tuple[int, int]] = []
     tra_at: list[tuple[int, int]] = []
 
@@ -181,8 +182,8 @@ def run_chain(
             u = cols[ax]
             if kind == "r":
                 if jacobian:
-                    U[len(rot_at)] = u
-                    O[len(rot_at)] = p
+                    U[:, len(rot_at)] = u
+                    O[:, len(rot_at)] = p
                     rot_at.append((j, col))
                 if col == THETA:
                     JA[j] = u
@@ -200,7 +201,7 @@ def run_chain(
                 cols[i1], cols[i2] = c * e1 + s * e2, c * e2 - s * e1
             else:
                 if jacobian:
-                    T[len(tra_at)] = u
+                    T[:, len(tra_at)] = u
                     tra_at.append((j, col))
                 if col == _TRAVEL and slide[j]:
                     travel = q[:, j] * PRISMATIC_MM_PER_UNIT
@@ -222,15 +223,15 @@ def run_chain(
     dP = dPi = None
     if jacobian:
         dPi = np.zeros((N, 5, 3, n))
-        D = point[None] - O
+        D = point[:, None] - O
         C = np.empty_like(U)
-        C[:, 0] = U[:, 1] * D[:, 2] - U[:, 2] * D[:, 1]
-        C[:, 1] = U[:, 2] * D[:, 0] - U[:, 0] * D[:, 2]
-        C[:, 2] = U[:, 0] * D[:, 1] - U[:, 1] * D[:, 0]
+        C[0] = U[1] * D[2] - U[2] * D[1]
+        C[1] = U[2] * D[0] - U[0] * D[2]
+        C[2] = U[0] * D[1] - U[1] * D[0]
         rj, rc = np.array(rot_at).T
-        dPi[rj, rc] = C
+        dPi[rj, rc] = C.transpose(1, 0, 2)
         tj, tc = np.array(tra_at).T
-        dPi[tj, tc] = T if grow is None else T * grow
+        dPi[tj, tc] = (T if grow is None else T * grow).transpose(1, 0, 2)
         dP = dPi.transpose(3, 2, 0, 1)
     base_R_flange = FR[N].transpose(2, 1, 0)
     result = ChainResult(

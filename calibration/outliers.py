@@ -58,6 +58,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.stats
 
+from .leverage import residual_factors, residuals_on, studentised_norms
+from .leverage import studentise as studentise
+
 #: median and MAD of the chi distribution with 3 degrees of freedom
 CHI3_MEDIAN = float(scipy.stats.chi(3).median())
 CHI3_MAD = 0.46024377
@@ -189,35 +192,6 @@ def _robust_scale(u: np.ndarray) -> float:
     return max(med / CHI3_MEDIAN, mad / CHI3_MAD)
 
 
-def residual_factors(fit, rows, included: np.ndarray) -> np.ndarray:
-    """Covariance of each residual of ``rows`` over sigma^2 at ``fit``, (n, 3, 3).
-
-    ``I - J_i C J_i^T`` for a point the fit used (``included``), ``I + J_i C J_i^T`` for
-    one it predicts, with ``C`` the fit's parameter covariance over its sigma^2 (the
-    inverse normal matrix, penalty rows included; robust weights are not).
-    """
-    em = fit.error_model
-    n = rows.n
-    s2 = float(fit.sigma_mm) ** 2
-    eye = np.broadcast_to(np.eye(3), (n, 3, 3))
-    if not np.isfinite(s2) or s2 <= 0 or not fit.free.any():
-        return eye.copy()
-    J = em.evaluate(fit.values, em.bind(rows), jacobian=True)[1][:, :, fit.free]
-    C = fit.covariance[np.ix_(fit.free, fit.free)] / s2
-    G = np.einsum("nip,pq,njq->nij", J, C, J)
-    sign = np.where(np.asarray(included, bool), -1.0, 1.0)[:, None, None]
-    return eye + sign * G
-
-
-def studentise(r: np.ndarray, factors: np.ndarray) -> np.ndarray:
-    """``M_i^(-1/2) r_i`` for residuals (n, 3) with covariance factors M (n, 3, 3); the
-    eigenvalues of M are clipped at 0.01 (a point that alone determines a direction
-    cannot be checked in it; amplify its residual at most tenfold)."""
-    w, V = np.linalg.eigh(0.5 * (factors + np.swapaxes(factors, 1, 2)))
-    w = np.clip(w, 1e-2, None)
-    return np.einsum("nij,nj->ni", V, np.einsum("nji,nj->ni", V, r) / np.sqrt(w))
-
-
 def threshold(n: int, alpha: float = ALPHA) -> float:
     """k: the chi(3) quantile at 1 - alpha / n."""
     return float(math.sqrt(scipy.stats.chi2.isf(alpha / max(n, 1), 3)))
@@ -300,7 +274,7 @@ def find_blunders(
     sigma_rms = float(np.sqrt(np.mean(s**2))) if known and n else None
     if n == 0:
         return BlunderScreen([], 0, 0, 1.0, sigma_rms, math.inf, True)
-    u = (e if leverage is None else np.linalg.norm(studentise(r, leverage), axis=1)) / s
+    u = (e if leverage is None else studentised_norms(r, leverage)) / s
     scale = _robust_scale(u)
     if known:
         scale = max(scale, 1.0)
@@ -352,8 +326,8 @@ def screen_fit(fit, mode: str, refit: Callable, **test_kw):
     seen = {out.tobytes()}
     current, rounds, settled, trial = fit, 0, True, False
     while True:
-        resid = full.tracker_p_smr - current.predict(full) if out.any() else current.residuals
-        kw["leverage"] = residual_factors(current, full, ~out)
+        resid, J = residuals_on(current, full, out)
+        kw["leverage"] = residual_factors(current, full, ~out, J)
         screen = find_blunders(resid, sig, **kw)
         if screen.clean_cloud:
             new = screen.beyond.copy()

@@ -39,6 +39,7 @@ from .effects import Effect, EffectError
 from .effects.table import SMOOTHING_GRID, Table, penalised_path
 from .error_model import Bound, ErrorModel
 from .identify import Fit
+from .leverage import solve3
 
 #: knot spacings (degrees) a table candidate is tried at; GCV picks one per joint
 TABLE_SPACINGS_DEG = (10, 5, 3, 2)
@@ -141,18 +142,7 @@ def _cholesky(A: np.ndarray) -> np.ndarray:
 
 def _loo(H: np.ndarray, e: np.ndarray) -> np.ndarray:
     """Leave-one-pose-out residuals (I - H_ii)⁻¹ e_i for blocks H (..., 3, 3), e (..., 3)."""
-    return _solve3(np.eye(3) - H + 1e-12 * np.eye(3), e)
-
-
-def _solve3(A: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """x = A⁻¹ b for stacks of 3 × 3 systems (Cramer's rule, vectorised), A (..., 3, 3)."""
-    c0 = np.cross(A[..., 1, :], A[..., 2, :])
-    c1 = np.cross(A[..., 2, :], A[..., 0, :])
-    c2 = np.cross(A[..., 0, :], A[..., 1, :])
-    det = np.sum(A[..., 0, :] * c0, axis=-1)
-    det = np.where(np.abs(det) > 1e-300, det, 1e-300)
-    # A⁻¹ = [c0 c1 c2] / det (columns)
-    return (c0 * b[..., :1] + c1 * b[..., 1:2] + c2 * b[..., 2:3]) / det[..., None]
+    return solve3(np.eye(3) - H + 1e-12 * np.eye(3), e)
 
 
 @dataclass
@@ -197,14 +187,19 @@ def effect_columns(effect: Effect, data: Dataset, bound: Bound, G: np.ndarray, e
                    x: np.ndarray) -> np.ndarray:
     """A candidate's Jacobian columns at the fit ``x`` of ``em``, (n, 3, k)."""
     if effect.stage == "joint":
-        state = effect.bind(data, bound.nominal)
-        _, partials = effect.delta(np.zeros(effect.n_params), data, state)
+        partials = _joint_partials(effect, data, bound)
         return G[:, :, effect.joint - 1, None] * partials[:, None, :]
     # other stages: evaluate the extended model once
     ext = ErrorModel(em.model, em.effects + [effect])
     xe = np.concatenate([x, np.zeros(effect.n_params)])
     _, J = ext.evaluate(xe, ext.bind(data))
     return J[:, :, em.n_params :]
+
+
+def _joint_partials(effect: Effect, data: Dataset, bound: Bound) -> np.ndarray:
+    """d(joint correction)/d(parameters) of a joint effect on ``data``, (n, k)."""
+    state = effect.bind(data, bound.nominal)
+    return effect.delta(np.zeros(effect.n_params), data, state)[1]
 
 
 def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = None,
@@ -273,7 +268,8 @@ def _evaluate(lin: Linearised, C: np.ndarray, Cv: np.ndarray | None,
     e = r[:, None] - (V3 @ c[:, :, None])[:, :, 0].T  # (3n, M)
     edf = np.sum(Minv * VtV.transpose(0, 2, 1), axis=(1, 2))
     V4 = V3.reshape(M, n, 3, k)
-    dH = (V4 @ Minv[:, None]) @ V4.transpose(0, 1, 3, 2)  # (M, n, 3, 3)
+    Y = (V3 @ Minv).reshape(M, n, 3, k)  # one product per candidate, not one per pose
+    dH = Y @ V4.transpose(0, 1, 3, 2)  # (M, n, 3, 3)
     e3 = e.T.reshape(M, n, 3)
     loo = np.sum(_loo(lin.h0[None] + dH, e3) ** 2, axis=-1).T  # (n, M)
     gain = lin.loo0[:, None] - loo
@@ -347,16 +343,22 @@ def _screen_table(lin: Linearised, joint: int, spacings) -> Screened | None:
     best = None
     curves = {}
     finest = data_gap_deg(lin.calib.q[:, joint - 1])
+    U = None
     usable = [sp for sp in spacings if sp >= finest] or [max(spacings)]
     for spacing in usable:
         if np.ptp(np.degrees(theta)) < 2 * spacing:
             continue
         table = Table.covering(em.model, joint, theta, spacing)
-        C = effect_columns(table, lin.calib, lin.bound, lin.G, em, fit.values)
+        B = _joint_partials(table, lin.calib, lin.bound)
+        C = lin.G[:, :, joint - 1, None] * B[:, None, :]  # effect_columns of a joint effect
         Cf = C.reshape(3 * n, -1)
-        V = Cf - lin.W @ (lin.W.T @ Cf)
-        CtV = Cf.T @ V
-        path = penalised_path(0.5 * (CtV + CtV.T), Cf.T @ r, V.T @ r, V.T @ V, lin.rss0,
+        # Wᵀ C = U B with U the poses' Wᵢᵀ gᵢ (m, n), computed once per joint: a third of
+        # the work of Wᵀ C over all 3n rows
+        if U is None:
+            U = np.einsum("nim,ni->mn", lin.W.reshape(n, 3, -1), lin.G[:, :, joint - 1])
+        V = Cf - lin.W @ (U @ B)
+        VtV = V.T @ V  # = Cᵀ V (the projection is idempotent), symmetric by construction
+        path = penalised_path(VtV, Cf.T @ r, V.T @ r, VtV, lin.rss0,
                               table.penalty_matrix(), SMOOTHING_GRID, 3 * n, lin.trace0)
         g = float(path["gcv"][path["best"]])
         curves[spacing] = [(float(s), float(np.sqrt(3 * v))) for s, v in

@@ -45,11 +45,13 @@ def solve_lm(
     reason, converged = f"stopped after {max_iter} iterations without converging", False
     it = 0
     for it in range(1, max_iter + 1):
-        d = np.linalg.norm(J, axis=0)
+        # the equilibrated normal matrix (J D⁻¹)ᵀ(J D⁻¹), D the column norms, from JᵀJ
+        # (no scaled copy of J)
+        JtJ = J.T @ J
+        d = np.sqrt(np.diag(JtJ))
         d[d == 0] = 1.0
-        Js = J / d
-        A = Js.T @ Js
-        g = Js.T @ r
+        A = JtJ / np.outer(d, d)
+        g = (J.T @ r) / d
         if np.max(np.abs(g)) < gtol * max(np.sqrt(cost), 1e-300):
             reason, converged = "gradient below tolerance", True
             break

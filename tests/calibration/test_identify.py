@@ -111,3 +111,42 @@ def test_statistics_and_uncertainty_shapes():
     np.testing.assert_allclose(np.diag(R), 1.0)
     assert len(fit.strongest_correlations(3)) == 3
     assert len(fit.history) == fit.iterations + 1
+
+
+@pytest.mark.parametrize("name", builtin_models())
+@pytest.mark.parametrize("effects", ["geometric,base,tool", "base,tool",
+                                     "geometric,base,tool,harmonic:1,backlash:2,scale:4"])
+def test_identifiability_from_the_normal_matrix_matches_the_qr(name, effects):
+    """identify judges identifiability from JᵀJ (the fast path): the same verdicts,
+    reasons and figures as the QR of J itself."""
+    m = load_model(name)
+    em = ErrorModel(m, effects)
+    families = [em.effect_of(k).family for k in range(em.n_params)]
+    for n in (30, 300):
+        rng = np.random.default_rng(n)
+        data = em.prepare(simulate(em, realistic_truth(em, rng), random_joints(m, n, rng),
+                                   SIGMA, rng))
+        b = em.bind(data)
+        J = em.evaluate(em.initial(b), b)[1].reshape(-1, em.n_params)
+        qr = analyse(J, em.names, em.scales, families, n_poses=n)
+        fast = analyse(J, em.names, em.scales, families, n_poses=n, normal=J.T @ J)
+        assert (fast.free == qr.free).all() and fast.fixed == qr.fixed
+        assert fast.condition_number == pytest.approx(qr.condition_number, rel=1e-6)
+        assert fast.observability_index == pytest.approx(qr.observability_index, rel=1e-6)
+
+
+def test_the_solver_reuses_the_nominal_evaluation_and_identify_its_last(monkeypatch):
+    """One chain evaluation with Jacobian per solver step: none for the identifiability
+    check's point, none after the solve."""
+    em, _, data = _dataset("ur5", 3, n_cal=200, n_val=0)
+    calls = []
+    original = ErrorModel.evaluate
+
+    def counting(self, x, bound, jacobian=True, joints=False):
+        calls.append(bool(jacobian))
+        return original(self, x, bound, jacobian, joints)
+
+    monkeypatch.setattr(ErrorModel, "evaluate", counting)
+    fit = identify(em, data, outliers="keep")
+    # the nominal point (identifiability and the solver's start), then one per iteration
+    assert sum(calls) == 1 + fit.iterations
