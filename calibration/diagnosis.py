@@ -223,7 +223,7 @@ def describe_effect(c: Candidate) -> str:
         "tracker_scale": "a tracker scale error",
         "thermal_growth": "thermal growth with the joint temperatures",
         "thermal_zero": "a zero drift with temperature",
-        "drift": "a drift of the base over time",
+        "base_drift": "a drift of the base over time",
     }
     what = names.get(c.family, f"effect {c.effect}")
     if c.joint:
@@ -254,7 +254,7 @@ def candidate_names(error_model: ErrorModel, data: Dataset) -> list[str]:
 def drift_candidates(error_model: ErrorModel, data: Dataset) -> list[str]:
     """The drift effects these data can test: ``thermal_growth`` and ``thermal_zero:J``
     where the joint temperatures change (growth only when no other effect acts at the
-    length stage), ``drift`` orders where the time does."""
+    length stage), ``base_drift`` orders where the time does."""
     out = []
     if data.joint_temp is not None and np.ptp(data.joint_temp) > 0:
         if not any(e.stage == "length" for e in error_model.effects):
@@ -262,7 +262,7 @@ def drift_candidates(error_model: ErrorModel, data: Dataset) -> list[str]:
         out += [f"thermal_zero:{j + 1}" for j in range(data.n_joints)
                 if np.ptp(data.joint_temp[:, j]) > 0]
     if data.t_s is not None and np.ptp(data.t_s) > 0:
-        out += [f"drift{k}" if k > 1 else "drift" for k in DRIFT_ORDERS]
+        out += [f"base_drift{k}" if k > 1 else "base_drift" for k in DRIFT_ORDERS]
     return out
 
 

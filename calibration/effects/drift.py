@@ -8,8 +8,8 @@ temperatures (``joint_temp1..N`` columns), two families model that directly:
                     the joint temperatures over the reference (``temp_ref_c``, 20 °C);
 ``thermal_zero:J``  joint J's zero moves by z · ΔT_J, its own temperature rise.
 
-Where only the time is known (``t_s``), ``drift`` / ``driftK`` is the honest fallback: the
-base (the robot's frame in the tracker's) translates smoothly over the capture, a
+Where only the time is known (``t_s``), ``base_drift`` / ``base_driftK`` is the fallback:
+the base (the robot's frame in the tracker's) translates smoothly over the capture, a
 polynomial of order K in time, held at its end value after the capture.
 
 All three are linear in their parameters, so their partial derivatives are exact.
@@ -27,7 +27,7 @@ from .base import Effect, EffectError, JointEffect
 
 #: the reference temperature (°C) when the data's metadata name none (``temp_ref_c``)
 DEFAULT_TEMP_REF_C = 20.0
-#: the highest polynomial order of ``driftK``
+#: the highest polynomial order of ``base_driftK``
 MAX_DRIFT_ORDER = 4
 #: metadata key of the capture's time window ("t0,t1", s), set by :meth:`Drift.prepare`
 DRIFT_WINDOW_KEY = "drift_window_s"
@@ -112,12 +112,12 @@ class Drift(Effect):
     """A slow drift of the robot's base in the measurement frame over the capture:
     ΔP(t) = Σ_k c_k · s^k, k = 1..K, s = (t - t0) / (t1 - t0) the time ``t_s`` scaled to the
     capture (the calibration rows' first and last time; 0 before, 1 after: the drift is held
-    at its end value, no polynomial is extrapolated). ``drift`` is K = 1 (linear in time),
-    ``driftK`` order K (up to 4). Parameters ``xk, yk, zk`` (mm) per order: the translation
-    each term reaches at the end of the capture. For data without joint temperatures: warm-up
-    growth, a settling floor or tracker stand, seen as a function of time only."""
+    at its end value, no polynomial is extrapolated). ``base_drift`` is K = 1 (linear in
+    time), ``base_driftK`` order K (up to 4). Parameters ``xk, yk, zk`` (mm) per order: the
+    translation each term reaches at the end of the capture. For data without joint
+    temperatures: warm-up growth, a settling floor or tracker stand, seen in time only."""
 
-    family = "drift"
+    family = "base_drift"
     stage = "drift"
     takes_order = True
     summary = ("the base moves slowly over the capture (a smooth function of time) — warm-up "
@@ -127,7 +127,7 @@ class Drift(Effect):
         super().__init__(model, joint, order)
         self.order = 1 if order is None else int(order)
         if not 1 <= self.order <= MAX_DRIFT_ORDER:
-            raise EffectError(f"drift order must be 1..{MAX_DRIFT_ORDER}, got {self.order}")
+            raise EffectError(f"base_drift order must be 1..{MAX_DRIFT_ORDER}, not {self.order}")
         self.param_names = [f"{c}{k}" for k in range(1, self.order + 1) for c in "xyz"]
         self.units = ["mm"] * len(self.param_names)
         self.scales = np.full(len(self.param_names), 0.05)
