@@ -224,6 +224,7 @@ def describe_effect(c: Candidate) -> str:
         "thermal_growth": "thermal growth with the joint temperatures",
         "thermal_zero": "a zero drift with temperature",
         "base_drift": "a drift of the base over time",
+        "time_growth": "thermal growth over time",
     }
     what = names.get(c.family, f"effect {c.effect}")
     if c.joint:
@@ -253,16 +254,19 @@ def candidate_names(error_model: ErrorModel, data: Dataset) -> list[str]:
 
 def drift_candidates(error_model: ErrorModel, data: Dataset) -> list[str]:
     """The drift effects these data can test: ``thermal_growth`` and ``thermal_zero:J``
-    where the joint temperatures change (growth only when no other effect acts at the
-    length stage), ``base_drift`` orders where the time does."""
+    where the joint temperatures change, ``time_growth`` and ``base_drift`` orders where the
+    time does (a growth only when no other effect acts at the length stage)."""
     out = []
+    free_length = not any(e.stage == "length" for e in error_model.effects)
     if data.joint_temp is not None and np.ptp(data.joint_temp) > 0:
-        if not any(e.stage == "length" for e in error_model.effects):
+        if free_length:
             out.append("thermal_growth")
         out += [f"thermal_zero:{j + 1}" for j in range(data.n_joints)
                 if np.ptp(data.joint_temp[:, j]) > 0]
     if data.t_s is not None and np.ptp(data.t_s) > 0:
-        out += [f"base_drift{k}" if k > 1 else "base_drift" for k in DRIFT_ORDERS]
+        for family in ("time_growth", "base_drift"):
+            if family == "base_drift" or free_length:
+                out += [f"{family}{k}" if k > 1 else family for k in DRIFT_ORDERS]
     return out
 
 

@@ -10,7 +10,7 @@ base       the Effect interface and its stages, JointEffect, EffectError, displa
 geometric  geometric (the DH/MDH table), base (robot in the tracker frame), tool (SMR)
 physical   compliance, harmonic, scale, backlash, coupling, thermal, tracker_scale
 table      table:J, a smooth correction table for joint errors no formula captures
-drift      thermal_growth, thermal_zero:J (joint temperatures), base_drift/base_driftK (time)
+drift      thermal_growth, thermal_zero:J (joint temperatures), time_growthK, base_driftK (time)
 """
 
 from __future__ import annotations

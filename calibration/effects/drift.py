@@ -8,11 +8,13 @@ temperatures (``joint_temp1..N`` columns), two families model that directly:
                     the joint temperatures over the reference (``temp_ref_c``, 20 °C);
 ``thermal_zero:J``  joint J's zero moves by z · ΔT_J, its own temperature rise.
 
-Where only the time is known (``t_s``), ``base_drift`` / ``base_driftK`` is the fallback:
-the base (the robot's frame in the tracker's) translates smoothly over the capture, a
-polynomial of order K in time, held at its end value after the capture.
+Where only the time is known (``t_s``), two families see the drift as a smooth function
+of time over the capture (a polynomial of order K, held at its end value after it):
 
-All three are linear in their parameters, so their partial derivatives are exact.
+``time_growthK``    every link length grows by g(t) — the warming arm, seen in time;
+``base_driftK``     the base translates in the measurement frame — a settling stand or floor.
+
+All four are linear in their parameters, so their partial derivatives are exact.
 """
 
 from __future__ import annotations
@@ -108,29 +110,20 @@ def _window(data: Dataset) -> tuple[float, float] | None:
     return t0, t1
 
 
-class Drift(Effect):
-    """A slow drift of the robot's base in the measurement frame over the capture:
-    ΔP(t) = Σ_k c_k · s^k, k = 1..K, s = (t - t0) / (t1 - t0) the time ``t_s`` scaled to the
-    capture (the calibration rows' first and last time; 0 before, 1 after: the drift is held
-    at its end value, no polynomial is extrapolated). ``base_drift`` is K = 1 (linear in
-    time), ``base_driftK`` order K (up to 4). Parameters ``xk, yk, zk`` (mm) per order: the
-    translation each term reaches at the end of the capture. For data without joint
-    temperatures: warm-up growth, a settling floor or tracker stand, seen in time only."""
+class _OverTime(Effect):
+    """An effect that is a smooth function of the capture's time: a polynomial basis
+    s^k, k = 1..K, of s = (t - t0) / (t1 - t0), the time ``t_s`` scaled to the capture (the
+    calibration rows' first and last time; 0 before, 1 after: held at its end value, no
+    polynomial is extrapolated). ``familyK`` is order K (1 ... 4), ``family`` K = 1."""
 
-    family = "base_drift"
-    stage = "drift"
     takes_order = True
-    summary = ("the base moves slowly over the capture (a smooth function of time) — warm-up "
-               "or a settling stand; joint temperatures say more where they are recorded")
 
     def __init__(self, model, joint=None, order=None):
         super().__init__(model, joint, order)
         self.order = 1 if order is None else int(order)
         if not 1 <= self.order <= MAX_DRIFT_ORDER:
-            raise EffectError(f"base_drift order must be 1..{MAX_DRIFT_ORDER}, not {self.order}")
-        self.param_names = [f"{c}{k}" for k in range(1, self.order + 1) for c in "xyz"]
-        self.units = ["mm"] * len(self.param_names)
-        self.scales = np.full(len(self.param_names), 0.05)
+            raise EffectError(f"{self.family} order must be 1..{MAX_DRIFT_ORDER}, "
+                              f"not {self.order}")
         #: the window of the last data bound with one: rows bound later without one (a
         #: held-out subset) use it, so every subset of one capture shares its time scale
         self._window: tuple[float, float] | None = None
@@ -144,6 +137,7 @@ class Drift(Effect):
         return replace(data, meta={**data.meta, DRIFT_WINDOW_KEY: window})
 
     def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
+        """The basis, (n, K)."""
         if data.t_s is None:
             raise EffectError(f"{data.source}: effect {self.label} needs the time of each "
                               "measurement (t_s column)")
@@ -156,6 +150,53 @@ class Drift(Effect):
         t0, t1 = window
         s = np.clip((data.t_s - t0) / (t1 - t0), 0.0, 1.0) if t1 > t0 else np.zeros(data.n)
         return s[:, None] ** np.arange(1, self.order + 1)
+
+
+class TimeGrowth(_OverTime):
+    """Warm-up growth seen in time only: every link length (d, a) and the tool grow by
+    g(t) = Σ_k g_k · s^k over the capture (see the basis of ``base_drift``), for data without
+    joint temperatures. Parameters ``gk`` (dimensionless): the relative growth each term
+    reaches at the end of the capture (a warming arm: 1e-4 to 4e-4)."""
+
+    family = "time_growth"
+    stage = "length"
+    summary = ("every link grows smoothly over the capture — the arm warming up, seen in time "
+               "(joint temperatures say more where they are recorded)")
+
+    def __init__(self, model, joint=None, order=None):
+        super().__init__(model, joint, order)
+        self.param_names = [f"g{k}" for k in range(1, self.order + 1)]
+        self.units = ["1"] * self.order
+        self.scales = np.full(self.order, 1e-4)
+
+    def length_scale(self, p, data, basis):
+        return basis @ np.asarray(p, float), basis
+
+    def typical(self, rng):
+        out = np.zeros(self.n_params)
+        out[0] = rng.uniform(1e-4, 3e-4)
+        return out
+
+
+class BaseDrift(_OverTime):
+    """A slow drift of the robot's base in the measurement frame over the capture:
+    ΔP(t) = Σ_k c_k · s^k, k = 1..K, s = (t - t0) / (t1 - t0) the time ``t_s`` scaled to the
+    capture (the calibration rows' first and last time; 0 before, 1 after: the drift is held
+    at its end value, no polynomial is extrapolated). ``base_drift`` is K = 1 (linear in
+    time), ``base_driftK`` order K (up to 4). Parameters ``xk, yk, zk`` (mm) per order: the
+    translation each term reaches at the end of the capture: a settling floor or tracker
+    stand, a slowly moving fixture."""
+
+    family = "base_drift"
+    stage = "drift"
+    summary = ("the robot's base moves slowly against the tracker over the capture — a "
+               "settling floor, stand or fixture")
+
+    def __init__(self, model, joint=None, order=None):
+        super().__init__(model, joint, order)
+        self.param_names = [f"{c}{k}" for k in range(1, self.order + 1) for c in "xyz"]
+        self.units = ["mm"] * len(self.param_names)
+        self.scales = np.full(len(self.param_names), 0.05)
 
     def drift(self, p: np.ndarray, data: Dataset, basis: np.ndarray):
         """The drift of every pose and its partials.
@@ -174,10 +215,9 @@ class Drift(Effect):
 
     def typical(self, rng):
         direction = rng.normal(size=3)
-        size = rng.uniform(0.1, 0.3)
         out = np.zeros(self.n_params)
-        out[:3] = direction / np.linalg.norm(direction) * size
+        out[:3] = direction / np.linalg.norm(direction) * rng.uniform(0.1, 0.3)
         return out
 
 
-DRIFT = {cls.family: cls for cls in (ThermalGrowth, ThermalZero, Drift)}
+DRIFT = {cls.family: cls for cls in (ThermalGrowth, ThermalZero, TimeGrowth, BaseDrift)}
