@@ -28,12 +28,13 @@ from calibration.simulate import WARM_RISE_K, WARMUP_TAU_S, per_joint
 #: the thermal starts a simulated cell knows: from cold (at the air's temperature), or warm
 #: (at the equilibrium of a capture's typical work)
 STARTS = ("cold", "warm")
-#: heat input of a powered robot standing still, as a fraction of working heat
-REST_HEAT = 0.3
+#: heat input of a powered robot standing still, as a fraction of working heat: the drives'
+#: electronics and holding currents warm a robot that only stands powered on
+REST_HEAT = 0.6
 #: joint speed (rad/s) at which a joint heats as it does at work
 REF_SPEED_RAD_S = 0.5
 #: the heat input a capture's alternation of moves and measurements averages to (warm start)
-WORKING_HEAT = 0.5
+WORKING_HEAT = 0.7
 
 
 def thermal_effects(n_joints: int) -> list[str]:
