@@ -44,7 +44,18 @@ def joint_temperature_rise(data: Dataset, family: str) -> np.ndarray:
     return data.joint_temp - float(data.meta.get("temp_ref_c", DEFAULT_TEMP_REF_C))
 
 
-class ThermalGrowth(Effect):
+class _OneParameter(Effect):
+    """An effect with one parameter, named in ``parameter``: (name, internal unit, scale)."""
+
+    parameter: tuple[str, str, float] = ("", "", 1.0)
+
+    def __init__(self, model, joint=None, order=None):
+        super().__init__(model, joint, order)
+        name, unit, scale = self.parameter
+        self.param_names, self.units, self.scales = [name], [unit], np.array([scale])
+
+
+class ThermalGrowth(_OneParameter):
     """Thermal growth read from the joints: every link length (d, a) and the tool grow by
     k · ΔT̄, ΔT̄ the mean of the joint temperatures (``joint_temp1..N``) minus the
     reference ``temp_ref_c`` (default 20 °C). The links sit between the drives that heat
@@ -56,11 +67,7 @@ class ThermalGrowth(Effect):
     summary = ("every link grows in proportion to the joints' mean temperature rise — thermal "
                "expansion of the arm as it warms up")
 
-    def __init__(self, model, joint=None, order=None):
-        super().__init__(model, joint, order)
-        self.param_names = ["k"]
-        self.units = ["1/K"]
-        self.scales = np.array([1e-5])
+    parameter = ("k", "1/K", 1e-5)
 
     def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
         return joint_temperature_rise(data, self.family).mean(axis=1)
@@ -72,7 +79,7 @@ class ThermalGrowth(Effect):
         return np.array([rng.uniform(10e-6, 20e-6)])
 
 
-class ThermalZero(JointEffect):
+class ThermalZero(_OneParameter, JointEffect):
     """Joint zero drift with temperature: Δθ_J = z · ΔT_J, ΔT_J joint J's temperature
     (``joint_tempJ``) minus the reference ``temp_ref_c`` (default 20 °C) — the encoder and
     gear of a warming drive shift against each other. ``z`` in rad/K (a few µrad/K)."""
@@ -81,11 +88,7 @@ class ThermalZero(JointEffect):
     summary = ("the joint's zero moves in proportion to its temperature rise — a warming "
                "drive shifts its encoder against the gear")
 
-    def __init__(self, model, joint=None, order=None):
-        super().__init__(model, joint, order)
-        self.param_names = ["z"]
-        self.units = ["rad/K"]
-        self.scales = np.array([1e-6])
+    parameter = ("z", "rad/K", 1e-6)
 
     def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
         return joint_temperature_rise(data, self.label)[:, self.joint - 1]
@@ -117,6 +120,9 @@ class _OverTime(Effect):
     polynomial is extrapolated). ``familyK`` is order K (1 ... 4), ``family`` K = 1."""
 
     takes_order = True
+    #: per order k, parameters ``{component}{k}`` in ``unit``, of typical size ``scale``
+    components: tuple[str, ...] = ()
+    unit, scale = "", 1.0
 
     def __init__(self, model, joint=None, order=None):
         super().__init__(model, joint, order)
@@ -124,6 +130,9 @@ class _OverTime(Effect):
         if not 1 <= self.order <= MAX_DRIFT_ORDER:
             raise EffectError(f"{self.family} order must be 1..{MAX_DRIFT_ORDER}, "
                               f"not {self.order}")
+        self.param_names = [f"{c}{k}" for k in range(1, self.order + 1) for c in self.components]
+        self.units = [self.unit] * len(self.param_names)
+        self.scales = np.full(len(self.param_names), self.scale)
         #: the window of the last data bound with one: rows bound later without one (a
         #: held-out subset) use it, so every subset of one capture shares its time scale
         self._window: tuple[float, float] | None = None
@@ -163,11 +172,7 @@ class TimeGrowth(_OverTime):
     summary = ("every link grows smoothly over the capture — the arm warming up, seen in time "
                "(joint temperatures say more where they are recorded)")
 
-    def __init__(self, model, joint=None, order=None):
-        super().__init__(model, joint, order)
-        self.param_names = [f"g{k}" for k in range(1, self.order + 1)]
-        self.units = ["1"] * self.order
-        self.scales = np.full(self.order, 1e-4)
+    components, unit, scale = ("g",), "1", 1e-4
 
     def length_scale(self, p, data, basis):
         return basis @ np.asarray(p, float), basis
@@ -192,11 +197,7 @@ class BaseDrift(_OverTime):
     summary = ("the robot's base moves slowly against the tracker over the capture — a "
                "settling floor, stand or fixture")
 
-    def __init__(self, model, joint=None, order=None):
-        super().__init__(model, joint, order)
-        self.param_names = [f"{c}{k}" for k in range(1, self.order + 1) for c in "xyz"]
-        self.units = ["mm"] * len(self.param_names)
-        self.scales = np.full(len(self.param_names), 0.05)
+    components, unit, scale = ("x", "y", "z"), "mm", 0.05
 
     def drift(self, p: np.ndarray, data: Dataset, basis: np.ndarray):
         """The drift of every pose and its partials.

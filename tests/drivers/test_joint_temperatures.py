@@ -79,24 +79,17 @@ def test_rtde_with_the_real_ur_rtde_client(warming):
 
 def test_controllers_without_temperatures_refuse():
     cell = _cell(None)
-    with RobotLineServer(cell) as srv:
-        robot = open_robot(srv.url)
-        robot.connect(2.0)
-        try:
-            with pytest.raises(CommandRejected, match="BAD_COMMAND"):
-                robot.joint_temperatures()
-            robot.read_joints()  # the link is fine
-        finally:
-            robot.close()
-    with ModbusRobotServer(cell) as srv:
-        robot = open_robot(srv.url)
-        robot.connect(2.0)
-        try:
-            with pytest.raises(CommandRejected, match="exception 2"):
-                robot.joint_temperatures()
-            robot.read_joints()
-        finally:
-            robot.close()
+    for server, refusal in ((RobotLineServer, "BAD_COMMAND"),
+                            (ModbusRobotServer, "exception 2")):
+        with server(cell) as srv:
+            robot = open_robot(srv.url)
+            robot.connect(2.0)
+            try:
+                with pytest.raises(CommandRejected, match=refusal):
+                    robot.joint_temperatures()
+                robot.read_joints()  # the link is fine
+            finally:
+                robot.close()
     custom = RegisterMap(status=200, error_code=201, heartbeat=202, command_ack=203,
                          joint_count=204, actual_joints=210, actual_tcp=230)
     assert custom.joint_temps is None and "joint_temps" not in custom.fields()
