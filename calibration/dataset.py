@@ -38,6 +38,7 @@ class Dataset:
     reflector : (n,) str (object array), the reflector measured, or None
     face : (n,) int, the tracker face (1 or 2), or None
     dirs : (n, N) approach direction per joint (-1, 0, +1), or None
+    joint_temp : (n, N) each joint's temperature as the controller reports it, °C, or None
     is_valid : (n,) bool, True for validation rows (``set=valid``)
     meta : ``# key: value`` metadata from the file's first comment lines
     source : where the data came from (a path or a description)
@@ -58,6 +59,7 @@ class Dataset:
     face: np.ndarray | None = None
     dirs: np.ndarray | None = None
     is_valid: np.ndarray | None = None
+    joint_temp: np.ndarray | None = None
     meta: dict[str, str] = field(default_factory=dict)
     source: str = "<arrays>"
     lines: np.ndarray | None = None
@@ -79,6 +81,11 @@ class Dataset:
             self.reflector = np.array([str(r) for r in self.reflector], dtype=object)
         if self.face is not None:
             self.face = np.asarray(self.face, int)
+        if self.joint_temp is not None:
+            self.joint_temp = np.atleast_2d(np.asarray(self.joint_temp, float))
+            if self.joint_temp.shape != self.q.shape:
+                raise DataError(f"{self.source}: joint_temp has shape {self.joint_temp.shape}, "
+                                f"expected {self.q.shape} (one temperature per joint)")
 
     # ---- views -----------------------------------------------------------
     @property
@@ -112,6 +119,7 @@ class Dataset:
             face=pick(self.face),
             dirs=pick(self.dirs),
             is_valid=pick(self.is_valid),
+            joint_temp=pick(self.joint_temp),
             lines=pick(self.lines),
         )
 
@@ -178,6 +186,7 @@ class Dataset:
             face=cat(self.face, other.face),
             dirs=cat(self.dirs, other.dirs),
             is_valid=np.concatenate([self.is_valid, other.is_valid]),
+            joint_temp=cat(self.joint_temp, other.joint_temp),
             meta={**other.meta, **self.meta},
             source=self.source,
             lines=np.concatenate([self.lines, other.lines]),
@@ -202,6 +211,9 @@ class Dataset:
         if self.dirs is not None:
             for j in range(N):
                 cols[f"dir{j + 1}"] = self.dirs[:, j].astype(int)
+        if self.joint_temp is not None:
+            for j in range(N):
+                cols[f"joint_temp{j + 1}"] = self.joint_temp[:, j]
         if self.is_valid.any():
             cols["set"] = np.where(self.is_valid, "valid", "calib")
         cols.update(extra or {})
@@ -533,6 +545,8 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
             )
         dirs = dirs.astype(int)
 
+    joint_temp = _joint_temperatures(t, N)
+
     is_valid = np.zeros(len(t), bool)
     if "set" in t:
         for r, v in enumerate(t.text("set")):
@@ -546,4 +560,20 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
 
     return Dataset(q=np.radians(q), tracker_p_smr=xyz, pose_id=pose_id, cmd=cmd, dirs=dirs,
                    is_valid=is_valid, meta=meta, source=source, lines=t.lines,
-                   reflector=reflector, face=face, **opt)
+                   reflector=reflector, face=face, joint_temp=joint_temp, **opt)
+
+
+def _joint_temperatures(t: CsvTable, n_joints: int) -> np.ndarray | None:
+    """``joint_temp1..N`` (°C, all or none), shape (n, N); refuses a part, a column beyond
+    the model's joints and an implausible temperature."""
+    extra = [h for h in t.header if h.startswith("joint_temp") and h[10:].isdigit()
+             and not 1 <= int(h[10:]) <= n_joints]
+    if extra:
+        raise t.error(f"column(s) {', '.join(extra)} but the model has {n_joints} joints")
+    cols = [f"joint_temp{j + 1}" for j in range(n_joints)]
+    if not t.all_or_none(cols, "joint temperatures"):
+        return None
+    lo, hi, what = OPTIONAL_RANGES["temp_c"]
+    for c in cols:
+        t.within(c, t.numeric(c), lo, hi, what)
+    return np.column_stack([t.numeric(c) for c in cols])

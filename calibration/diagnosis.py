@@ -50,6 +50,8 @@ from .screening import effect_columns, log10_f_sf
 
 #: harmonic orders scanned on every joint
 HARMONIC_ORDERS = range(1, 61)
+#: drift orders (polynomial in time) screened when the data have times
+DRIFT_ORDERS = (1, 2, 3)
 #: significance level after the multiple-comparison correction
 ALPHA = 0.01
 #: fewer validation rows than this: confirm by k-fold cross-validation instead
@@ -219,6 +221,10 @@ def describe_effect(c: Candidate) -> str:
         "coupling": "coupling to the previous joint",
         "thermal": "thermal growth",
         "tracker_scale": "a tracker scale error",
+        "thermal_growth": "thermal growth with the joint temperatures",
+        "thermal_zero": "a zero drift with temperature",
+        "base_drift": "a drift of the base over time",
+        "time_growth": "thermal growth over time",
     }
     what = names.get(c.family, f"effect {c.effect}")
     if c.joint:
@@ -242,7 +248,26 @@ def candidate_names(error_model: ErrorModel, data: Dataset) -> list[str]:
     if data.temp_c is not None and np.ptp(data.temp_c) > 0:
         out.append("thermal")
     out.append("tracker_scale")
+    out += drift_candidates(error_model, data)
     return [c for c in out if c not in have]
+
+
+def drift_candidates(error_model: ErrorModel, data: Dataset) -> list[str]:
+    """The drift effects these data can test: ``thermal_growth`` and ``thermal_zero:J``
+    where the joint temperatures change, ``time_growth`` and ``base_drift`` orders where the
+    time does (a growth only when no other effect acts at the length stage)."""
+    out = []
+    free_length = not any(e.stage == "length" for e in error_model.effects)
+    if data.joint_temp is not None and np.ptp(data.joint_temp) > 0:
+        if free_length:
+            out.append("thermal_growth")
+        out += [f"thermal_zero:{j + 1}" for j in range(data.n_joints)
+                if np.ptp(data.joint_temp[:, j]) > 0]
+    if data.t_s is not None and np.ptp(data.t_s) > 0:
+        for family in ("time_growth", "base_drift"):
+            if family == "base_drift" or free_length:
+                out += [f"{family}{k}" if k > 1 else family for k in DRIFT_ORDERS]
+    return out
 
 
 def diagnose(

@@ -22,9 +22,11 @@ from .kinematics import A, ChainResult, D, run_chain
 from .robot_model import RobotModel
 from .transforms import fit_rigid, matrix_to_rotvec
 
-_STAGES = ("joint", "table", "length", "tool", "base", "measure")
+_STAGES = ("joint", "table", "length", "tool", "base", "drift", "measure")
 #: stages that need per-pose data (a bound data set) to be applied
 _PER_POSE = ("joint", "length")
+#: stages that are not the robot's chain: evaluated, never applied by :meth:`perturb`
+_OUTSIDE_CHAIN = ("drift", "measure")
 
 
 @dataclass
@@ -51,7 +53,8 @@ class Perturbed:
         (R (3, 3), t (3,)), or None
     applied : the stages an effect acted at
     skipped : indices of the effects not applied: per-pose stages (joint, length) without
-        bound data, and the measure stage (the instrument, not the chain)
+        bound data, the drift stage (the cell over time) and the measure stage (the
+        instrument): neither is the chain
     partials : effect index -> its stage hook's partial derivatives (for Jacobians)
     """
 
@@ -176,7 +179,7 @@ class ErrorModel:
     def perturb(self, x: np.ndarray, bound: Bound | None = None) -> Perturbed:
         """Apply the effects at ``x`` to the chain's inputs, stage by stage (see
         :class:`Perturbed`). Without ``bound`` data, joint and length effects are skipped
-        (they act per pose); the measure stage is never applied here."""
+        (they act per pose); the drift and measure stages are never applied here."""
         x = np.asarray(x, float)
         eff, sls = self.effects, self.slices
         out = Perturbed(None, self._table0, self.model.tool_mm())
@@ -200,7 +203,7 @@ class ErrorModel:
             if hasattr(eff[i], "transform"):
                 out.tracker_T_base = eff[i].transform(x[sls[i]])
         for i, e in enumerate(eff):
-            if e.stage == "measure" or (bound is None and e.stage in _PER_POSE):
+            if e.stage in _OUTSIDE_CHAIN or (bound is None and e.stage in _PER_POSE):
                 out.skipped.append(i)
             else:
                 out.applied.add(e.stage)
@@ -256,6 +259,11 @@ class ErrorModel:
                 J[:, :, sls[i]] = Jb
                 if joints:
                     G = np.matmul(R, G)
+        for i in self._by_stage["drift"]:
+            d, part = eff[i].drift(x[sls[i]], bound.data, bound.states[i])
+            P = P + d
+            if jacobian:
+                J[:, :, sls[i]] = part
         for i in self._by_stage["measure"]:
             P, factor, Jm = eff[i].measure(x[sls[i]], P)
             if jacobian:

@@ -2,7 +2,8 @@
 
 ``realistic_truth`` draws hidden errors of the size real robots have;
 ``simulate`` measures a "true" robot with a noisy tracker; ``add_blunders`` spoils some
-readings as a real tracker does now and then (see :func:`blunder_offsets`).
+readings as a real tracker does now and then (see :func:`blunder_offsets`);
+``warmup_temperatures`` gives the joint temperatures of a robot that works from cold.
 """
 
 from __future__ import annotations
@@ -87,6 +88,33 @@ def simulate(
     data.tracker_p_smr = P + rng.normal(0.0, sigma_mm, P.shape)
     data.meta = {"tracker_sigma_mm": repr(float(sigma_mm)), **data.meta}
     return data
+
+
+#: each joint's temperature rise (K) over the air when the robot works continuously, for a
+#: six-joint arm (large base/shoulder/elbow drives warm more than the wrist's); published
+#: joint temperatures of collaborative arms rise 10-20 K over their first hour of work
+WARM_RISE_K = (12.0, 16.0, 14.0, 9.0, 9.0, 8.0)
+#: each joint's thermal time constant (s): tens of minutes (drive, gear and link masses)
+WARMUP_TAU_S = (1800.0, 2100.0, 1800.0, 1200.0, 1200.0, 1200.0)
+
+
+def per_joint(values, n_joints: int) -> np.ndarray:
+    """A six-joint default for ``n_joints`` joints (the last value repeated beyond six)."""
+    v = np.asarray(values, float)
+    return v[np.minimum(np.arange(n_joints), v.size - 1)]
+
+
+def warmup_temperatures(t_s: np.ndarray, n_joints: int, *, ambient_c: float = 20.0,
+                        start_s: float | None = 0.0, rise_k=WARM_RISE_K,
+                        tau_s=WARMUP_TAU_S) -> np.ndarray:
+    """Joint temperatures (°C, (n, N)) at times ``t_s`` of a robot working continuously
+    since ``start_s`` from cold (first order: ambient + rise · (1 - exp(-(t - start)/τ)));
+    ``start_s=None``: a robot that has long been warm (ambient + rise)."""
+    t = np.asarray(t_s, float)[:, None]
+    rise, tau = per_joint(rise_k, n_joints), per_joint(tau_s, n_joints)
+    if start_s is None:
+        return np.broadcast_to(ambient_c + rise, (t.shape[0], n_joints)).copy()
+    return ambient_c + rise * (1.0 - np.exp(-np.maximum(t - start_s, 0.0) / tau))
 
 
 class Bump(JointEffect):

@@ -1,5 +1,8 @@
 """A robot controller behind a simple ASCII line protocol (docs/line-robot-protocol.md).
 
+:class:`SerialRobot` is a RobotDriver with the CommandedPosition (``TCP?``) and
+JointTemperatures (``TEMPS?``) capabilities.
+
 Over :func:`serial.serial_for_url`, so ``socket://host:port``, ``loop://``, a pty
 and real ports all work. Degrees and millimetres on the wire, radians and
 millimetres at the Python boundary.
@@ -121,6 +124,12 @@ class SerialRobot:
         """``TCP?``: the controller's nominal TCP position (mm, base frame), shape (3,)."""
         tok = self._session.exchange("TCP?", "TCP", time.monotonic() + timeout, retry=True)
         return self._floats(tok, 3, "TCP?")
+
+    def joint_temperatures(self, timeout: float = 1.0) -> tuple[float, ...]:
+        """``TEMPS?``: each joint's temperature (°C); CommandRejected (``BAD_COMMAND``) from
+        a controller that reports none."""
+        tok = self._session.exchange("TEMPS?", "TEMPS", time.monotonic() + timeout, retry=True)
+        return tuple(float(v) for v in self._floats(tok, self.n_joints, "TEMPS?"))
 
     def status(self, timeout: float = 1.0) -> RobotStatus:
         """``STATUS?``: motion and safety state."""

@@ -87,11 +87,23 @@ class StatusBits(BaseModel):
     steady: int = Field(5, ge=0, le=15)
 
 
+#: the address fields of a register map (a map that places any of them is a custom layout)
+_ADDRESS_FIELDS = ("command", "command_seq", "speed", "target_joints", "target_xyz", "status",
+                   "error_code", "heartbeat", "command_ack", "joint_count", "actual_joints",
+                   "actual_tcp")
+#: a joint temperature register: signed 16 bit, °C × this
+TEMP_SCALE = 100.0
+
+
 class RegisterMap(BaseModel):
     """Where each datum lives (holding-register addresses). Defaults: the documented map.
 
     ``n_joints`` is the number of joint slots (float32 pairs) in the target
     and actual blocks; the robot may use fewer (``joint_count`` register).
+    ``joint_temps``: the joint temperatures, one signed 16-bit register per slot (°C ×
+    :data:`TEMP_SCALE`), read on their own; None for a controller without them. The
+    default map has them at 22; a map that places any other field (a custom layout) has
+    them only where it says.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -111,7 +123,16 @@ class RegisterMap(BaseModel):
     joint_count: int = Field(36, ge=0)
     actual_joints: int = Field(40, ge=0)
     actual_tcp: int = Field(52, ge=0)
+    joint_temps: int | None = Field(22, ge=0)
     bits: StatusBits = StatusBits()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _custom_layout_names_its_temperatures(cls, data):
+        if isinstance(data, dict) and "joint_temps" not in data and any(
+                k in data for k in _ADDRESS_FIELDS):
+            data = {**data, "joint_temps": None}
+        return data
 
     def fields(self) -> dict[str, tuple[int, int]]:
         """name → (first address, number of registers)."""
@@ -129,6 +150,7 @@ class RegisterMap(BaseModel):
             "joint_count": (self.joint_count, 1),
             "actual_joints": (self.actual_joints, 2 * n),
             "actual_tcp": (self.actual_tcp, 6),
+            **({} if self.joint_temps is None else {"joint_temps": (self.joint_temps, n)}),
         }
 
     #: the fields a status read covers
@@ -211,6 +233,17 @@ class RegisterMap(BaseModel):
             hi, lo = struct.unpack(">HH", struct.pack(">f", float(v)))
             out += [hi, lo] if self.word_order == "big" else [lo, hi]
         return out
+
+    @staticmethod
+    def pack_temps(values) -> list[int]:
+        """Temperatures (°C) → registers (signed 16 bit, °C × :data:`TEMP_SCALE`)."""
+        return [int(np.clip(round(float(v) * TEMP_SCALE), -32768, 32767)) & 0xFFFF
+                for v in values]
+
+    @staticmethod
+    def unpack_temps(regs) -> np.ndarray:
+        """Registers (signed 16 bit) → temperatures (°C)."""
+        return np.array([(r - 65536 if r >= 32768 else r) / TEMP_SCALE for r in regs], float)
 
     def unpack_floats(self, regs) -> np.ndarray:
         """Registers (two per value) → float64 array."""
@@ -354,23 +387,26 @@ class ModbusRobot:
             raise cls(self._dev, command, f"Modbus exception {code} {name}")
         return rr
 
-    def _read_block(self, command: str, deadline: float, *, retry: bool = True) -> dict:
-        lo, hi = self.map.read_span()
+    def _read(self, command: str, deadline: float, address: int, count: int, *,
+              retry: bool = True) -> list[int]:
+        """Read ``count`` holding registers; reconnect and retry once after a lost link."""
         was_connected = self._client is not None  # never reopen a link the caller closed
+        read = self._client_method("read_holding_registers")
         try:
-            rr = self._call(
-                command, deadline, self._client_method("read_holding_registers"), lo, count=hi - lo
-            )
+            rr = self._call(command, deadline, read, address, count=count)
         except ConnectionLost:
             if not (retry and was_connected) or time.monotonic() >= deadline:
                 raise
             self._reconnect(deadline)
-            rr = self._call(
-                command, deadline, self._client_method("read_holding_registers"), lo, count=hi - lo
-            )
+            rr = self._call(command, deadline, read, address, count=count)
         regs = list(rr.registers)
-        if len(regs) != hi - lo:
-            raise ProtocolError(self._dev, command, f"read {len(regs)} registers, wanted {hi - lo}")
+        if len(regs) != count:
+            raise ProtocolError(self._dev, command, f"read {len(regs)} registers, wanted {count}")
+        return regs
+
+    def _read_block(self, command: str, deadline: float, *, retry: bool = True) -> dict:
+        lo, hi = self.map.read_span()
+        regs = self._read(command, deadline, lo, hi - lo, retry=retry)
         f = self.map.fields()
 
         def get(name):
@@ -430,6 +466,17 @@ class ModbusRobot:
     def read_tcp(self, timeout: float = 1.0) -> np.ndarray:
         """The controller's nominal TCP position (mm, base frame), shape (3,)."""
         return self._read_block("read_tcp", time.monotonic() + timeout)["tcp"]
+
+    def joint_temperatures(self, timeout: float = 1.0) -> tuple[float, ...]:
+        """Each joint's temperature (°C) from the ``joint_temps`` registers; CommandRejected
+        when the map has none or the controller refuses them (exception 2)."""
+        if self.map.joint_temps is None:
+            raise CommandRejected(self._dev, "joint_temperatures",
+                                  "the register map has no joint_temps")
+        n = self.n_joints or self.map.n_joints
+        regs = self._read("joint_temperatures", time.monotonic() + timeout,
+                          self.map.joint_temps, n)
+        return tuple(float(v) for v in self.map.unpack_temps(regs))
 
     def status(self, timeout: float = 1.0) -> RobotStatus:
         """Status bits, error code and heartbeat freshness."""

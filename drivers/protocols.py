@@ -197,6 +197,16 @@ class TrackerDriver(Protocol):
 
 
 @runtime_checkable
+class JointTemperatures(Protocol):
+    """Optional capability: each joint's temperature as the controller's drives report it
+    (°C, one per joint, base to flange), for the thermal state of a sample. A controller
+    found not to report them (an older firmware, a map without them) raises
+    :class:`~drivers.errors.CommandRejected`."""
+
+    def joint_temperatures(self, timeout: float = 1.0) -> tuple[float, ...]: ...
+
+
+@runtime_checkable
 class CommandedPosition(Protocol):
     """Optional capability: the controller's own nominal TCP position (teach pendant)."""
 

@@ -58,6 +58,7 @@ RTDE_PORT = 30004
 RECEIVE_VARIABLES = [
     "timestamp", "actual_q", "actual_qd", "target_q", "actual_TCP_pose", "robot_mode",
     "safety_mode", "safety_status_bits", "runtime_state", "robot_status_bits",
+    "joint_temperatures",
 ]
 
 # safety_status_bits (RTDE guide)
@@ -338,6 +339,20 @@ class UrRtdeRobot:
     def read_tcp(self, timeout: float = 1.0) -> np.ndarray:
         """The controller's TCP position (mm, base frame) from ``getActualTCPPose()``."""
         return self._sample("getActualTCPPose", timeout).tcp_mm
+
+    def joint_temperatures(self, timeout: float = 1.0) -> tuple[float, ...]:
+        """Each joint's temperature (°C, n_joints values) from ``getJointTemperatures()``
+        (the RTDE output ``joint_temperatures``), read from a fresh sample."""
+        rx = self._receive("getJointTemperatures")
+        self._sample("getJointTemperatures", timeout)
+        try:
+            temps = np.asarray(rx.getJointTemperatures(), float)[: self.n_joints]
+        except RuntimeError as e:  # the recipe lacks the variable: the controller has none
+            raise CommandRejected(self.url, "getJointTemperatures", f"RTDE receive: {e}") from e
+        if temps.shape != (self.n_joints,) or not np.all(np.isfinite(temps)):
+            raise ProtocolError(self.url, "getJointTemperatures",
+                                f"expected {self.n_joints} temperatures, got {temps.tolist()}")
+        return tuple(float(v) for v in temps)
 
     def status(self, timeout: float = 1.0) -> RobotStatus:
         """Controller state; ``error_code`` is the safety mode when it is not NORMAL (1)."""

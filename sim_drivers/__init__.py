@@ -5,6 +5,7 @@ Modules
     ``truth``              the true-robot protocol and ``ToyArm``, a 3-joint stand-in
     ``model_truth``        ``ModelTruth``: a nominal model plus hidden errors and effects
     ``cell``               ``SimCell``: the true robot, its controller, the tracker, the clock
+    ``thermal``            ``JointThermal``: joint temperatures that rise with work (off by default)
     ``beam``               the tracker's line of sight: facing, link capsules, fixtures
     ``faults``             fault injection: a spec language by probability or schedule
     ``inprocess``          ``sim://`` drivers acting directly on a shared cell

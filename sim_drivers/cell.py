@@ -58,6 +58,7 @@ import numpy as np
 from calibration.cell import REFLECTOR_ACCEPTANCE_DEG, CellSpec
 from calibration.simulate import blunder_offsets
 from sim_drivers.beam import BeamPhysics
+from sim_drivers.thermal import JointThermal, thermal_model
 from sim_drivers.tracker_optics import TRACKER_REFLECTORS, SimReflector, tracker_reads
 from sim_drivers.truth import PoseContext, TrueRobot
 
@@ -82,7 +83,8 @@ class RobotState:
     ``q`` (rad, shape (n,)) are the reported joints, ``qd`` (rad/s) their
     velocity, ``tcp`` (mm, shape (3,)) the controller's nominal TCP in the base
     frame, ``timestamp`` epoch seconds (wall clock) and ``sim_time`` the
-    simulated clock (s).
+    simulated clock (s); ``joint_temp`` each joint's temperature (°C) when the cell has a
+    thermal model, else None.
     """
 
     q: np.ndarray
@@ -97,6 +99,7 @@ class RobotState:
     error_code: int
     timestamp: float
     sim_time: float = 0.0
+    joint_temp: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -184,6 +187,10 @@ class SimCell:
     cell : CellSpec, optional
         The cell's fixtures (base frame); its SMR's acceptance half-angle (its reflector
         type's, or ``acceptance_deg``) replaces the mounted reflector's.
+    thermal : JointThermal or str, optional
+        The robot's joint temperatures (:mod:`sim_drivers.thermal`): a model, or its start
+        ("cold", "warm"); None (the default) for none. The true robot's hidden thermal
+        effects (``ModelTruth.with_thermal``) see them.
     """
 
     def __init__(
@@ -208,6 +215,7 @@ class SimCell:
         tracker_collimation_rad: float = 0.0,
         reflector: str = "RRR 1.5in",
         cell: CellSpec | None = None,
+        thermal: JointThermal | str | None = None,
     ) -> None:
         if time_scale < 0:
             raise ValueError(f"time_scale must be >= 0, got {time_scale}")
@@ -224,6 +232,9 @@ class SimCell:
         self.tracker_range_mm = (float(tracker_range_mm[0]), float(tracker_range_mm[1]))
         self.occlusions = [(np.asarray(c, float), float(r)) for c, r in occlusions]
         self.warmup_s = float(warmup_s)
+        #: the robot's joint temperatures (None: the cell has no thermal model)
+        self.thermal = (thermal_model(thermal, truth.n_joints, self.temp0_c)
+                        if isinstance(thermal, str) else thermal)
         self._rng = np.random.default_rng(seed)
         self._lock = threading.RLock()
         n = truth.n_joints
@@ -355,6 +366,9 @@ class SimCell:
             self._t_start = t
             self._t_move_end = t + duration
             self._t_settled = self._t_move_end + self.settle_s
+            if self.thermal is not None:
+                self.thermal.moved(t, self._t_move_end, np.abs(dq) / duration if duration > 0
+                                   else np.zeros(n))
             self.n_moves += 1
             if self.time_scale == 0:
                 self._sim_t = self._t_settled
@@ -391,6 +405,8 @@ class SimCell:
             self._q_from = self._q_to = q
             self._t_start = self._t_move_end = min(t, self._t_move_end)
             self._t_settled = self._t_move_end + (self.settle_s if t < self._t_settled else 0.0)
+            if self.thermal is not None:
+                self.thermal.stopped(self._t_move_end)
 
     def trigger_protective_stop(self) -> None:
         """Protective stop now (fault injection): motion halts, commands are refused."""
@@ -431,13 +447,23 @@ class SimCell:
                 error_code=self._error_code,
                 timestamp=time.time(),
                 sim_time=t,
+                joint_temp=self.joint_temperatures(t),
             )
 
     def pose_context(self) -> PoseContext:
         """What the hidden physics sees now: approach directions, temperature, time."""
         with self._lock:
             t = self.now()
-            return PoseContext(direction=self._direction.copy(), temp_c=self.temperature(t), t_s=t)
+            return PoseContext(direction=self._direction.copy(), temp_c=self.temperature(t), t_s=t,
+                               joint_temp=self.joint_temperatures(t))
+
+    def joint_temperatures(self, t_s: float | None = None) -> np.ndarray | None:
+        """Each joint's temperature (°C) at simulated time ``t_s`` (default now), or None
+        when the cell has no thermal model (its controller reports none)."""
+        if self.thermal is None:
+            return None
+        with self._lock:
+            return self.thermal.at(self.now() if t_s is None else t_s)
 
     # ---------------------------------------------------------------- tracker
     def tracker_sigma(self, xyz: Sequence[float]) -> float:

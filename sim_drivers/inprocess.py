@@ -17,7 +17,10 @@ a tracker URL may leave it out once its robot's cell exists. Other query paramet
 when the cell is first created: ``tool=X,Y,Z`` (the controller's TCP, mm, default the SMR
 on a 60 mm holder), ``time_scale`` (default 0), ``faults`` (only ``beam``, ``pstop`` and
 ``blunder`` apply in process) and ``reflector`` (the mounted reflector's type, e.g. ``360``
-for one with no facing limit; :data:`calibration.cell.REFLECTOR_ACCEPTANCE_DEG`).
+for one with no facing limit; :data:`calibration.cell.REFLECTOR_ACCEPTANCE_DEG`) and
+``thermal=cold|warm`` (the robot warms up with its work, from cold or already warm, and its
+joint zeros and links drift with the temperatures: :mod:`sim_drivers.thermal`; off by
+default).
 
 The drivers identify themselves as simulators (:meth:`SimRobot.identify`).
 """
@@ -69,8 +72,9 @@ def get_cell(name: str = "default", seed: int = 0, model: str | None = None,
 
     ``model`` (a model name or YAML path) makes its truth a
     :class:`~sim_drivers.model_truth.ModelTruth` of that model (``tool_mm`` the
-    controller's TCP); without it :data:`truth_factory` builds it. An existing cell of
-    another model is a ValueError.
+    controller's TCP); without it :data:`truth_factory` builds it. ``thermal`` ("cold",
+    "warm") gives the robot joint temperatures and their hidden effects. An existing cell
+    of another model is a ValueError.
     """
     with _lock:
         key = (name, seed)
@@ -84,12 +88,23 @@ def get_cell(name: str = "default", seed: int = 0, model: str | None = None,
                                              DEFAULT_TOOL_MM if tool_mm is None else tool_mm)
             else:
                 truth = truth_factory(seed, hidden)
+            if kw.get("thermal"):
+                truth = with_thermal(truth, seed)
             _cells[key] = SimCell(truth, seed=seed, faults=FaultInjector(spec, seed=seed), **kw)
         cell = _cells[key]
     if model is not None and cell.kinematics != _model_name(model):
         raise ValueError(f"simulated cell {name!r} (seed {seed}) moves a {cell.kinematics}, "
                          f"not a {model}")
     return cell
+
+
+def with_thermal(truth: TrueRobot, seed: int) -> TrueRobot:
+    """``truth`` with its hidden thermal effects (a ModelTruth's); ValueError for a truth
+    that has none to add (the toy arm)."""
+    if not hasattr(truth, "with_thermal"):
+        raise ValueError(f"the simulated {getattr(truth, 'name', 'robot')} has no thermal "
+                         "model (use a robot model, e.g. model=ur10e)")
+    return truth.with_thermal(seed)
 
 
 def _model_name(model: str) -> str:
@@ -139,6 +154,14 @@ class SimRobot:
     def read_tcp(self, timeout: float = 1.0) -> np.ndarray:
         """Nominal TCP (mm, base frame)."""
         return self.cell.robot_state().tcp
+
+    def joint_temperatures(self, timeout: float = 1.0) -> tuple[float, ...]:
+        """Each joint's temperature (°C); CommandRejected when the cell has no thermal model."""
+        temps = self.cell.joint_temperatures()
+        if temps is None:
+            raise CommandRejected(self._dev, "joint_temperatures",
+                                  "the simulated robot reports no joint temperatures (thermal=)")
+        return tuple(float(v) for v in temps)
 
     def status(self, timeout: float = 1.0) -> RobotStatus:
         s = self.cell.robot_state()
@@ -318,7 +341,7 @@ def open_sim(url: str, kind: str, **kw):
         raise ValueError(f"bad URL {url!r}: a {what} URL where a {kind} is wanted")
     q = {k: v[-1] for k, v in parse_qs(parts.query, keep_blank_values=True).items()}
     unknown = set(q) - {"seed", "name", "time_scale", "faults", "hidden", "model", "tool",
-                        "reflector"}
+                        "reflector", "thermal"}
     if unknown:
         raise ValueError(f"bad URL {url!r}: unknown parameter(s) {sorted(unknown)}")
     try:
@@ -336,6 +359,13 @@ def open_sim(url: str, kind: str, **kw):
         raise ValueError(f"bad URL {url!r}: a simulated cell needs model=NAME|PATH (the robot "
                          f"model it moves), e.g. sim://robot?model=ur10e&seed={seed}")
     extra = {}
+    if q.get("thermal"):
+        from sim_drivers.thermal import STARTS
+
+        if q["thermal"] not in STARTS:
+            raise ValueError(f"bad URL {url!r}: thermal={q['thermal']}: expected "
+                             f"{' or '.join(STARTS)}")
+        extra["thermal"] = q["thermal"]
     if q.get("reflector"):
         from calibration.cell import CellSpec, Smr
 

@@ -6,6 +6,10 @@ the status block on every read (the heartbeat counts reads) and executes a
 command when the ``command`` register is written. Runs its own asyncio loop on
 a background thread; ``start()``/``stop()`` or ``with``.
 
+Joint temperatures (``joint_temps``) are served when the cell has a thermal model; without
+one, a read that touches them gets exception 2 (ILLEGAL_DATA_ADDRESS), as from a controller
+that does not have them.
+
 Faults (per request): ``modbus`` → exception 4 (SERVER_DEVICE_FAILURE),
 ``slow`` → the response is held back ``delay`` s, ``drop`` → every client
 connection is closed, ``stale`` → the heartbeat does not count on that read,
@@ -211,6 +215,10 @@ class ModbusRobotServer:
         if f.fires("modbus"):
             return ExcCodes.DEVICE_FAILURE
         if values is None:
+            temps = self.map.fields().get("joint_temps")
+            if (temps is not None and address < temps[0] + temps[1]
+                    and temps[0] < address + count and self.cell.joint_temperatures() is None):
+                return ExcCodes.ILLEGAL_ADDRESS  # as a controller without them answers
             self._refresh(regs, start, stale=f.fires("stale"))
             return None
         image = list(regs)
@@ -250,6 +258,10 @@ class ModbusRobotServer:
         self._put(regs, start, "joint_count", [self.cell.n_joints])
         self._put(regs, start, "actual_joints", m.pack_floats(q))
         self._put(regs, start, "actual_tcp", m.pack_floats(s.tcp))
+        if m.joint_temps is not None and s.joint_temp is not None:
+            temps = np.zeros(m.n_joints)
+            temps[: self.cell.n_joints] = s.joint_temp
+            self._put(regs, start, "joint_temps", m.pack_temps(temps))
 
     def _execute(self, image, start: int):
         """Run the command in ``image`` (the registers after this write); ExcCodes or None."""

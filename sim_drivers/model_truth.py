@@ -23,6 +23,7 @@ from calibration.kinematics import tool_points
 from calibration.simulate import realistic_truth
 from calibration.transforms import make_T, rotvec_to_matrix
 
+from .thermal import thermal_effects
 from .truth import PoseContext
 
 #: where the SMR sits on the flange in the simulated cell (mm): on a 60 mm holder
@@ -86,6 +87,21 @@ class ModelTruth:
         axis = rotvec_to_matrix(tilt) @ np.asarray(smr_axis, float)
         return cls(nominal, em, x, tracker_at=tracker_at, smr_axis=axis)
 
+    def with_thermal(self, seed: int) -> ModelTruth:
+        """The same robot, warming up: the hidden thermal effects
+        (:func:`sim_drivers.thermal.thermal_effects`, those not hidden already) added at
+        realistic sizes drawn from ``seed``; every other hidden parameter is kept. Its
+        true points then need the cell's joint temperatures (a thermal model)."""
+        have = set(self.error_model.labels)
+        extra = [e for e in thermal_effects(self.n_joints) if e not in have]
+        if not extra:
+            return self
+        more = ErrorModel(self.model, extra)
+        em = ErrorModel(self.model, self.error_model.effects + more.effects)
+        x_more = realistic_truth(more, np.random.default_rng([seed, 0x7E]))
+        return ModelTruth(self.model, em, np.concatenate([self.x_true, x_more]),
+                          smr_axis=self.smr_axis)
+
     # ---- TrueRobot -------------------------------------------------------------
     def true_point(self, q: np.ndarray, ctx: PoseContext) -> np.ndarray:
         q = np.asarray(q, float).reshape(1, -1)
@@ -94,6 +110,7 @@ class ModelTruth:
             q=q, tracker_p_smr=np.zeros((1, 3)), dirs=dirs, temp_c=np.array([ctx.temp_c]),
             t_s=np.array([ctx.t_s]),
             payload_kg=None if ctx.payload_kg is None else np.array([ctx.payload_kg]),
+            joint_temp=None if ctx.joint_temp is None else np.reshape(ctx.joint_temp, (1, -1)),
         )
         return self.error_model.evaluate(self.x_true, self.error_model.bind(data), False)[0][0]
 

@@ -64,6 +64,11 @@ class RobotSession:
                 return ["OK POS " + " ".join(f"{v:.6f}" for v in q)]
             if cmd == "TCP?" and not args:
                 return ["OK TCP " + " ".join(f"{v:.4f}" for v in c.robot_state().tcp)]
+            if cmd == "TEMPS?" and not args:
+                temps = c.joint_temperatures()
+                if temps is None:  # as a controller without temperature readings answers
+                    return [err("BAD_COMMAND", "no joint temperatures on this controller")]
+                return ["OK TEMPS " + " ".join(f"{v:.2f}" for v in temps)]
             if cmd == "STATUS?" and not args:
                 s = c.robot_state()
                 return [

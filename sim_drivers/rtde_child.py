@@ -47,6 +47,7 @@ for _name, _n in (
     ("robot_mode", 1), ("safety_mode", 1), ("safety_status_bits", 1), ("runtime_state", 1),
     ("robot_status_bits", 1), ("speed_scaling", 1), ("actual_q", 6), ("actual_qd", 6),
     ("target_q", 6), ("actual_TCP_pose", 6), ("target_TCP_pose", 6), ("actual_TCP_speed", 6),
+    ("joint_temperatures", 6),
 ):
     STATE_FIELDS[_name] = (_offset, _n)
     _offset += _n
@@ -133,7 +134,6 @@ def variable_value(name: str, kind: str, st: dict, timestamp: float):
         "target_qd": st["actual_qd"],
         "target_TCP_speed": st["actual_TCP_speed"],
         "target_qdd": zeros6,
-        "joint_temperatures": [30.0] * 6,
         "actual_joint_voltage": [48.0] * 6,
         "actual_main_voltage": 48.0,
         "actual_robot_voltage": 48.0,

@@ -47,6 +47,8 @@ SAFETY_BIT_FAULT, SAFETY_BIT_STOPPED_BY_SAFETY = 1 << 9, 1 << 10
 ROBOT_BIT_POWER_ON, ROBOT_BIT_PROGRAM_RUNNING = 1 << 0, 1 << 1
 
 N_WIRE_JOINTS = 6
+#: the joint temperature (°C) a cell without a thermal model reports (as it always has)
+IDLE_JOINT_TEMP_C = 30.0
 
 
 class PortUnavailable(OSError):
@@ -60,7 +62,9 @@ def controller_fields(state, program_running: bool = True) -> dict[str, object]:
     ----------
     state : RobotState-like
         ``q`` and ``qd`` (rad, rad/s, n joints), ``tcp`` (mm; 3 values, or 6 with a
-        rotation vector in rad), ``protective_stop``, ``emergency_stop``, ``fault``.
+        rotation vector in rad), ``protective_stop``, ``emergency_stop``, ``fault``;
+        ``joint_temp`` (°C, n joints) when the cell has a thermal model (else every joint
+        reports :data:`IDLE_JOINT_TEMP_C`).
     program_running : bool
         Whether the (simulated) control script runs; cleared by any stop.
 
@@ -105,7 +109,17 @@ def controller_fields(state, program_running: bool = True) -> dict[str, object]:
         "actual_TCP_pose": tcp,
         "target_TCP_pose": tcp,
         "actual_TCP_speed": np.zeros(6),
+        "joint_temperatures": _joint_temperatures(getattr(state, "joint_temp", None)),
     }
+
+
+def _joint_temperatures(temps) -> np.ndarray:
+    """The six joint temperatures on the wire (°C): the cell's, padded with the idle value."""
+    out = np.full(N_WIRE_JOINTS, IDLE_JOINT_TEMP_C)
+    if temps is not None:
+        a = np.asarray(temps, float).ravel()[:N_WIRE_JOINTS]
+        out[: a.size] = a
+    return out
 
 
 def _pad6(v) -> np.ndarray:

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from sim_drivers.cell import SimCell
 from sim_drivers.emscon_server import EmsconServer
 from sim_drivers.faults import FaultInjector
-from sim_drivers.inprocess import default_truth
+from sim_drivers.inprocess import default_truth, with_thermal
 from sim_drivers.modbus_server import ModbusRobotServer
 from sim_drivers.robot_server import RobotLineServer
 from sim_drivers.rtde_server import PortUnavailable, RtdeSimServer
@@ -51,7 +51,9 @@ class ServeConfig:
 
     ``hidden`` is passed to the truth factory unchanged; ``faults`` is a fault
     spec (:mod:`sim_drivers.faults`); ports of 0 mean "any free port"; ``any_port``: a
-    port in use is replaced by a free one (else :class:`PortInUse`).
+    port in use is replaced by a free one (else :class:`PortInUse`); ``thermal`` ("cold",
+    "warm", None) gives the robot joint temperatures and their hidden effects
+    (:mod:`sim_drivers.thermal`).
     """
 
     seed: int = 0
@@ -64,6 +66,7 @@ class ServeConfig:
     any_port: bool = False
     #: also serve RTDE (receive side) on the fixed port 30004 of ``host``, when it is free
     rtde: bool = False
+    thermal: str | None = None
 
 
 class SimStack:
@@ -87,8 +90,12 @@ class SimStack:
         self.config = config or ServeConfig()
         c = self.config
         self.faults = FaultInjector(c.faults, seed=c.seed)  # parses: ValueError on a bad spec
+        truth = truth_factory(c.seed, c.hidden)
+        if c.thermal:
+            truth = with_thermal(truth, c.seed)
+            cell_kw = {"thermal": c.thermal, **cell_kw}
         self.cell = SimCell(
-            truth_factory(c.seed, c.hidden),
+            truth,
             seed=c.seed,
             time_scale=c.time_scale,
             faults=self.faults,

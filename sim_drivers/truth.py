@@ -20,6 +20,7 @@ class PoseContext:
     ``direction``: per joint, the sign of the last motion that approached the
     pose (-1, 0, +1), for backlash. ``temp_c``: robot temperature.
     ``t_s``: simulated time. ``payload_kg``: payload mass, None for the model's.
+    ``joint_temp``: each joint's temperature (°C), None when the cell has no thermal model.
     """
 
     direction: np.ndarray | None = None
@@ -27,6 +28,7 @@ class PoseContext:
     t_s: float = 0.0
     payload_kg: float | None = None
     extra: dict = field(default_factory=dict)
+    joint_temp: np.ndarray | None = None
 
 
 class TrueRobot(Protocol):

@@ -10,6 +10,7 @@ base       the Effect interface and its stages, JointEffect, EffectError, displa
 geometric  geometric (the DH/MDH table), base (robot in the tracker frame), tool (SMR)
 physical   compliance, harmonic, scale, backlash, coupling, thermal, tracker_scale
 table      table:J, a smooth correction table for joint errors no formula captures
+drift      thermal_growth, thermal_zero:J (joint temperatures), time_growthK, base_driftK (time)
 """
 
 from __future__ import annotations
@@ -24,11 +25,12 @@ from pathlib import Path
 from ..files import check_regular_file
 from ..robot_model import RobotModel
 from .base import Effect, EffectError, JointEffect, display_unit
+from .drift import DRIFT
 from .geometric import BUILTIN, Base, Geometric, Tool
 from .physical import PHYSICAL
 from .table import Table
 
-REGISTRY: dict[str, type[Effect]] = {**BUILTIN, **PHYSICAL, "table": Table}
+REGISTRY: dict[str, type[Effect]] = {**BUILTIN, **PHYSICAL, "table": Table, **DRIFT}
 
 DEFAULT_EFFECTS = "geometric,base,tool"
 
@@ -65,7 +67,7 @@ def register(cls: type[Effect]) -> type[Effect]:
     if not cls.family or not re.fullmatch(r"[a-z][a-z_]*", cls.family):
         raise EffectError(f"{cls.__name__}: family {cls.family!r} must be lower-case "
                           "letters/underscores")
-    if cls.stage not in ("joint", "table", "length", "tool", "base", "measure"):
+    if cls.stage not in ("joint", "table", "length", "tool", "base", "drift", "measure"):
         raise EffectError(f"{cls.__name__}: unknown stage {cls.stage!r}")
     current = REGISTRY.get(cls.family)
     if (cls.family in BUILTIN_FAMILIES and current is not cls
@@ -111,7 +113,7 @@ def parse_effects(spec: str | list[str], model: RobotModel) -> list[Effect]:
     if dupes:
         raise EffectError(f"effect(s) given twice: {', '.join(dupes)}")
     stages = [e.stage for e in effects]
-    for stage in ("base", "tool", "table", "measure", "length"):
+    for stage in ("base", "tool", "table", "measure", "length", "drift"):
         if stages.count(stage) > 1:
             raise EffectError(f"only one effect may act at the {stage!r} stage")
     return effects

@@ -10,6 +10,7 @@ composes the stages in this order:
 ``length``  grows every link length by a per-pose factor (thermal)
 ``tool``    gives the target centre in the flange frame (tool)
 ``base``    maps base-frame points into the tracker frame (base)
+``drift``   moves the point in the tracker frame per pose, over time (base_drift)
 ``measure`` distorts the tracker's reading (tracker_scale)
 
 A user-defined effect is a subclass of :class:`JointEffect` in a short Python
