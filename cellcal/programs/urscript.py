@@ -20,74 +20,15 @@ stay those of the original.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
-from .poses import pose_add, pose_trans
 from .targets import Correction, Program, Refusal, Target, format_number, line_end, line_of
 from .targets import rewrite as _rewrite
 from .tokens import Token, signed_numbers, tokenize
+from .urscript_exprs import Found, args_of, fold, literal
 
 #: moves and how many leading arguments are targets
 MOVES = {"movej": 1, "movel": 1, "movep": 1, "servoj": 1, "movec": 2}
-FOLDS = ("pose_trans", "pose_add")
 PAYLOAD = ("set_payload", "set_payload_mass", "set_target_payload")
 DECIMALS = 7
-
-
-def _args(toks: list[Token], k: int) -> tuple[list[list[Token]], int]:
-    """The comma-separated arguments of the call whose '(' is toks[k]; (args, index of ')')."""
-    depth, args, cur = toks[k].depth, [], []
-    j = k + 1
-    while not (toks[j].text == ")" and toks[j].depth == depth):
-        if toks[j].text == "," and toks[j].depth == depth + 1:
-            args.append(cur)
-            cur = []
-        elif toks[j].kind != "newline":
-            cur.append(toks[j])
-        j += 1
-    if cur or args:
-        args.append(cur)
-    return args, j
-
-
-@dataclass(frozen=True)
-class _Found:
-    """A target expression read: kind, values, number spans (empty for a folded one) and
-    the span a correction replaces."""
-
-    kind: str
-    values: tuple[float, ...]
-    numbers: tuple[tuple[int, int], ...]
-    span: tuple[int, int]
-
-
-def _literal(expr: list[Token]) -> _Found | None:
-    """A pose literal or a joint list, else None."""
-    nums = None
-    if len(expr) >= 3 and expr[0].text == "p" and expr[1].text == "[" and expr[-1].text == "]":
-        nums = signed_numbers(expr[2:-1])
-        kind = "pose" if nums is not None and len(nums) == 6 else None
-    elif len(expr) >= 2 and expr[0].text == "[" and expr[-1].text == "]":
-        nums = signed_numbers(expr[1:-1])
-        kind = "joints" if nums else None
-    if not nums or kind is None:
-        return None
-    return _Found(kind, tuple(v for v, _, _ in nums), tuple((a, b) for _, a, b in nums),
-                  (expr[0].start, expr[-1].end))
-
-
-def _fold(expr: list[Token], toks: list[Token]) -> _Found | None:
-    """``pose_trans``/``pose_add`` of two pose literals, folded into one pose, else None."""
-    if len(expr) < 4 or expr[0].text not in FOLDS or expr[1].text != "(":
-        return None
-    args, close = _args(toks, toks.index(expr[1]))
-    lits = [_literal(a) for a in args]
-    if len(args) != 2 or toks[close] is not expr[-1] or any(
-            lit is None or lit.kind != "pose" for lit in lits):
-        return None
-    fold = pose_trans if expr[0].text == "pose_trans" else pose_add
-    return _Found("pose", fold(lits[0].values, lits[1].values, near=lits[0].values), (),
-                  (expr[0].start, expr[-1].end))
 
 
 class _Reader:
@@ -134,9 +75,19 @@ class _Reader:
             elif nxt.text == "[":  # p1[2] = ...: changed at run time
                 self.dynamic.add(t.text)
 
-    def value_of(self, expr: list[Token]) -> _Found | str:
+    def literal_to_function(self, t: Token, k: int) -> None:
+        """A literal passed to a function of the program: the function may move to it, and
+        what it does with it is known only at run time."""
+        args, close = args_of(self.toks, k + 1)
+        if any(literal(a) is not None for a in args):
+            self.refusals.append(Refusal(
+                line_of(self.text, t.start), self.snippet(t.start, self.toks[close].end),
+                f"a literal passed to the program's function {t.text}(), which may move to "
+                "it: its target is known at run time"))
+
+    def value_of(self, expr: list[Token]) -> Found | str:
         """The target an expression names, or the reason it cannot be compensated."""
-        found = _literal(expr) or _fold(expr, self.toks)
+        found = literal(expr) or fold(expr, self.toks)
         if found is not None:
             return found
         if len(expr) == 1 and expr[0].kind == "name":
@@ -145,25 +96,29 @@ class _Reader:
             if not defs:
                 return (f"variable {name!r} is never assigned here (a function parameter or "
                         "an installation variable)")
-            if name in self.dynamic or any(_literal(d) is None for d in defs):
+            if name in self.dynamic or any(literal(d) is None for d in defs):
                 return f"variable {name!r} is assigned from an expression (computed at run time)"
             if len(defs) > 1:
                 return f"variable {name!r} is assigned more than once"
-            return _literal(defs[0])
+            return literal(defs[0])
         if len(expr) > 1 and expr[0].kind == "name" and expr[1].text == "(":
             return f"the result of {expr[0].text}() is computed at run time"
         return "computed at run time" if expr else "no target"
 
     def run(self) -> Program:
         self.scan_assignments()
+        self.functions = {self.toks[k + 1].text for k, t in enumerate(self.toks[:-1])
+                          if t.text == "def"}
         tcp, tcp_line, payload = None, None, None
         toks = self.toks
         for k, t in enumerate(toks[:-1]):
             if t.kind != "name" or toks[k + 1].text != "(" or (k and toks[k - 1].text == "def"):
                 continue
+            if t.text in self.functions:
+                self.literal_to_function(t, k)
             if t.text not in MOVES and t.text != "set_tcp" and t.text not in PAYLOAD:
                 continue
-            args, close = _args(toks, k + 1)
+            args, close = args_of(toks, k + 1)
             line = line_of(self.text, t.start)
             construct = self.snippet(t.start, toks[close].end)
             if t.text == "set_tcp":
