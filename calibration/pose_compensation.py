@@ -166,6 +166,7 @@ def compensate_targets(
     is_pose: np.ndarray | None = None,
     flange_T_tcp: np.ndarray | None = None,
     columns: dict | None = None,
+    calibrated_tool: bool = False,
     max_iter: int = 50,
 ) -> PoseCompensation:
     """Compensated joints and poses for a program's targets, in program order.
@@ -180,6 +181,9 @@ def compensate_targets(
     flange_T_tcp : (4, 4) or (n, 4, 4) the active TCP per target (default the flange)
     columns : per-target data for the effects (``temp_c``, ``payload_kg``: (n,);
         ``dirs``: (n, N))
+    calibrated_tool : the TCP is the point the calibration measured (its tool stage): the
+        calibrated robot carries the identified point, the nominal one ``flange_T_tcp``'s
+        (default: the model's tool)
     """
     model = error_model.model
     joints = np.atleast_2d(np.asarray(joints, float))
@@ -188,6 +192,9 @@ def compensate_targets(
         raise ValueError(f"targets have {N} joints, the model {model.name} has "
                          f"{model.n_joints}")
     is_pose = np.zeros(n, bool) if is_pose is None else np.asarray(is_pose, bool)
+    if flange_T_tcp is None and calibrated_tool:
+        flange_T_tcp = np.eye(4)
+        flange_T_tcp[:3, 3] = model.tool_mm()
     tcp = _per_target(flange_T_tcp, n)
     nominal = NominalTcpFK(model, tcp[:, :3, 3])
     r = nominal.chain(joints)
@@ -200,7 +207,7 @@ def compensate_targets(
     cols = dict(columns or {})
     if "dirs" not in cols:
         cols["dirs"] = derive_directions(q_nom)
-    cal = CalibratedFK(error_model, x, cols, tcp[:, :3, 3])
+    cal = CalibratedFK(error_model, x, cols, None if calibrated_tool else tcp[:, :3, 3])
     R_flange = target[:, :3, :3] @ np.swapaxes(tcp[:, :3, :3], 1, 2)
     res = solve_ik(cal, q_nom, target[:, :3, 3], R_flange if N >= 6 else None,
                    limits=model.limits_rad(), max_iter=max_iter, success_mm=1e-6,
