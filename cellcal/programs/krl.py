@@ -123,7 +123,7 @@ class _Reader:
         self.found.append(("joints" if kind in AXIS_TYPES else "pose", tuple(values), line,
                            a - self.text.rfind("\n", 0, a), (a, e), tuple(numbers),
                            self.text[a:e], line_end(self.text, e), f"{kind} {name}",
-                           None, None, None, extra))
+                           None, None, extra))
 
 
 def parse_program(text: str, source: str = "program", *, frame_targets=()) -> Program:

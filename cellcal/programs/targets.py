@@ -42,7 +42,6 @@ class Target:
     context : the instruction or declaration (``movel``, ``E6POS XP1``...)
     tcp : the active TCP as the language writes a pose, or None for the flange
     payload_kg : the payload set before the move, or None (the calibration's)
-    seed : joints the language names for a pose target's configuration, or None
     extra : language-specific (KRL's S and T, tool and base numbers)
     """
 
@@ -58,7 +57,6 @@ class Target:
     context: str
     tcp: tuple[float, ...] | None = None
     payload_kg: float | None = None
-    seed: tuple[float, ...] | None = None
     extra: dict = field(default_factory=dict)
 
 
