@@ -45,15 +45,20 @@ class CalibratedFK:
     error_model, x : the calibration (internal units)
     columns : extra per-pose data some effects need (``temp_c``, ``payload_kg``, ...),
         arrays of shape (n,) for n targets
+    tool : (3,) or (n, 3) the tool point (flange frame, mm) to use instead of the
+        calibrated one: a program's TCP (``set_tcp``) rather than the calibration's SMR;
+        None keeps the tool stage's point
     """
 
     #: :func:`~calibration.inverse.solve_ik` passes the target rows it evaluates
     takes_rows = True
 
-    def __init__(self, error_model: ErrorModel, x: np.ndarray, columns: dict | None = None):
+    def __init__(self, error_model: ErrorModel, x: np.ndarray, columns: dict | None = None,
+                 tool: np.ndarray | None = None):
         self.em = error_model
         self.x = np.asarray(x, float)
         self.columns = columns or {}
+        self.tool = None if tool is None else np.asarray(tool, float)
 
     def chain(self, q: np.ndarray, rows: np.ndarray | None = None):
         """The :class:`~calibration.kinematics.ChainResult` of the calibrated robot."""
@@ -66,7 +71,10 @@ class CalibratedFK:
             bound = em.bind(Dataset(q=q, tracker_p_smr=np.zeros((len(q), 3)), source="compensation",
                                     **cols))
         c = em.perturb(self.x, bound)
-        return run_chain(em.model.convention, c.table, q if c.q is None else c.q, c.tool,
+        tool = c.tool
+        if self.tool is not None:
+            tool = self.tool if self.tool.ndim == 1 or rows is None else self.tool[rows]
+        return run_chain(em.model.convention, c.table, q if c.q is None else c.q, tool,
                          c.length_scale, jacobian=False,
                          prismatic=em.model.prismatic_mask())
 

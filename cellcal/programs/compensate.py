@@ -1,0 +1,181 @@
+"""Compensate a robot program with a calibration: read, solve, write back, report.
+
+:func:`compensate_program` is what ``cellcal compensate --program`` runs: it reads a
+URScript (``.script``, ``.urscript``, ``.txt``) or KRL ``.dat`` file, compensates every
+target it can (:func:`calibration.pose_compensation.compensate_targets`: joint targets by
+the full model, pose targets near their neighbouring joint targets with the active TCP),
+writes the result atomically, and returns a :class:`ProgramReport` (what the command
+prints, and its exit code: 1 when something could not be compensated, unless
+``allow_partial``). Units are converted here, at the edge: URScript m and rad, KRL mm and
+deg; the core works in mm and rad.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from calibration.files import read_input, write_atomic
+from calibration.pose_compensation import compensate_targets, neighbour_seeds
+
+from . import krl, urscript
+from .poses import T_to_krl, T_to_ur, krl_to_T, ur_to_T
+from .program_report import ProgramReport, target_row
+from .targets import Correction, Program, ProgramError, Refusal
+
+#: a 6-axis arm's usual working configuration (deg), the seed when a program has no joints
+DEFAULT_SEED_DEG = {"urscript": (0.0, -90.0, 90.0, -90.0, -90.0, 0.0),
+                    "krl": (0.0, -90.0, 90.0, 0.0, 45.0, 0.0)}
+
+
+@dataclass(frozen=True)
+class Dialect:
+    """A language's reader, writer and units."""
+
+    name: str
+    parse: object
+    rewrite: object
+    to_T: object
+    from_T: object
+    joint_unit: float  # rad per unit of a joint value
+
+
+DIALECTS = {
+    "urscript": Dialect("urscript", urscript.parse_program, urscript.rewrite, ur_to_T, T_to_ur,
+                        1.0),
+    "krl": Dialect("krl", krl.parse_program, krl.rewrite, krl_to_T, T_to_krl, np.pi / 180.0),
+}
+SUFFIXES = {".script": "urscript", ".urscript": "urscript", ".txt": "urscript", ".dat": "krl"}
+
+
+@dataclass
+class Options:
+    """What a program does not say: the configuration seed (rad), the thermal state and
+    payload (when the model has them), KRL's tools and bases by number (X, Y, Z, A, B, C)."""
+
+    seed: np.ndarray | None = None
+    temp_c: float | None = None
+    payload_kg: float | None = None
+    tools: dict[int, tuple] = field(default_factory=dict)
+    bases: dict[int, tuple] = field(default_factory=dict)
+
+
+def language_of(path: str | Path, language: str | None = None) -> Dialect:
+    if language:
+        return DIALECTS[language]
+    suffix = Path(path).suffix.lower()
+    if suffix not in SUFFIXES:
+        raise ProgramError(f"{path}: cannot tell the program's language from {suffix!r}; "
+                           f"known: {', '.join(sorted(SUFFIXES))}")
+    return DIALECTS[SUFFIXES[suffix]]
+
+
+def read_program(path: str | Path, dialect: Dialect) -> Program:
+    """A program file, parsed. Bytes that are not UTF-8 (a KRL file in Windows-1252) pass
+    through unchanged (surrogate escapes), as does a byte-order mark."""
+    raw = read_input(path, ProgramError, "program", 50 << 20)
+    if b"\x00" in raw[:4096]:
+        raise ProgramError(f"{path}: a binary file, not a program")
+    return dialect.parse(raw.decode("utf-8", "surrogateescape"), str(path))
+
+
+def _frames(program: Program, dialect: Dialect, options: Options):
+    """Per target: the TCP (4x4, flange frame) and the base (4x4, robot base frame), or the
+    reason they are unknown."""
+    out = []
+    for t in program.targets:
+        tool = base = None
+        if dialect.name == "krl":
+            tool = options.tools.get(t.extra.get("tool_no"))
+            base = options.bases.get(t.extra.get("base_no", 0), None)
+            if t.kind == "pose" and t.extra.get("base_no", 0) and base is None:
+                out.append(f"BASE_DATA[{t.extra['base_no']}] is not given")
+                continue
+            if "tool_no" in t.extra and tool is None:
+                out.append(f"TOOL_DATA[{t.extra['tool_no']}] is not given")
+                continue
+        else:
+            tool = t.tcp
+        out.append((np.eye(4) if tool is None else dialect.to_T(tool),
+                    np.eye(4) if base is None else dialect.to_T(base)))
+    return out
+
+
+def compensate(program: Program, dialect: Dialect, error_model, x, options: Options
+               ) -> tuple[dict[int, Correction], list[dict], list[Refusal]]:
+    """Corrections for a parsed program's targets; (corrections, report rows, refusals)."""
+    model = error_model.model
+    N = model.n_joints
+    refusals, use = [], []
+    frames = _frames(program, dialect, options)
+    for t, f in zip(program.targets, frames, strict=True):
+        if isinstance(f, str):
+            refusals.append(Refusal(t.line, t.context, f))
+        elif t.kind == "joints" and len(t.values) != N:
+            refusals.append(Refusal(t.line, t.context, f"{len(t.values)} joint values, the "
+                                    f"model {model.name} has {N} joints"))
+        else:
+            use.append(t)
+    if not use:
+        return {}, [], refusals
+    n = len(use)
+    is_pose = np.array([t.kind == "pose" for t in use])
+    joints = np.zeros((n, N))
+    joints[~is_pose] = [np.asarray(t.values) * dialect.joint_unit for t in use
+                        if t.kind == "joints"]
+    default = (options.seed if options.seed is not None else
+               np.radians(DEFAULT_SEED_DEG[dialect.name][:N] + (0.0,) * max(0, N - 6)))
+    joints = neighbour_seeds(is_pose, joints, default)
+    tcp = np.stack([frames[t.index][0] for t in use])
+    base = np.stack([frames[t.index][1] for t in use])
+    pose = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    pose[is_pose] = [base[i] @ dialect.to_T(t.values) for i, t in enumerate(use) if is_pose[i]]
+    columns = {}
+    if options.temp_c is not None:
+        columns["temp_c"] = np.full(n, float(options.temp_c))
+    payload = [t.payload_kg if t.payload_kg is not None else options.payload_kg for t in use]
+    if any(p is not None for p in payload):
+        columns["payload_kg"] = np.array([0.0 if p is None else p for p in payload])
+    c = compensate_targets(error_model, x, joints, pose=pose, is_pose=is_pose,
+                           flange_T_tcp=tcp, columns=columns)
+    corrections, rows = {}, []
+    for i, t in enumerate(use):
+        if not c.success[i]:
+            refusals.append(Refusal(t.line, t.context, "the calibrated robot cannot reach it "
+                                    "(out of reach or at a singularity)"))
+            continue
+        if t.kind == "pose":
+            values = dialect.from_T(np.linalg.inv(base[i]) @ c.cmd[i], near=t.values)
+        else:
+            values = tuple(float(v) for v in c.q[i] / dialect.joint_unit)
+        corrections[t.index] = Correction(values, float(c.correction_mm[i]))
+        rows.append(target_row(t, c, i))
+    return corrections, rows, refusals
+
+
+def compensate_program(path: str | Path, error_model, x, out: str | Path, *,
+                       allow_partial: bool = False, language: str | None = None,
+                       options: Options | None = None) -> ProgramReport:
+    """Read the program at ``path``, compensate it with the calibration ``(error_model,
+    x)`` (e.g. :func:`calibration.params_io.read_params`), write it to ``out`` atomically
+    and report. Nothing is written when a target cannot be compensated, unless
+    ``allow_partial`` (those targets stay as they were and are listed); a program a
+    previous compensation wrote is refused (it would be compensated twice)."""
+    dialect = language_of(path, language)
+    program = read_program(path, dialect)
+    if program.compensated_at is not None:
+        raise ProgramError(f"{path}: line {program.compensated_at}: this program was "
+                           "compensated already (a 'cellcal:' comment); compensate the "
+                           "original")
+    corrections, rows, refused = compensate(program, dialect, error_model, x,
+                                            options or Options())
+    refusals = sorted(program.refusals + refused, key=lambda r: r.line)
+    report = ProgramReport(str(path), str(out), dialect.name, len(program.targets), rows,
+                           refusals, program.notes)
+    if not refusals or allow_partial:
+        text = dialect.rewrite(program, corrections)
+        write_atomic(out, text.encode("utf-8", "surrogateescape"))
+        report.written = True
+    return report
