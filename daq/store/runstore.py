@@ -406,7 +406,8 @@ class RunStore:
     #: the measurement columns a sample and a reading share, and their values
     _MEASURED = ("q_json, x, y, z, sx, sy, sz, n, t, temp_c, pressure_hpa, humidity_pct, "
                  "cmd_x, cmd_y, cmd_z, dir_json, model_residual_mm, model_threshold_mm, "
-                 "reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz")
+                 "reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz, "
+                 "joint_temp_json, qw, qx, qy, qz, sigma_deg, tool_id")
 
     @staticmethod
     def _measured(s: Sample) -> tuple:
@@ -417,7 +418,12 @@ class RunStore:
                 *(_f(v) for v in cmd),
                 json.dumps([int(v) for v in s.dirs]) if s.dirs is not None else None,
                 _f(s.model_residual_mm), _f(s.model_threshold_mm), s.reflector or None,
-                int(s.face) if s.face else None, *_cov_cols(s.cov_mm2))
+                int(s.face) if s.face else None, *_cov_cols(s.cov_mm2),
+                None if s.joint_temp_c is None
+                else json.dumps([float(v) for v in np.asarray(s.joint_temp_c, float)]),
+                *((None,) * 4 if s.quat_wxyz is None
+                  else (float(v) for v in np.asarray(s.quat_wxyz, float))),
+                _f(s.sigma_deg), s.tool_id or None)
 
     def add_sample(self, run_id: int, s: Sample, rejected=(), revisited=()) -> bool:
         """Write one sample in one transaction (the checkpoint).
@@ -490,7 +496,7 @@ class RunStore:
             """SELECT point_index, pose_id, set_name, q_json, x, y, z, sx, sy, sz, n, t,
                temp_c, pressure_hpa, humidity_pct, cmd_x, cmd_y, cmd_z, dir_json, target_json,
                reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz,
-               verdict, remeasures
+               verdict, remeasures, joint_temp_json, qw, qx, qy, qz, sigma_deg, tool_id
                FROM samples WHERE run_id=? ORDER BY point_index""", (run_id,)
         ).fetchall()
 
@@ -502,6 +508,7 @@ class RunStore:
 
         q = np.array([json.loads(r[3]) for r in rows], float)
         dirs = [r[18] for r in rows]
+        temps = [r[30] for r in rows]
         return Samples(
             point_index=np.array([r[0] for r in rows], int),
             pose_id=[r[1] or str(r[0] + 1) for r in rows],
@@ -523,6 +530,12 @@ class RunStore:
             cov_mm2=_cov_matrix(rows, 22),
             verdict=[r[28] for r in rows],
             remeasures=np.array([r[29] or 0 for r in rows], int),
+            joint_temp_c=(np.array([json.loads(x) for x in temps], float)
+                          if rows and all(x is not None for x in temps) else None),
+            quat_wxyz=(np.column_stack([col(31), col(32), col(33), col(34)]) if rows
+                       else np.zeros((0, 4))),
+            sigma_deg=col(35),
+            tool_id=[r[36] for r in rows],
         )
 
     def readings(self, run_id: int) -> list[Reading]:
@@ -545,7 +558,10 @@ class RunStore:
                 base_p_tcp_cmd=None if cx is None else np.array([cx, cy, cz], float),
                 dirs=None if dirs is None else np.array(json.loads(dirs), int),
                 model_residual_mm=res, model_threshold_mm=thr, reflector=reflector or None,
-                face=face or None, cov_mm2=None if r[24] is None else _cov_matrix([r], 24)[0]),
+                face=face or None, cov_mm2=None if r[24] is None else _cov_matrix([r], 24)[0],
+                joint_temp_c=None if r[30] is None else np.array(json.loads(r[30]), float),
+                quat_wxyz=None if r[31] is None else np.array(r[31:35], float),
+                sigma_deg=r[35], tool_id=r[36]),
                 r[1]))
         return out
 

@@ -51,6 +51,14 @@ class Sample:
     #: 3-D distance from the running model's prediction and the threshold there (mm)
     model_residual_mm: float | None = None
     model_threshold_mm: float | None = None
+    #: the joints' temperatures as the controller reported them (°C, (N,)); None: not read
+    joint_temp_c: np.ndarray | None = None
+    #: a 6-DoF target's orientation: unit quaternion (w, x, y, z) of the target frame in the
+    #: tracker frame, and its standard uncertainty (deg); None: a position-only reading
+    quat_wxyz: np.ndarray | None = None
+    sigma_deg: float | None = None
+    #: which target on the tool was measured (when a pose measures several); None: the one
+    tool_id: str | None = None
 
 
 @dataclass
@@ -84,6 +92,11 @@ class Samples:
     cov_mm2 : (n, 3, 3) mm², the covariance of ``tracker_p_smr``, NaN where unknown
     verdict : list of str or None, how each reading was judged (:data:`daq.remeasure.VERDICTS`)
     remeasures : (n,) int, re-measurements made at each point
+    joint_temp_c : (n, N) °C, the joints' temperatures, or None unless every sample has them
+    quat_wxyz : (n, 4) unit quaternions of a 6-DoF target (tracker frame), NaN where not
+        measured
+    sigma_deg : (n,) deg, the orientation's standard uncertainty, NaN where unknown
+    tool_id : list of str or None, the tool target measured (None: the one)
     """
 
     point_index: np.ndarray
@@ -105,6 +118,10 @@ class Samples:
     cov_mm2: np.ndarray
     verdict: list[str | None]
     remeasures: np.ndarray
+    joint_temp_c: np.ndarray | None = None
+    quat_wxyz: np.ndarray | None = None
+    sigma_deg: np.ndarray | None = None
+    tool_id: list[str | None] | None = None
 
     def __len__(self) -> int:
         return len(self.point_index)
@@ -127,4 +144,9 @@ class Samples:
             dirs=None if self.dirs is None else self.dirs[i].copy(),
             reflector=self.reflector[i], face=int(self.face[i]) or None,
             cov_mm2=None if np.isnan(self.cov_mm2[i]).all() else self.cov_mm2[i].copy(),
-            verdict=self.verdict[i], remeasures=int(self.remeasures[i]))
+            verdict=self.verdict[i], remeasures=int(self.remeasures[i]),
+            joint_temp_c=None if self.joint_temp_c is None else self.joint_temp_c[i].copy(),
+            quat_wxyz=(None if self.quat_wxyz is None or np.isnan(self.quat_wxyz[i]).any()
+                       else self.quat_wxyz[i].copy()),
+            sigma_deg=None if self.sigma_deg is None else opt(self.sigma_deg),
+            tool_id=None if self.tool_id is None else self.tool_id[i])

@@ -37,6 +37,12 @@ Versions
     8. the ``reserve`` table: one row of zeros (:data:`RESERVE_BYTES`) a SQLite store gives
        up when the disk is full, so that the run can still be marked paused with the
        reason (:meth:`daq.store.RunStore.release_reserve`); empty on PostgreSQL.
+    9. the robot's thermal state and full-pose readings, per sample and per rejected
+       reading (additive, NULL where not measured): ``joint_temp_json`` (the joints'
+       temperatures as the controller reports them, JSON list, °C), the orientation of a
+       6-DoF target (``qw``, ``qx``, ``qy``, ``qz``: unit quaternion of the target frame in
+       the tracker frame) with its standard uncertainty ``sigma_deg``, and ``tool_id`` (which
+       target on the tool was measured, when a pose measures several).
 
 The versions are :data:`UPGRADES` alone, a registry keyed by the version each upgrade
 starts from and checked when this module is imported (:func:`checked_upgrades`:
@@ -247,6 +253,19 @@ def _upgrade_reserve(con: Connection) -> None:
         con.execute("INSERT INTO reserve (id, pad) VALUES (1, zeroblob(?))", (RESERVE_BYTES,))
 
 
+#: v9's columns, on samples and on readings
+THERMAL_FULL_POSE_COLUMNS = ("joint_temp_json TEXT", "qw REAL", "qx REAL", "qy REAL", "qz REAL",
+                             "sigma_deg REAL", "tool_id TEXT")
+
+
+def _upgrade_thermal_full_pose(con: Connection) -> None:
+    """v9 (additive): joint temperatures, a 6-DoF target's orientation and its uncertainty,
+    and the tool target's id, per sample and per rejected reading (NULL: not measured)."""
+    for table in ("samples", "readings"):
+        for column in THERMAL_FULL_POSE_COLUMNS:
+            con.execute(f"ALTER TABLE {table} ADD COLUMN {column}")
+
+
 @dataclass(frozen=True)
 class Upgrade:
     """One step of the schema: ``apply(con)`` takes a database from ``version`` to
@@ -289,6 +308,8 @@ UPGRADES: dict[int, Upgrade] = checked_upgrades([
     Upgrade(5, "re-measure (verdicts, readings)", _upgrade_5_to_6),
     Upgrade(6, "runs.robot_id, calibrations", _upgrade_robot_history),
     Upgrade(7, "the reserve for a full disk", _upgrade_reserve),
+    Upgrade(8, "joint temperatures, 6-DoF orientation, tool target per sample",
+            _upgrade_thermal_full_pose),
 ])
 
 #: current schema version (SQLite's PRAGMA user_version, PostgreSQL's schema_version)

@@ -241,6 +241,41 @@ def test_tracker_metadata_identities_and_readings_round_trip(store_address):
         assert all(type(v) is int for v in counts.values())
 
 
+def test_joint_temperatures_and_full_pose_round_trip(store_address):
+    """Schema 9 on either backend: joint temperatures, a 6-DoF target's orientation and its
+    uncertainty, and the tool target's id, per sample and per rejected reading; a
+    position-only sample reads back without them."""
+    plan = make_plan("poses", TOYM, count=4, seed=0)
+    quat = np.array([0.5, 0.5, -0.5, 0.5])
+    with RunStore(store_address) as st:
+        rid = st.create_run(plan)
+        full = sample(0)
+        full.joint_temp_c = np.array([31.5, 33.25, 29.0])
+        full.quat_wxyz, full.sigma_deg, full.tool_id = quat, 0.01, "nest2"
+        bad = sample(0)
+        bad.joint_temp_c, bad.quat_wxyz, bad.tool_id = full.joint_temp_c, -quat, "nest2"
+        assert st.add_sample(rid, full, [Reading(bad, "1 mm from the model")])
+        warm = sample(1)
+        warm.joint_temp_c = np.array([32.0, 34.0, 30.0])
+        assert st.add_sample(rid, warm)
+        other = st.create_run(plan)
+        assert st.add_sample(other, sample(0)) and st.add_sample(other, warm)
+    with open_store(store_address, create=False, read_only=True) as st:
+        assert st.samples(other).joint_temp_c is None  # not every sample has them
+        s = st.samples(rid)
+        np.testing.assert_array_equal(s.joint_temp_c[1], [32.0, 34.0, 30.0])
+        np.testing.assert_array_equal(s.quat_wxyz[0], quat)
+        assert np.isnan(s.quat_wxyz[1]).all() and np.isnan(s.sigma_deg[1])
+        assert s.sigma_deg[0] == 0.01 and s.tool_id == ["nest2", None]
+        first, second = s.sample(0), s.sample(1)
+        np.testing.assert_array_equal(first.joint_temp_c, [31.5, 33.25, 29.0])
+        assert first.tool_id == "nest2" and second.quat_wxyz is None
+        (reading,) = st.readings(rid)
+        np.testing.assert_array_equal(reading.sample.quat_wxyz, -quat)
+        np.testing.assert_array_equal(reading.sample.joint_temp_c, full.joint_temp_c)
+        assert reading.sample.tool_id == "nest2"
+
+
 def test_calibrations_are_kept_per_robot_in_time_order(store_address):
     with RunStore(store_address) as st:
         a = st.add_calibration("ur10e/A", {"parameters": [{"name": "x", "value": 2}]}, t=20.0,
