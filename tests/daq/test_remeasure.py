@@ -22,7 +22,7 @@ from daq.remeasure import Remeasure, RunningModel
 from daq.routines import make_plan
 from daq.run_context import ExecutorOptions, RunContext
 from daq.store import Reading, RunStore, Sample
-from daq.store.schema import SCHEMA_VERSION, UPGRADES
+from daq.store.schema import SCHEMA_VERSION, THERMAL_FULL_POSE_COLUMNS, UPGRADES
 from drivers.protocols import JointReading, Measurement
 from sim_drivers.model_truth import ModelTruth
 
@@ -217,7 +217,8 @@ def test_upgrade_from_schema_5_adds_the_readings_and_keeps_every_sample(tmp_path
     con.close()
     assert [r[:len(before[0])] for r in after] == before  # the old columns as they were
     assert cols[len(before[0]):] == ["verdict", "remeasures", "model_residual_mm",
-                                     "model_threshold_mm"]
+                                     "model_threshold_mm",  # schema 6, then schema 9's
+                                     *(c.split()[0] for c in THERMAL_FULL_POSE_COLUMNS)]
     assert main(["export", "4", "--db", str(db), "--out", str(tmp_path / "after.csv")]) == 0
     assert (tmp_path / "after.csv").read_text() == (tmp_path / "before.csv").read_text()
 
