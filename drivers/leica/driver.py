@@ -437,19 +437,26 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
         std = np.array([p.dStd1, p.dStd2, p.dStd3], float)
         if not (np.all(np.isfinite(xyz)) and np.all(np.isfinite(std))):
             raise ProtocolError(self._dev, "ES_C_StartMeasurement", "non-finite result")
-        cov = None
+        covar = None
         if isinstance(p, codec.SingleMeasResult2T):
+            covar = (p.dCovar12, p.dCovar13, p.dCovar23)
+        return Measurement(**self._fields(p, xyz, std, covar))
+
+    def _fields(self, p, xyz: np.ndarray, std: np.ndarray, covar=None) -> dict:
+        """The :class:`Measurement` fields of a result ``p`` (3D or 6D): ``xyz``, ``std``
+        (mm), the covariance from ``covar`` (the 12, 13, 23 terms, or None), the air of
+        ``p``, the reflector selected and the face."""
+        cov = None
+        if covar is not None:
             cov = np.diag(std**2)
-            cov[0, 1] = cov[1, 0] = p.dCovar12
-            cov[0, 2] = cov[2, 0] = p.dCovar13
-            cov[1, 2] = cov[2, 1] = p.dCovar23
+            cov[0, 1] = cov[1, 0] = covar[0]
+            cov[0, 2] = cov[2, 0] = covar[1]
+            cov[1, 2] = cov[2, 1] = covar[2]
         ref = next((r.name for r in self._reflectors if r.id == self._reflector_id), "")
-        return Measurement(
-            xyz=xyz, std=std, n=1, timestamp=time.time(),
-            env={"temp_c": p.dTemperature, "pressure_hpa": p.dPressure,
-                 "humidity_pct": p.dHumidity},
-            cov=cov, reflector=ref, face=int(self._face),
-        )
+        return dict(xyz=xyz, std=std, n=1, timestamp=time.time(),
+                    env={"temp_c": p.dTemperature, "pressure_hpa": p.dPressure,
+                         "humidity_pct": p.dHumidity},
+                    cov=cov, reflector=ref, face=int(self._face))
 
     # --------------------------------------------------------------- events
     def events(self, poll_s: float = 0.0) -> list[tuple[float, str]]:

@@ -88,19 +88,11 @@ class EmsconSixDof:
         norm = float(np.linalg.norm(quat))
         if abs(norm - 1.0) > QUAT_TOLERANCE:
             raise ProtocolError(self._dev, command, f"quaternion of length {norm:.9g}, not 1")
-        cov = np.diag(std**2)
-        cov[0, 1] = cov[1, 0] = p.dCovarPosition12
-        cov[0, 2] = cov[2, 0] = p.dCovarPosition13
-        cov[1, 2] = cov[2, 1] = p.dCovarPosition23
+        covar = (p.dCovarPosition12, p.dCovarPosition13, p.dCovarPosition23)
         std_deg = np.degrees(std_rad)
         pid = int(p.iInternalProbeId)
-        ref = next((r.name for r in self._reflectors if r.id == self._reflector_id), "")
         return PoseMeasurement(
-            xyz=xyz, std=std, n=1, timestamp=time.time(),
-            env={"temp_c": p.dTemperature, "pressure_hpa": p.dPressure,
-                 "humidity_pct": p.dHumidity},
-            cov=cov, reflector=ref, face=int(self._face),
-            quat=quat / norm, std_deg=std_deg,
+            **self._fields(p, xyz, std, covar), quat=quat / norm, std_deg=std_deg,
             sigma_deg=float(np.sqrt(np.mean(std_deg**2))),
             target=(self._probe_names or {}).get(pid, f"probe {pid}"),
         )

@@ -13,13 +13,13 @@ from calibration.transforms import matrix_to_quat, quat_angle
 from drivers.errors import BeamBroken, CommandRejected, ProtocolError
 from drivers.leica import codec, probe_packets
 from drivers.leica.enums import ES_MeasMode, ES_ResultStatus, ES_TrackerProcessorStatus
-from drivers.protocols import PoseMeasurement, SixDof
+from drivers.protocols import PoseMeasurement
 from drivers.urls import open_tracker
 from sim_drivers.cell import SimCell
 from sim_drivers.emscon_server import EmsconServer
 from sim_drivers.model_truth import ModelTruth
-from sim_drivers.six_dof import SixDofTarget
 from tests.drivers.test_emscon_transcript import ScriptedEmscon, transcript
+from tests.sim_drivers.helpers import measure_pose_at, tmac_cell
 
 #: sizes from the header (4-byte packing): 12 bytes ReturnDataT + 9 ints + 41 doubles...
 HEADER_SIZES = {"ProbeStationaryResultT": 12 + 9 * 4 + 41 * 8,
@@ -78,13 +78,7 @@ def pose_transcript(result):
 
 
 def _connect_and_measure_pose(peer):
-    trk = open_tracker(f"emscon://127.0.0.1:{peer.port}")
-    try:
-        trk.connect(2.0)
-        assert isinstance(trk, SixDof)
-        return trk.measure_pose(0.25, 2.0)
-    finally:
-        trk.close()
+    return measure_pose_at(f"emscon://127.0.0.1:{peer.port}", 0.25)
 
 
 def test_measure_pose_exchanges_exactly_these_packets():
@@ -117,8 +111,8 @@ def truth():
     return ModelTruth.from_spec("ur10e", None, 6)
 
 
-def test_against_the_simulator_in_any_units_another_client_set(truth):
-    cell = SimCell(truth, seed=6, six_dof=SixDofTarget.on_tool(seed=6))
+def test_against_the_simulator_in_any_units_another_client_set():
+    cell = tmac_cell(6)
     with EmsconServer(cell) as srv:
         trk = open_tracker(srv.url)
         trk.connect(5.0)
@@ -154,8 +148,7 @@ def test_no_6d_camera_and_face_2_are_refused(truth):
             assert trk.probes() == {}
         finally:
             trk.close()
-    cell = SimCell(truth, seed=6, six_dof=SixDofTarget.on_tool(seed=6))
-    with EmsconServer(cell) as srv:
+    with EmsconServer(tmac_cell(6)) as srv:
         trk = open_tracker(srv.url)
         trk.connect(5.0)
         try:
@@ -181,13 +174,12 @@ def test_cesapi_1_1_3_has_no_6d_result_and_cannot_decode_one():
 
 
 @pytest.mark.timeout(120)
-def test_cesapi_sets_the_6d_mode_by_number_and_measures_the_tmac_in_3d(truth):
+def test_cesapi_sets_the_6d_mode_by_number_and_measures_the_tmac_in_3d():
     """What CESAPI can do with a 6-DoF tracker: set ES_MM_6DStationary by its number (the
     server keeps it for our driver), read it back, and measure the T-Mac's reflector in 3D."""
     cmd_mod = pytest.importorskip("CESAPI.command")
     conn_mod = pytest.importorskip("CESAPI.connection")
-    cell = SimCell(truth, seed=6, six_dof=SixDofTarget.on_tool(seed=6),
-                   tracker_initialised=True)
+    cell = tmac_cell(6, tracker_initialised=True)
     with EmsconServer(cell) as srv:
         conn = conn_mod.Connection()
         conn.connect(host=srv.host, port=srv.port)

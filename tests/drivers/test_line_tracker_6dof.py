@@ -8,13 +8,12 @@ import pytest
 
 from calibration.transforms import matrix_to_quat, quat_angle
 from drivers.errors import CommandRejected, ProtocolError
-from drivers.protocols import PoseMeasurement, SixDof
+from drivers.protocols import PoseMeasurement
 from drivers.urls import open_tracker
 from sim_drivers.cell import SimCell
 from sim_drivers.model_truth import ModelTruth
-from sim_drivers.six_dof import SixDofTarget
 from sim_drivers.tracker_server import TrackerServer
-from tests.sim_drivers.helpers import ScriptedPeer
+from tests.sim_drivers.helpers import ScriptedPeer, measure_pose_at, tmac_cell
 
 HELLO = ("HELLO", ["OK HELLO TRK 1 1.0"])
 STATUS = ("STATUS?", ["OK STATUS init=1 warm=1 beam=1"])
@@ -26,14 +25,9 @@ REPLY = ("OK MEAS6D x=1000.5 y=-2.0 z=300.25 sx=0.01 sy=0.02 sz=0.03 qw=0.5 qx=0
 
 def _pose(reply: str):
     with ScriptedPeer([HELLO, STATUS, MODE, ("MEAS6D", [reply])]) as peer:
-        trk = open_tracker(f"tracker+tcp://127.0.0.1:{peer.port}")
-        try:
-            trk.connect(2.0)
-            assert isinstance(trk, SixDof)
-            return trk.measure_pose(0.2, 2.0)
-        finally:
-            trk.close()
-            peer.check()
+        m = measure_pose_at(f"tracker+tcp://127.0.0.1:{peer.port}", 0.2)
+        peer.check()
+        return m
 
 
 def test_meas6d_exchange_and_reading():
@@ -54,21 +48,14 @@ def test_a_bad_6d_reply_is_a_protocol_error(change):
         _pose(REPLY.replace(*change))
 
 
-@pytest.fixture(scope="module")
-def truth():
-    return ModelTruth.from_spec("ur10e", None, 8)
-
-
-def test_against_the_simulated_tracker(truth):
-    cell = SimCell(truth, seed=8, six_dof=SixDofTarget.on_tool(seed=8))
-    with TrackerServer(cell) as srv:
-        with open_tracker(srv.url) as trk:
-            trk.connect(5.0)
-            m = trk.measure_pose(0.1, 5.0)
-            p = trk.measure(0.1, 5.0)
-            trk.change_face(5.0)
-            with pytest.raises(CommandRejected, match="FACE2_6D"):
-                trk.measure_pose(0.1, 5.0)
+def test_against_the_simulated_tracker():
+    cell = tmac_cell(8)
+    with TrackerServer(cell) as srv, open_tracker(srv.url) as trk:
+        trk.connect(5.0)
+        m, p = trk.measure_pose(0.1, 5.0), trk.measure(0.1, 5.0)
+        trk.change_face(5.0)
+        with pytest.raises(CommandRejected, match="FACE2_6D"):
+            trk.measure_pose(0.1, 5.0)
     assert np.degrees(quat_angle(m.quat, matrix_to_quat(cell.true_orientation()))) < 0.1
     truth_xyz = cell.true_point()
     for reading in (m, p):
@@ -76,8 +63,9 @@ def test_against_the_simulated_tracker(truth):
     assert m.target == "T-Mac_TMC30-F" and m.sigma_deg == pytest.approx(0.01, rel=0.2)
 
 
-def test_without_a_6dof_target_meas6d_is_refused(truth):
-    with TrackerServer(SimCell(truth, seed=8)) as srv, open_tracker(srv.url) as trk:
+def test_without_a_6dof_target_meas6d_is_refused():
+    cell = SimCell(ModelTruth.from_spec("ur10e", None, 8), seed=8)
+    with TrackerServer(cell) as srv, open_tracker(srv.url) as trk:
         trk.connect(5.0)
         with pytest.raises(CommandRejected, match="NO_6DOF_TARGET"):
             trk.measure_pose(0.1, 5.0)
