@@ -9,7 +9,8 @@ are queued apart (:meth:`LineTracker.events`).
 Capabilities (:mod:`drivers.protocols`): a ready gate from ``STATUS?``
 (:class:`~drivers.protocols.ReadyGate`), the air with ``ENV?`` / ``SET ENV``
 (:class:`~drivers.protocols.EnvironmentSensor`), two-face measurement with
-``FACE?`` / ``CHANGE FACE`` (:class:`~drivers.protocols.TwoFace`).
+``FACE?`` / ``CHANGE FACE`` (:class:`~drivers.protocols.TwoFace`), a 6-DoF target's
+pose with ``MEAS6D`` (:class:`~drivers.protocols.SixDof`).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from drivers.protocols import (
     DeviceIdentity,
     Environment,
     Measurement,
+    PoseMeasurement,
     Readiness,
     TrackerStatus,
     measure_both_faces,
@@ -47,7 +49,12 @@ TRACKER_ERRORS: dict[str, type[DriverError]] = {
     "BEAM_BROKEN": BeamBroken,
     "NO_TARGET": BeamBroken,
     "OUT_OF_RANGE": CommandRejected,
+    "NO_6DOF_TARGET": CommandRejected,
+    "FACE2_6D": CommandRejected,
 }
+
+#: largest accepted | |q| - 1 | of a MEAS6D quaternion (written with 10 decimals)
+QUAT_TOLERANCE = 1e-6
 
 
 class LineTracker:
@@ -155,6 +162,31 @@ class LineTracker:
         frame; env with ``temp_c``, ``pressure_hpa``, ``humidity_pct``). Retried
         once after a lost connection (the target is stationary, so it is safe).
         """
+        return self._parse_meas(self._measure_line("MEAS", duration_s, timeout))
+
+    def measure_pose(self, duration_s: float = 0.5, timeout: float = 10.0) -> PoseMeasurement:
+        """``MEAS6D``: the 6-DoF target's position (mm) and orientation (unit quaternion
+        w, x, y, z of the target frame in the tracker frame; per-axis std in deg), as
+        :meth:`measure` (retried once after a lost connection)."""
+        tok = self._measure_line("MEAS6D", duration_s, timeout)
+        m = self._parse_meas(tok, "MEAS6D")
+        kv = parse_kv(tok, self._transport.device, "MEAS6D")
+        try:
+            quat = np.array([float(kv[k]) for k in ("qw", "qx", "qy", "qz")])
+            std_deg = np.array([float(kv[k]) for k in ("sdx", "sdy", "sdz")])
+        except (KeyError, ValueError) as e:
+            raise ProtocolError(self._transport.device, "MEAS6D", f"bad 6D reply: {e}") from e
+        norm = float(np.linalg.norm(quat))
+        if not (np.all(np.isfinite(std_deg)) and abs(norm - 1.0) <= QUAT_TOLERANCE):
+            raise ProtocolError(self._transport.device, "MEAS6D",
+                                f"quaternion of length {norm:.9g} or non-finite std")
+        fields = {k: getattr(m, k) for k in ("xyz", "std", "n", "timestamp", "env", "face")}
+        return PoseMeasurement(**fields, quat=quat / norm, std_deg=std_deg,
+                               sigma_deg=float(np.sqrt(np.mean(std_deg**2))),
+                               target=kv.get("target", ""))
+
+    def _measure_line(self, request: str, duration_s: float, timeout: float) -> list[str]:
+        """``request`` (MEAS or MEAS6D) after the averaging time is set: its reply tokens."""
         deadline = time.monotonic() + timeout
         time_ms = max(1, int(round(duration_s * 1000.0)))
         for attempt in range(2):
@@ -164,15 +196,15 @@ class LineTracker:
                 )
                 self._mode_ms = time_ms
             mode_before = self._mode_ms
-            tok = self._session.exchange("MEAS", "MEAS", deadline, retry=True)
+            tok = self._session.exchange(request, request, deadline, retry=True)
             if self._mode_ms == mode_before or attempt:
                 break
             # a reconnect reset the mode before MEAS: measure again with the right time
-        return self._parse_meas(tok)
+        return tok
 
-    def _parse_meas(self, tok: list[str]) -> Measurement:
+    def _parse_meas(self, tok: list[str], command: str = "MEAS") -> Measurement:
         dev = self._transport.device
-        kv = parse_kv(tok, dev, "MEAS")
+        kv = parse_kv(tok, dev, command)
         try:
             xyz = np.array([float(kv["x"]), float(kv["y"]), float(kv["z"])])
             std = np.array([float(kv["sx"]), float(kv["sy"]), float(kv["sz"])])
@@ -184,9 +216,9 @@ class LineTracker:
                 if key in kv:
                     env[name] = float(kv[key])
         except (KeyError, ValueError) as e:
-            raise ProtocolError(dev, "MEAS", f"bad measurement reply: {e}") from e
+            raise ProtocolError(dev, command, f"bad measurement reply: {e}") from e
         if not (np.all(np.isfinite(xyz)) and np.all(np.isfinite(std))):
-            raise ProtocolError(dev, "MEAS", "non-finite values")
+            raise ProtocolError(dev, command, "non-finite values")
         self._check_fresh(kv, ts)
         return Measurement(xyz=xyz, std=std, n=n, timestamp=ts, env=env, face=face)
 

@@ -150,6 +150,25 @@ class Measurement:
         return self.env.get("humidity_pct")
 
 
+@dataclass(frozen=True, kw_only=True)
+class PoseMeasurement(Measurement):
+    """One stationary measurement of a 6-DoF target: its position and its orientation.
+
+    A :class:`Measurement` (``xyz``, ``std``... of the target's reference point, mm,
+    tracker frame) plus ``quat``, the unit quaternion (w, x, y, z) of the target frame in
+    the tracker frame (it turns target-frame vectors into tracker-frame ones:
+    ``tracker_R_target``), and its uncertainty: ``std_deg`` the standard deviation of the
+    rotation about the tracker's x, y, z axes (deg) and ``sigma_deg`` one number for it
+    (their root mean square, the ``sigma_deg`` column of FORMATS §1). ``target``: the
+    6-DoF target's name as the tracker reports it (e.g. its probe name), "" unknown.
+    """
+
+    quat: np.ndarray
+    std_deg: np.ndarray
+    sigma_deg: float
+    target: str = ""
+
+
 @runtime_checkable
 class RobotDriver(Protocol):
     """A robot controller that can move to joint or Cartesian targets and report joints."""
@@ -329,6 +348,18 @@ class ReflectorSelect(Protocol):
 
     def set_reflector(self, name: str, timeout: float = 2.0) -> Reflector:
         """Select the reflector called ``name``; CommandRejected naming the known ones."""
+        ...
+
+
+@runtime_checkable
+class SixDof(Protocol):
+    """Capability: measure a 6-DoF target's position and orientation (a T-Mac, say)."""
+
+    def measure_pose(self, duration_s: float = 0.5, timeout: float = 10.0) -> PoseMeasurement:
+        """Measure the stationary 6-DoF target, averaging for ``duration_s``; raises
+        :class:`~drivers.errors.CommandRejected` when the tracker has no 6-DoF target (or
+        cannot measure one now, e.g. in face 2) and
+        :class:`~drivers.errors.BeamBroken` when the target is out of sight."""
         ...
 
 

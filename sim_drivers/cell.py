@@ -58,22 +58,11 @@ import numpy as np
 from calibration.cell import REFLECTOR_ACCEPTANCE_DEG, CellSpec
 from calibration.simulate import blunder_offsets
 from sim_drivers.beam import BeamPhysics
+from sim_drivers.refusals import CellRefused
+from sim_drivers.six_dof import SixDofMeasuring, SixDofTarget
 from sim_drivers.thermal import JointThermal, thermal_model
 from sim_drivers.tracker_optics import TRACKER_REFLECTORS, SimReflector, tracker_reads
 from sim_drivers.truth import PoseContext, TrueRobot
-
-
-class CellRefused(Exception):  # noqa: N818 - a refusal, not a bug
-    """The simulated controller or tracker refuses a command.
-
-    ``name`` is the protocol's error name (``LIMIT``, ``PROTECTIVE_STOP``,
-    ``BEAM_BROKEN``...), which the servers put on the wire.
-    """
-
-    def __init__(self, name: str, detail: str = "") -> None:
-        self.name = name
-        self.detail = detail
-        super().__init__(f"{name}: {detail}" if detail else name)
 
 
 @dataclass(frozen=True)
@@ -144,7 +133,7 @@ ERROR_CODES = {
 }
 
 
-class SimCell:
+class SimCell(SixDofMeasuring):
     """A simulated robotic cell around a :class:`~sim_drivers.truth.TrueRobot`.
 
     Parameters
@@ -191,6 +180,10 @@ class SimCell:
         The robot's joint temperatures (:mod:`sim_drivers.thermal`): a model, or its start
         ("cold", "warm"); None (the default) for none. The true robot's hidden thermal
         effects (``ModelTruth.with_thermal``) see them.
+    six_dof : SixDofTarget, optional
+        A 6-DoF target (a T-Mac) on the tool (:mod:`sim_drivers.six_dof`): the tracker
+        measures its pose too, and the line of sight uses its axis and acceptance cone.
+        None (the default): an SMR, as before.
     """
 
     def __init__(
@@ -216,6 +209,7 @@ class SimCell:
         reflector: str = "RRR 1.5in",
         cell: CellSpec | None = None,
         thermal: JointThermal | str | None = None,
+        six_dof: SixDofTarget | None = None,
     ) -> None:
         if time_scale < 0:
             raise ValueError(f"time_scale must be >= 0, got {time_scale}")
@@ -271,6 +265,8 @@ class SimCell:
             model, tracker_T_base, smr_axis = geometry()
             acceptance = (cell.smr.half_angle_deg if cell is not None else
                           REFLECTOR_ACCEPTANCE_DEG.get(self.mounted_reflector.name, 30.0))
+            if six_dof is not None:  # a T-Mac faces the tracker with its own axis and cone
+                smr_axis, acceptance = six_dof.facing_axis, six_dof.acceptance_deg
             self.beam = BeamPhysics(model, tracker_T_base, smr_axis, acceptance, cell)
             if q0 is None:
                 self._place(self._facing_start(model, tracker_T_base, smr_axis))
@@ -280,6 +276,7 @@ class SimCell:
         self.blunder_log: list[SimBlunder] = []
         self._blunder_rng = np.random.default_rng([seed, 0xB1])
         self._last_meas_t = 0.0
+        self._init_six_dof(six_dof, seed)
 
     # ------------------------------------------------------------------ clock
     @property

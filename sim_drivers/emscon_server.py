@@ -13,7 +13,9 @@ before the answer to the change. A fresh server reports in metres,
 degrees, °C, mbar (``units=`` to start otherwise).
 
 Commands: GetSystemStatus, GetTrackerStatus, Initialize, Set/GetUnits,
-Set/GetEnvironmentParams, Set/GetMeasurementMode (stationary only),
+Set/GetEnvironmentParams, Set/GetMeasurementMode (stationary, and 6D stationary
+with a 6-DoF target on the tool: GetProbes, GetProbe and the 6D result are
+:mod:`sim_drivers.emscon_probe`),
 Set/GetCoordinateSystemType, Set/GetStationaryModeParams, Set/GetReflector,
 GetReflectors, StartMeasurement, ChangeFace, GetFace,
 GetMeasurementStatusInfo, GetSystemSoftwareVersion. Any other command is
@@ -71,6 +73,7 @@ from drivers.leica.units import (
     valid_units,
 )
 from sim_drivers.cell import CellRefused, SimCell
+from sim_drivers.emscon_probe import ProbeCommands
 from sim_drivers.faults import FaultInjector
 from sim_drivers.line_server import LineServer
 from sim_drivers.tracker_optics import TRACKER_REFLECTORS
@@ -85,6 +88,8 @@ CELL_STATUS = {
     "BEAM_BROKEN": RS.ES_RS_MeasurementStatusNotReady,
     "NO_TARGET": RS.ES_RS_MeasurementStatusNotReady,
     "BAD_ARGUMENT": RS.ES_RS_WrongParameter1,
+    "FACE2_6D": RS.ES_RS_6DMeasurementFace2NotAllowed,
+    "NO_6DOF_TARGET": RS.ES_RS_NoMeasurementProbe,
 }
 
 #: the server's tracker serial number (GetSystemStatus)
@@ -125,7 +130,7 @@ def to_coordinates(xyz: np.ndarray, std: np.ndarray, system: int, per_mm: float,
     return values, sd, False
 
 
-class EmsconSession:
+class EmsconSession(ProbeCommands):
     """One client connection; the settings live in the :class:`EmsconServer`."""
 
     def __init__(self, server: EmsconServer) -> None:
@@ -202,6 +207,7 @@ class EmsconSession:
                 flags |= M.ES_MSI_ReflectorFound
         if c.tracker_face == 1:
             flags |= M.ES_MSI_InFace1
+        flags |= self.six_dof_flags()
         return [self._answer(codec.GetMeasurementStatusInfoRT,
                              lastResultStatus=self.server.last_status,
                              lMeasurementStatusInfo=int(flags))], []
@@ -245,7 +251,9 @@ class EmsconSession:
                              dPressure=pr * PER_HPA[u[3]], dHumidity=h)], []
 
     def _SetMeasurementMode(self, p):  # noqa: N802
-        if p.measMode != ES_MeasMode.ES_MM_Stationary:
+        if p.measMode == ES_MeasMode.ES_MM_6DStationary and self.cell.six_dof is None:
+            return [self._answer(codec.SetMeasurementModeRT, RS.ES_RS_6DModeNotAllowed)], []
+        if p.measMode not in (ES_MeasMode.ES_MM_Stationary, ES_MeasMode.ES_MM_6DStationary):
             return [self._answer(codec.SetMeasurementModeRT, RS.ES_RS_NotImplemented)], []
         with self.server.lock:
             self.server.meas_mode = int(p.measMode)
@@ -314,7 +322,9 @@ class EmsconSession:
     def _StartMeasurement(self, p):  # noqa: N802
         srv, c = self.server, self.cell
         rt = codec.StartMeasurementRT
-        if srv.meas_mode != ES_MeasMode.ES_MM_Stationary:
+        six_d = srv.meas_mode == ES_MeasMode.ES_MM_6DStationary
+        if not (srv.meas_mode == ES_MeasMode.ES_MM_Stationary or (
+                six_d and srv.coord_sys == CS.ES_CS_RHR)):
             return [self._answer(rt, RS.ES_RS_NotImplemented)], []
         if not srv.busy.acquire(blocking=False):
             return [self._answer(rt, RS.ES_RS_ServerBusy)], []
@@ -334,13 +344,14 @@ class EmsconSession:
                 srv.status_change(SSC.ES_SSC_MeasStatus_Ready)
                 return [], []
             try:
-                r = c.tracker_measure(srv.stationary[0] / 1000.0)
+                measure = c.tracker_measure_pose if six_d else c.tracker_measure
+                r = measure(srv.stationary[0] / 1000.0)
             except CellRefused as e:
                 error.status = int(CELL_STATUS.get(e.name, RS.ES_RS_Unknown))
                 return [error.pack()], []
         finally:
             srv.busy.release()
-        return [self._result(r)], []
+        return [self._probe_result(r) if six_d else self._result(r)], []
 
     def _result(self, r) -> bytes:
         srv = self.server

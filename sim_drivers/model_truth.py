@@ -19,7 +19,7 @@ import numpy as np
 from calibration import Dataset, ErrorModel, RobotModel, load_model
 from calibration.effects import DEFAULT_EFFECTS, display_unit
 from calibration.inverse import ChainFK, solve_ik
-from calibration.kinematics import tool_points
+from calibration.kinematics import run_chain, tool_points
 from calibration.simulate import realistic_truth
 from calibration.transforms import make_T, rotvec_to_matrix
 
@@ -104,18 +104,22 @@ class ModelTruth:
 
     # ---- TrueRobot -------------------------------------------------------------
     def true_point(self, q: np.ndarray, ctx: PoseContext) -> np.ndarray:
-        q = np.asarray(q, float).reshape(1, -1)
-        dirs = None if ctx.direction is None else np.asarray(ctx.direction, int).reshape(1, -1)
-        data = Dataset(
-            q=q, tracker_p_smr=np.zeros((1, 3)), dirs=dirs, temp_c=np.array([ctx.temp_c]),
-            t_s=np.array([ctx.t_s]),
-            payload_kg=None if ctx.payload_kg is None else np.array([ctx.payload_kg]),
-            joint_temp=None if ctx.joint_temp is None else np.reshape(ctx.joint_temp, (1, -1)),
-        )
+        data = _pose_data(q, ctx)
         return self.error_model.evaluate(self.x_true, self.error_model.bind(data), False)[0][0]
 
     def nominal_tcp(self, q: np.ndarray) -> np.ndarray:
         return tool_points(self.model, np.asarray(q, float).reshape(1, -1))[0]
+
+    def true_flange_rotation(self, q: np.ndarray, ctx: PoseContext) -> np.ndarray:
+        """The true flange orientation in the tracker frame, ``tracker_R_flange`` (3, 3), at
+        the reported joints ``q`` (rad): the hidden chain (joint effects, geometry) and the
+        hidden base rotation, as :meth:`true_point` moves the target. The measure-stage
+        effects (the instrument's length scale) leave orientations alone."""
+        c = self.error_model.perturb(self.x_true, self.error_model.bind(_pose_data(q, ctx)))
+        r = run_chain(self.model.convention, c.table, c.q, c.tool, c.length_scale,
+                      jacobian=False, prismatic=self.model.prismatic_mask())
+        R = r.base_R_flange[0]
+        return R if c.tracker_T_base is None else c.tracker_T_base[0] @ R
 
     def nominal_ik(self, xyz: np.ndarray, q_seed: np.ndarray) -> np.ndarray:
         """Joints putting the nominal TCP at ``xyz`` near ``q_seed``: as a controller's linear
@@ -155,6 +159,17 @@ class ModelTruth:
             unit, f = display_unit(self.error_model.units[k])
             rows.append({"name": name, "value": float(self.x_true[k] * f), "unit": unit})
         return rows
+
+
+def _pose_data(q: np.ndarray, ctx: PoseContext) -> Dataset:
+    """A one-row data set of the joints ``q`` (rad) in the context ``ctx``, to evaluate at."""
+    dirs = None if ctx.direction is None else np.asarray(ctx.direction, int).reshape(1, -1)
+    return Dataset(
+        q=np.asarray(q, float).reshape(1, -1), tracker_p_smr=np.zeros((1, 3)), dirs=dirs,
+        temp_c=np.array([ctx.temp_c]), t_s=np.array([ctx.t_s]),
+        payload_kg=None if ctx.payload_kg is None else np.array([ctx.payload_kg]),
+        joint_temp=None if ctx.joint_temp is None else np.reshape(ctx.joint_temp, (1, -1)),
+    )
 
 
 def model_truth_factory(seed: int, hidden: str | None) -> ModelTruth:

@@ -2,7 +2,8 @@
 
 :class:`TrackerServer` serves a :class:`~sim_drivers.cell.SimCell`'s tracker over
 loopback TCP or a pty. One session per connection; the stationary averaging
-time (``SET MODE STATIONARY time_ms=N``) belongs to the session.
+time (``SET MODE STATIONARY time_ms=N``) belongs to the session. ``MEAS6D`` measures
+the cell's 6-DoF target (position and orientation), when it has one.
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ TRACKER_ERROR_CODES = {
     "NO_STATIONARY_RESULT": 17,
     "NO_TARGET": 18,
     "OUT_OF_RANGE": 19,
+    "NO_6DOF_TARGET": 20,
+    "FACE2_6D": 21,
 }
 
 #: what the simulated tracker says in HELLO (its serial number is the cell's,
@@ -85,6 +88,8 @@ class TrackerSession:
             return self._set(words)
         if cmd == "MEAS" and len(words) == 1:
             return self._meas()
+        if cmd == "MEAS6D" and len(words) == 1:
+            return self._meas(six_dof=True)
         return [err("BAD_COMMAND", f"unknown command {line[:40]!r}")]
 
     def _env(self) -> str:
@@ -120,7 +125,7 @@ class TrackerSession:
         self.time_ms = ms
         return [f"OK MODE STATIONARY time_ms={ms}"]
 
-    def _meas(self) -> list[str]:
+    def _meas(self, six_dof: bool = False) -> list[str]:
         if not self.busy.acquire(blocking=False):
             return [err("BUSY", "a measurement is running")]
         try:
@@ -129,13 +134,26 @@ class TrackerSession:
                 self._event("BEAM_RESTORED")
                 return [err("BEAM_BROKEN", "beam interrupted during measurement")]
             try:
-                r = self.cell.tracker_measure(self.time_ms / 1000.0)
+                measure = self.cell.tracker_measure_pose if six_dof else self.cell.tracker_measure
+                pose = r = measure(self.time_ms / 1000.0)
             except CellRefused as e:
                 return [err(e.name, e.detail)]
         finally:
             self.busy.release()
+        if six_dof:
+            r = pose.reading
         x, y, z = r.xyz
         sx, sy, sz = r.std
+        if six_dof:
+            qw, qx, qy, qz = pose.quat
+            dx, dy, dz = pose.std_deg
+            return [
+                f"OK MEAS6D x={x:.5f} y={y:.5f} z={z:.5f} sx={sx:.5f} sy={sy:.5f} sz={sz:.5f} "
+                f"qw={qw:.10f} qx={qx:.10f} qy={qy:.10f} qz={qz:.10f} "
+                f"sdx={dx:.6f} sdy={dy:.6f} sdz={dz:.6f} target={pose.target.replace(' ', '_')} "
+                f"n={r.n} T={r.temp_c:.2f} P={r.pressure_hpa:.2f} H={r.humidity_pct:.1f} "
+                f"face={r.face} t={r.timestamp:.6f} seq={r.seq}"
+            ]
         return [
             f"OK MEAS x={x:.5f} y={y:.5f} z={z:.5f} sx={sx:.5f} sy={sy:.5f} sz={sz:.5f} "
             f"n={r.n} T={r.temp_c:.2f} P={r.pressure_hpa:.2f} H={r.humidity_pct:.1f} "

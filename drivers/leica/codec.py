@@ -51,6 +51,9 @@ WSTRING = "64s"
 #: command number -> CT class / RT class (filled by the classes below)
 COMMANDS: dict[int, type[Packet]] = {}
 ANSWERS: dict[int, type[Packet]] = {}
+#: ES_DataType -> result class, for result structs declared elsewhere with ``RESULT = True``
+#: (the 6D ones of :mod:`drivers.leica.probe_packets`)
+RESULTS: dict[int, type[Packet]] = {}
 
 
 class DecodeError(ValueError):
@@ -96,6 +99,8 @@ class Packet:
         cls.NAMES = tuple(name for name, _ in cls.FIELDS)
         if cls.COMMAND is not None and cls.ROLE:
             (COMMANDS if cls.ROLE == "CT" else ANSWERS)[int(cls.COMMAND)] = cls
+        if cls.__dict__.get("RESULT"):
+            RESULTS[int(cls.TYPE)] = cls
 
     def __init__(self, **values) -> None:
         for name, code in self.FIELDS:
@@ -440,7 +445,7 @@ _BY_TYPE: dict[int, type[Packet]] = {
 
 class UnknownPacket:
     """A well-framed packet of a known-to-exist type this package does not decode
-    (multi-measurement and probe results): kept as raw bytes, to be ignored."""
+    (multi-measurement and continuous probe results): kept as raw bytes, to be ignored."""
 
     def __init__(self, frame: bytes) -> None:
         self.raw = frame
@@ -490,7 +495,7 @@ def decode(frame: bytes, side: str = "client") -> Packet | UnknownPacket:
         name = cls.__name__ if cls else f"command {command}"
         want = cls.SIZE if cls else basic.SIZE
         raise DecodeError(f"{name}: {len(frame)} bytes, expected {want}")
-    cls = _BY_TYPE.get(dtype)
+    cls = _BY_TYPE.get(dtype) or RESULTS.get(dtype)
     if cls is not None:
         return cls.unpack(frame)
     if dtype in tuple(int(t) for t in DT):

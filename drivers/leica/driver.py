@@ -3,15 +3,17 @@
 :class:`EmsconTracker` is a :class:`~drivers.protocols.TrackerDriver` with the
 optional capabilities :class:`~drivers.protocols.ReadyGate`,
 :class:`~drivers.protocols.EnvironmentSensor`,
-:class:`~drivers.protocols.ReflectorSelect` and :class:`~drivers.protocols.TwoFace`.
+:class:`~drivers.protocols.ReflectorSelect`, :class:`~drivers.protocols.TwoFace` and
+:class:`~drivers.protocols.SixDof` (6-DoF targets, :mod:`drivers.leica.six_dof`).
 
 emScon keeps its settings (units, coordinate system, measurement mode and
 time, reflector) on the server, shared by every client, and any client may
 change them at any time. The driver therefore never assumes them: on connect
 it sets mm / rad / °C / hPa / %RH, the right-handed rectangular system and the
-stationary mode; a status change announcing that one of them changed makes the
-driver read it back (and set it again if it differs) before the next
-measurement, and a result that arrived after such a change is measured again.
+stationary mode (6D stationary for a 6-DoF measurement); a status change
+announcing that one of them changed makes the driver read it back (and set it
+again if it differs) before the next measurement, and a result that arrived
+after such a change is measured again.
 
 Every wait has a deadline: silence is :class:`~drivers.errors.CommandTimeout`,
 bytes that are not emScon :class:`~drivers.errors.ProtocolError`, and the link
@@ -51,6 +53,8 @@ from drivers.leica.enums import (
 )
 from drivers.leica.link import PacketLink
 from drivers.leica.metrology import EmsconCapabilities
+from drivers.leica.probe_packets import ProbeStationaryResultT
+from drivers.leica.six_dof import EmsconSixDof
 from drivers.leica.units import DRIVER_UNITS
 from drivers.protocols import (
     DeviceIdentity,
@@ -78,6 +82,14 @@ STATUS_ERRORS: dict[int, type[DriverError]] = {
     RS.ES_RS_SensorNotWarmedUp: NotReady,
     RS.ES_RS_SensorNotStable: NotReady,
     RS.ES_RS_SystemNotReadyForMeasurement: NotReady,
+    # 6-DoF: a tracker without a 6D camera, or a 6D measurement in face 2, cannot be
+    # measured again at the next pose either; a probe not seen (well) at this pose can
+    RS.ES_RS_NoMeasurementCamera: CommandRejected,
+    RS.ES_RS_6DModeNotAllowed: CommandRejected,
+    RS.ES_RS_6DMeasurementFace2NotAllowed: CommandRejected,
+    RS.ES_RS_NoMeasurementProbe: BeamBroken,
+    RS.ES_RS_NoActiveMeasurementProbe: BeamBroken,
+    RS.ES_RS_Bad6DResult: BeamBroken,
 }
 
 #: status change -> the driver setting it puts in doubt
@@ -99,7 +111,7 @@ def status_error(device: str, command: int, status: int, detail: str = "") -> Dr
     return cls(device, name_of(ES_Command, command), f"{text} {detail}".strip())
 
 
-class EmsconTracker(EmsconCapabilities):
+class EmsconTracker(EmsconCapabilities, EmsconSixDof):
     """A Leica tracker behind an emScon server.
 
     Parameters
@@ -131,6 +143,10 @@ class EmsconTracker(EmsconCapabilities):
         self._reflector_id: int | None = None
         self._face = 0
         self._meas_status: int | None = None
+        #: the measurement mode the driver wants (stationary, or 6D stationary)
+        self._mode = int(ES_MeasMode.ES_MM_Stationary)
+        #: probe id -> name, learnt by GetProbes (None: not asked yet)
+        self._probe_names: dict[int, str] | None = None
         self._events: collections.deque[tuple[float, str]] = collections.deque(maxlen=1000)
 
     # ----------------------------------------------------------- connection
@@ -258,7 +274,7 @@ class EmsconTracker(EmsconCapabilities):
         if key == "coords":
             return int(ES_CoordinateSystemType.ES_CS_RHR)
         if key == "mode":
-            return int(ES_MeasMode.ES_MM_Stationary)
+            return self._mode
         if key == "stationary":
             return (int(stationary_ms), 0)
         if key == "reflector":
@@ -366,10 +382,21 @@ class EmsconTracker(EmsconCapabilities):
         (``env``), the reflector and face. ``n`` is 1: emScon does not report
         how many samples it averaged.
         """
-        deadline = time.monotonic() + timeout
+        return self._measure_in(ES_MeasMode.ES_MM_Stationary, duration_s,
+                                time.monotonic() + timeout)
+
+    def _use_mode(self, mode: int) -> None:
+        """Want ``mode`` from now on (read back and set before the next measurement)."""
+        if self._mode != int(mode):
+            self._mode = int(mode)
+            self._confirmed.discard("mode")
+
+    def _measure_in(self, mode: int, duration_s: float, deadline: float) -> Measurement:
+        """One measurement in ``mode`` (ES_MeasMode) of ``duration_s`` s, by ``deadline``."""
         ms = max(1, int(round(duration_s * 1000.0)))
         for _ in range(2):
             self._resync(deadline)
+            self._use_mode(mode)
             self._ensure(deadline, ms)
             m, suspect = self._measure_once(deadline)
             if not suspect or not self._ensure(deadline, ms):
@@ -392,7 +419,8 @@ class EmsconTracker(EmsconCapabilities):
                     raise status_error(self._dev, command, p.status)
             elif isinstance(p, codec.ErrorResponseT) and p.command == command:
                 raise status_error(self._dev, command, p.status)
-            elif isinstance(p, codec.SingleMeasResultT | codec.SingleMeasResult2T):
+            elif isinstance(p, codec.SingleMeasResultT | codec.SingleMeasResult2T
+                            | ProbeStationaryResultT):
                 if p.status != RS.ES_RS_AllOK:
                     raise status_error(self._dev, command, p.status)
                 if self._meas_status == SSC.ES_SSC_MeasStatus_NotReady:
@@ -403,23 +431,32 @@ class EmsconTracker(EmsconCapabilities):
                 self._unsolicited(p)
 
     def _to_measurement(self, p) -> Measurement:
+        if isinstance(p, ProbeStationaryResultT):
+            return self._to_pose(p)
         xyz = np.array([p.dVal1, p.dVal2, p.dVal3], float)
         std = np.array([p.dStd1, p.dStd2, p.dStd3], float)
         if not (np.all(np.isfinite(xyz)) and np.all(np.isfinite(std))):
             raise ProtocolError(self._dev, "ES_C_StartMeasurement", "non-finite result")
-        cov = None
+        covar = None
         if isinstance(p, codec.SingleMeasResult2T):
+            covar = (p.dCovar12, p.dCovar13, p.dCovar23)
+        return Measurement(**self._fields(p, xyz, std, covar))
+
+    def _fields(self, p, xyz: np.ndarray, std: np.ndarray, covar=None) -> dict:
+        """The :class:`Measurement` fields of a result ``p`` (3D or 6D): ``xyz``, ``std``
+        (mm), the covariance from ``covar`` (the 12, 13, 23 terms, or None), the air of
+        ``p``, the reflector selected and the face."""
+        cov = None
+        if covar is not None:
             cov = np.diag(std**2)
-            cov[0, 1] = cov[1, 0] = p.dCovar12
-            cov[0, 2] = cov[2, 0] = p.dCovar13
-            cov[1, 2] = cov[2, 1] = p.dCovar23
+            cov[0, 1] = cov[1, 0] = covar[0]
+            cov[0, 2] = cov[2, 0] = covar[1]
+            cov[1, 2] = cov[2, 1] = covar[2]
         ref = next((r.name for r in self._reflectors if r.id == self._reflector_id), "")
-        return Measurement(
-            xyz=xyz, std=std, n=1, timestamp=time.time(),
-            env={"temp_c": p.dTemperature, "pressure_hpa": p.dPressure,
-                 "humidity_pct": p.dHumidity},
-            cov=cov, reflector=ref, face=int(self._face),
-        )
+        return dict(xyz=xyz, std=std, n=1, timestamp=time.time(),
+                    env={"temp_c": p.dTemperature, "pressure_hpa": p.dPressure,
+                         "humidity_pct": p.dHumidity},
+                    cov=cov, reflector=ref, face=int(self._face))
 
     # --------------------------------------------------------------- events
     def events(self, poll_s: float = 0.0) -> list[tuple[float, str]]:

@@ -66,12 +66,15 @@ class ES_Command(IntEnum):  # noqa: N801
     ES_C_GoBirdBath = 54
     ES_C_Unknown = 64
     ES_C_GetFace = 98
+    ES_C_GetProbes = 103
+    ES_C_GetProbe = 104
+    ES_C_GetMeasurementProbeInfo = 119
     ES_C_GetMeasurementStatusInfo = 122
     ES_C_GetSystemSoftwareVersion = 142
 
 
 class ES_MeasMode(IntEnum):  # noqa: N801
-    """``enum ES_MeasMode`` (3D modes; the 6D ones are left out)."""
+    """``enum ES_MeasMode``: 3D modes, and their 6D (probe) twins from 6."""
 
     ES_MM_Stationary = 0
     ES_MM_ContinuousTime = 1
@@ -79,6 +82,12 @@ class ES_MeasMode(IntEnum):  # noqa: N801
     ES_MM_Grid = 3
     ES_MM_SphereCenter = 4
     ES_MM_CircleCenter = 5
+    ES_MM_6DStationary = 6
+    ES_MM_6DContinuousTime = 7
+    ES_MM_6DContinuousDistance = 8
+    ES_MM_6DGrid = 9
+    ES_MM_6DSphereCenter = 10
+    ES_MM_6DCircleCenter = 11
 
 
 class ES_TargetType(IntEnum):  # noqa: N801
@@ -102,6 +111,7 @@ class ES_TrackerStatus(IntEnum):  # noqa: N801
     ES_TS_NotReady = 0
     ES_TS_Busy = 1
     ES_TS_Ready = 2
+    ES_TS_6DStatusInvalid = 3
 
 
 class ES_ResultStatus(IntEnum):  # noqa: N801
@@ -136,9 +146,15 @@ class ES_ResultStatus(IntEnum):  # noqa: N801
     ES_RS_ModuleNotStarted = 40
     ES_RS_ModuleTimedOut = 41
     ES_RS_MeteoDataOutOfRange = 57
+    ES_RS_NoMeasurementCamera = 67
+    ES_RS_NoMeasurementProbe = 75
+    ES_RS_NoActiveMeasurementProbe = 76
+    ES_RS_6DModeNotAllowed = 92
+    ES_RS_Bad6DResult = 93
     ES_RS_NoTemperatureFromWM = 94
     ES_RS_NoPressureFromWM = 95
     ES_RS_NoHumidityFromWM = 96
+    ES_RS_6DMeasurementFace2NotAllowed = 97
     ES_RS_InvalidInputData = 98
     ES_RS_NoValidADMCompensation = ES_API_ERROR_OFFSET + 2
     ES_RS_PressureSensorProblem = ES_API_ERROR_OFFSET + 3
@@ -222,6 +238,8 @@ class ES_SystemStatusChange(IntEnum):  # noqa: N801
     ES_SSC_MeasStatus_Ready = 27
     ES_SSC_IsFace1 = 30
     ES_SSC_IsFace2 = 31
+    ES_SSC_ProbeChanged = 36
+    ES_SSC_MeasStatus_6DStatusInvalid = 99
     ES_SSC_ObjectTemperatureChanged = 105
     ES_SCC_InitializationStatusChanged = 151  # sic: the header's own typo
     ES_SCC_TiltSensorStatusChanged = 152  # sic
@@ -248,11 +266,52 @@ class ES_MeasurementStatusInfo(IntEnum):  # noqa: N801
     ES_MSI_TrackerCompensationFound = 2
     ES_MSI_ADMFound = 4
     ES_MSI_ADMCompensationFound = 8
+    ES_MSI_MeasurementCameraFound = 16
+    ES_MSI_InternalCameraParamsOK = 32
+    ES_MSI_CameraToTrackerParamsFound = 64
+    ES_MSI_MeasurementProbeFound = 128
+    ES_MSI_ProbeParamsFound = 256
     ES_MSI_ReflectorFound = 2048
     ES_MSI_InFace1 = 4096
     ES_MSI_SensorBatteryMounted = 16384
     ES_MSI_NivelInWorkingRange = 32768
     ES_MSI_Initialized = 65536
+
+
+class ES_ProbeType(IntEnum):  # noqa: N801
+    """``enum ES_ProbeType`` (GetProbes): a T-Mac is a machine control probe."""
+
+    ES_PT_None = 0
+    ES_PT_Reflector = 1
+    ES_PT_TProbe = 2
+    ES_PT_TScan = 3
+    ES_PT_MachineControlProbe = 4
+    ES_PT_MachineControlProbeMultiSide = 5
+    ES_PT_TCamToTrackerTool = 100
+    ES_PT_ZoomArtifactTool = 200
+
+
+class ES_TriggerStatus(IntEnum):  # noqa: N801
+    """``enum ES_TriggerStatus``: the probe's trigger button in a 6D result."""
+
+    ES_TS_TriggerNotPressed = 0
+    ES_TS_TriggerPressed = 1
+
+
+class ES_MeasurementTipStatus(IntEnum):  # noqa: N801
+    """``enum ES_MeasurementTipStatus`` in a 6D result."""
+
+    ES_PTS_TipOK = 0
+    ES_PTS_UnknownTip = 1
+    ES_PTS_MultipleTipsAttached = 2
+
+
+#: ``struct RotationStatus`` (the bit fields of ``lRotationStatus`` in a 6D result, the
+#: first declared the lowest bit): bit -> name; Status6D set means the rotation is valid
+ROTATION_STATUS_BITS = {
+    0: "Status6D", 1: "Error6D", 2: "NotEnoughLED", 3: "RMSToHigh", 4: "AngleOutOfRange",
+    5: "Frozen6DValues", 6: "DistanceOutOfRange", 16: "Face2",
+}
 
 
 # ---------------------------------------------------------------- Enum.h

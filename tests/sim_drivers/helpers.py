@@ -8,8 +8,12 @@ import socket
 import threading
 import time
 
+from drivers.protocols import SixDof
+from drivers.urls import open_tracker
 from sim_drivers.cell import SimCell
 from sim_drivers.faults import FaultInjector
+from sim_drivers.model_truth import ModelTruth
+from sim_drivers.six_dof import SixDofTarget
 from sim_drivers.truth import ToyArm
 
 #: slack allowed on top of a timeout before a call counts as hanging (s). These bounds
@@ -21,6 +25,23 @@ MARGIN = 5.0
 def make_cell(seed: int = 1, faults: str | None = None, **kw) -> SimCell:
     """A ToyArm cell with a fault injector (no faults unless ``faults`` is a spec)."""
     return SimCell(ToyArm(), seed=seed, faults=FaultInjector(faults, seed=seed), **kw)
+
+
+def tmac_cell(seed: int, **kw) -> SimCell:
+    """A UR10e cell (hidden errors of ``seed``) with a T-Mac on the tool (6-DoF target)."""
+    return SimCell(ModelTruth.from_spec("ur10e", None, seed), seed=seed,
+                   six_dof=SixDofTarget.on_tool(seed=seed), **kw)
+
+
+def measure_pose_at(url: str, duration_s: float):
+    """Open the tracker at ``url``, connect, measure one pose (it must be SixDof), close."""
+    trk = open_tracker(url)
+    try:
+        trk.connect(2.0)
+        assert isinstance(trk, SixDof)
+        return trk.measure_pose(duration_s, 2.0)
+    finally:
+        trk.close()
 
 
 @contextlib.contextmanager
