@@ -19,8 +19,9 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
     effects that are correlated over its samples (interferometer, angle encoders,
     air), which averaging does not reduce as 1/sqrt(n).
 
-    ``cmd``, ``temp_c``, ``pressure_hpa``, ``humidity_pct``, ``reflector``, ``face`` and
-    ``dirs`` are set only when every sample has them (a column is all or nothing).
+    ``cmd``, ``temp_c``, ``pressure_hpa``, ``humidity_pct``, ``reflector``, ``face``,
+    ``dirs`` and ``joint_temp`` (the joints' temperatures) are set only when every sample
+    has them (a column is all or nothing).
 
     A point whose readings the capture could not resolve (verdict ``unresolved``,
     :mod:`daq.remeasure`) is left out. ``all_readings``: also those and the readings
@@ -87,7 +88,8 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
         t_s=np.array([r.t for r in rows], float), sigma_mm=sigma,
         pressure_hpa=every("pressure_hpa"), humidity_pct=every("humidity_pct"),
         reflector=reflector, face=every("face", int), dirs=every("dirs", int),
-        is_valid=np.array(valid, bool), meta=meta, source=f"{store.address} run {run_id}",
+        joint_temp=every("joint_temp_c"), is_valid=np.array(valid, bool), meta=meta,
+        source=f"{store.address} run {run_id}",
     )
     return (data, reading, reason) if all_readings else data
 
