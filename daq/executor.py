@@ -268,6 +268,9 @@ class Executor:
     remeasure : daq.remeasure.Remeasure, optional
         The re-measure policy: judges each point's sample before its commit (and may
         re-measure it), see :mod:`daq.remeasure`.
+    enough : callable(plan, samples, run) -> str | None, optional
+        Called after every stored point: a reason (the routine's goal is reached, e.g. a
+        warm-up that settled) ends the run there, completed, the points left not measured.
     """
 
     def __init__(
@@ -284,6 +287,7 @@ class Executor:
         finalize: Callable | None = None,
         guard: MotionGuard | None = None,
         remeasure=None,
+        enough: Callable | None = None,
     ) -> None:
         run = store.run(run_id)
         if run.plan_hash != plan.hash:
@@ -295,6 +299,7 @@ class Executor:
         self.acquisition = acquisition
         self.progress = progress
         self.finalize = finalize
+        self.enough = enough
         self.guard = guard or MotionGuard()
         self.remeasure = remeasure
         self._stop = threading.Event()
@@ -371,6 +376,9 @@ class Executor:
                     if self._point(t):
                         n_done += 1
                     self._report(n_done)
+                    if self.enough is not None and self.enough(
+                            self.plan, store.samples(rid), store.run(rid)):
+                        break
             except _Pause as p:
                 kind = (InterruptionKind.SIGINT if p.status == RunStatus.STOPPED
                         else InterruptionKind.PAUSE)
