@@ -50,10 +50,10 @@ def make_plan(model, *, count: int = 6, seed: int = 0, window_min: float = 15.0,
     if count < 1:
         raise ValueError("warmup: count must be >= 1")
     if not (window_min > 0 and max_min >= window_min):
-        raise ValueError(f"warmup: need 0 < window ({window_min:g} min) <= the time bound "
-                         f"({max_min:g} min)")
+        raise ValueError(f"warmup: need 0 < window_min ({window_min:g}) <= max_min "
+                         f"({max_min:g}), minutes")
     if threshold_mm is not None and not threshold_mm > 0:
-        raise ValueError(f"warmup: threshold {threshold_mm:g} mm is not positive")
+        raise ValueError(f"warmup: threshold_mm {threshold_mm:g} is not positive")
     work = poses.make_plan(model, count=count, seed=seed, floor_z_mm=floor_z_mm,
                            max_reach_mm=max_reach_mm, cell=cell, spares=0)
     qs = [t.q for t in work.targets]
