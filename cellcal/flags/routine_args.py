@@ -126,6 +126,11 @@ _ZERO20_ACQUIRE = [
 ]
 
 
+def _max_reach(p) -> None:
+    p.add_argument("--max-reach-mm", type=float, default=None, metavar="MM",
+                   help="keep the tool point within this distance of the base, mm")
+
+
 # ------------------------------------------------------------------ poses
 _POSES = ("Random poses within the joint limits, above the floor and within "
           "--max-reach-mm; --method optimal picks them greedily from a candidate pool, each "
@@ -147,8 +152,7 @@ def _poses_add(p) -> None:
     p.add_argument("--pool", type=int, default=None, metavar="N",
                    help="with --method optimal: candidate pool size (default 5 x the "
                    "calibration poses, 50 to 3000)")
-    p.add_argument("--max-reach-mm", type=float, default=None, metavar="MM",
-                   help="keep the tool point within this distance of the base, mm")
+    _max_reach(p)
 
 
 def _poses_params(args) -> dict:
@@ -204,8 +208,7 @@ def _warmup_add(p) -> None:
                    help="the time bound, minutes (default 60)")
     p.add_argument("--cycles", type=int, default=None, metavar="N",
                    help="cycles planned (default: enough for --max-min at 0.5 rad/s)")
-    p.add_argument("--max-reach-mm", type=float, default=None, metavar="MM",
-                   help="keep the tool point within this distance of the base, mm")
+    _max_reach(p)
 
 
 def _warmup_params(args) -> dict:
