@@ -40,6 +40,9 @@ class Dataset:
     dirs : (n, N) approach direction per joint (-1, 0, +1), or None
     joint_temp : (n, N) each joint's temperature as the controller reports it, °C, or None
     is_valid : (n,) bool, True for validation rows (``set=valid``)
+    is_drift : (n,) bool, True for a capture's drift checks (``set=drift``: a reference
+        pose measured again during the capture; calibration rows that also show the
+        drift over time), or None when there are none
     meta : ``# key: value`` metadata from the file's first comment lines
     source : where the data came from (a path or a description)
     lines : (n,) file line number of each row (0 when not from a file)
@@ -60,6 +63,7 @@ class Dataset:
     dirs: np.ndarray | None = None
     is_valid: np.ndarray | None = None
     joint_temp: np.ndarray | None = None
+    is_drift: np.ndarray | None = None
     meta: dict[str, str] = field(default_factory=dict)
     source: str = "<arrays>"
     lines: np.ndarray | None = None
@@ -77,6 +81,10 @@ class Dataset:
             self.is_valid = np.zeros(n, bool)
         if self.lines is None:
             self.lines = np.zeros(n, int)
+        if self.is_drift is not None:
+            self.is_drift = np.asarray(self.is_drift, bool)
+            if not self.is_drift.any():
+                self.is_drift = None
         if self.reflector is not None:
             self.reflector = np.array([str(r) for r in self.reflector], dtype=object)
         if self.face is not None:
@@ -120,8 +128,13 @@ class Dataset:
             dirs=pick(self.dirs),
             is_valid=pick(self.is_valid),
             joint_temp=pick(self.joint_temp),
+            is_drift=pick(self.is_drift),
             lines=pick(self.lines),
         )
+
+    def drift_rows(self) -> np.ndarray:
+        """(n,) bool: the drift checks (``set=drift``), all False when there are none."""
+        return np.zeros(self.n, bool) if self.is_drift is None else self.is_drift
 
     def calib(self) -> Dataset:
         return self.subset(~self.is_valid)
@@ -187,6 +200,8 @@ class Dataset:
             dirs=cat(self.dirs, other.dirs),
             is_valid=np.concatenate([self.is_valid, other.is_valid]),
             joint_temp=cat(self.joint_temp, other.joint_temp),
+            is_drift=(None if self.is_drift is None and other.is_drift is None else
+                      np.concatenate([self.drift_rows(), other.drift_rows()])),
             meta={**other.meta, **self.meta},
             source=self.source,
             lines=np.concatenate([self.lines, other.lines]),
@@ -214,8 +229,9 @@ class Dataset:
         if self.joint_temp is not None:
             for j in range(N):
                 cols[f"joint_temp{j + 1}"] = self.joint_temp[:, j]
-        if self.is_valid.any():
-            cols["set"] = np.where(self.is_valid, "valid", "calib")
+        if self.is_valid.any() or self.is_drift is not None:
+            cols["set"] = np.where(self.is_valid, "valid",
+                                   np.where(self.drift_rows(), "drift", "calib"))
         cols.update(extra or {})
         buf = io.StringIO()
         for k, v in self.meta.items():
@@ -547,19 +563,19 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
 
     joint_temp = _joint_temperatures(t, N)
 
-    is_valid = np.zeros(len(t), bool)
+    is_valid, is_drift = np.zeros(len(t), bool), np.zeros(len(t), bool)
     if "set" in t:
         for r, v in enumerate(t.text("set")):
-            if v not in ("calib", "valid", ""):
-                raise DataError(f"{source}: line {t.lines[r]}, column set: {v!r} is neither "
-                                "'calib' nor 'valid'")
-            is_valid[r] = v == "valid"
+            if v not in ("calib", "valid", "drift", ""):
+                raise DataError(f"{source}: line {t.lines[r]}, column set: {v!r} is not "
+                                "'calib', 'valid' or 'drift'")
+            is_valid[r], is_drift[r] = v == "valid", v == "drift"
 
     meta = t.meta
     CaptureMeta.from_meta(meta, source)  # refuses malformed capture metadata now
 
     return Dataset(q=np.radians(q), tracker_p_smr=xyz, pose_id=pose_id, cmd=cmd, dirs=dirs,
-                   is_valid=is_valid, meta=meta, source=source, lines=t.lines,
+                   is_valid=is_valid, is_drift=is_drift, meta=meta, source=source, lines=t.lines,
                    reflector=reflector, face=face, joint_temp=joint_temp, **opt)
 
 

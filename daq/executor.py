@@ -7,8 +7,9 @@ measure (averaged; a per-axis std above ``max_std_mm`` is remeasured) → read t
 joints again → the re-measure policy when there is one (the reading judged against the
 model fitted so far, a suspect re-measured: :mod:`daq.remeasure`) → write one sample
 (with the readings not accepted) in one transaction of the run store, with what the tracker says
-of its measurement (std, covariance, air, reflector, face). That commit is the
-checkpoint.
+of its measurement (std, covariance, air, reflector, face) and the joints' temperatures
+where the robot reports them (:class:`~drivers.protocols.JointTemperatures`). That commit
+is the checkpoint.
 
 Safe motion
     Every move — planned, via, or adaptive — is checked by the run's
@@ -97,6 +98,7 @@ import numpy as np
 
 from drivers.errors import (
     BeamBroken,
+    CommandRejected,
     CommandTimeout,
     ConnectionLost,
     DriverError,
@@ -104,7 +106,7 @@ from drivers.errors import (
     ProtectiveStop,
     ProtocolError,
 )
-from drivers.protocols import CommandedPosition, JointReading, Measurement
+from drivers.protocols import CommandedPosition, JointReading, JointTemperatures, Measurement
 
 from .errors import CaptureError, QualityError
 from .motion_guard import MotionGuard, MotionMismatch, MotionRefused
@@ -266,6 +268,9 @@ class Executor:
     remeasure : daq.remeasure.Remeasure, optional
         The re-measure policy: judges each point's sample before its commit (and may
         re-measure it), see :mod:`daq.remeasure`.
+    enough : callable(plan, samples, run) -> str | None, optional
+        Called after every stored point: a reason (the routine's goal is reached, e.g. a
+        warm-up that settled) ends the run there, completed, the points left not measured.
     """
 
     def __init__(
@@ -282,6 +287,7 @@ class Executor:
         finalize: Callable | None = None,
         guard: MotionGuard | None = None,
         remeasure=None,
+        enough: Callable | None = None,
     ) -> None:
         run = store.run(run_id)
         if run.plan_hash != plan.hash:
@@ -293,6 +299,7 @@ class Executor:
         self.acquisition = acquisition
         self.progress = progress
         self.finalize = finalize
+        self.enough = enough
         self.guard = guard or MotionGuard()
         self.remeasure = remeasure
         self._stop = threading.Event()
@@ -302,6 +309,8 @@ class Executor:
         self._entry = True  # no planned move done yet this session (see "Entry move")
         self._last_meas: Measurement | None = None
         self._target: Target | None = None
+        #: the robot reports its joints' temperatures (False once it refused to)
+        self._temps = isinstance(robot, JointTemperatures)
         #: the signal that stopped the run at once (SIGINT twice, SIGTERM, SIGHUP), or None
         self.stop_signal: int | None = None
         self.last_error: str | None = None
@@ -367,6 +376,9 @@ class Executor:
                     if self._point(t):
                         n_done += 1
                     self._report(n_done)
+                    if self.enough is not None and self.enough(
+                            self.plan, store.samples(rid), store.run(rid)):
+                        break
             except _Pause as p:
                 kind = (InterruptionKind.SIGINT if p.status == RunStatus.STOPPED
                         else InterruptionKind.PAUSE)
@@ -720,11 +732,24 @@ class Executor:
         self._held(jr, phase)
         self._last_cmd_q = cmd_q
         env = m.env or {}
+        joint_temp = self._joint_temperatures()
         return Sample(
             point_index=t.index, joints_rad=jr.q, tracker_p_smr=m.xyz, std_mm=m.std, n=m.n,
             t=m.timestamp, pose_id=t.label, set_name=t.set, target=t.to_dict(),
             temp_c=env.get("temp_c"), pressure_hpa=env.get("pressure_hpa"),
             humidity_pct=env.get("humidity_pct"), base_p_tcp_cmd=cmd, dirs=dirs,
             attempts=attempt, joints_t=jr.timestamp, reflector=m.reflector or None,
-            face=m.face or None, cov_mm2=m.cov,
+            face=m.face or None, cov_mm2=m.cov, joint_temp_c=joint_temp,
         )
+
+    def _joint_temperatures(self) -> np.ndarray | None:
+        """The joints' temperatures (°C) where the robot reports them; a controller that
+        refuses the request (:class:`~drivers.errors.CommandRejected`) has none and is not
+        asked again."""
+        if not self._temps:
+            return None
+        try:
+            return np.asarray(self.robot.joint_temperatures(timeout=self.o.io_timeout_s), float)
+        except CommandRejected:
+            self._temps = False
+            return None

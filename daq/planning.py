@@ -12,10 +12,11 @@ from pathlib import Path
 from calibration import load_model
 
 from .check import check_plan
+from .drift_checks import with_drift_checks
 from .errors import PlanRefused, RequestError, one_line
 from .routines import get as get_routine
 from .run_request import CaptureRequest, PlannedRun
-from .sight import frame_from_store, predict, resolve_cell
+from .sight import estimate_time, frame_from_store, predict, resolve_cell
 from .store import RunStore, StoreError
 
 
@@ -45,7 +46,8 @@ def plan_run(request: CaptureRequest, *, model=None, db: str | Path | None = Non
     False) when the tracker position is known: ``request.tracker_at``, else the frame run
     (``request.frame_run`` or the latest in ``db``), else ``request.cell``
     (:func:`daq.sight.resolve_cell`); the planned run's ``sight`` says what the tracker
-    will see of it either way.
+    will see of it either way. ``request.drift_check`` inserts its drift checks
+    (:func:`daq.drift_checks.with_drift_checks`) before the dry run.
 
     Raises
     ------
@@ -69,6 +71,10 @@ def plan_run(request: CaptureRequest, *, model=None, db: str | Path | None = Non
         cell = resolve_cell(request.cell, request.tracker_at,
                             *frame_from_store(db, request.frame_run))
         plan = mod.make_plan(model, **params, cell=cell if request.visibility else None)
+        if request.drift_check is not None:
+            plan = with_drift_checks(plan, request.drift_check,
+                                     estimate_time(plan, request.executor)[
+                                         "estimated_capture_s"] / max(len(plan), 1))
         acquire = acquire_options(mod, request.acquire)
     except RequestError:  # NotEnoughVisible keeps its exit code
         raise

@@ -46,6 +46,10 @@ def _vec(v) -> tuple[float, ...] | None:
     return None if v is None else tuple(float(x) for x in np.asarray(v, float).ravel())
 
 
+#: the roles of a target's sample (:attr:`Target.set`)
+SETS = ("calib", "valid", "drift")
+
+
 @dataclass(frozen=True)
 class Target:
     """One point of a plan.
@@ -68,8 +72,9 @@ class Target:
     via : tuple of float, optional
         A pre-position of the same kind as ``move`` (joints, rad, or xyz, mm)
         visited first, so the target is always approached from the same side.
-    set : {"calib", "valid"}
-        Role of the sample in a calibration.
+    set : {"calib", "valid", "drift"}
+        Role of the sample in a calibration (``drift``: a drift check's reference pose,
+        :mod:`daq.drift_checks`).
     label : str
         Human label (becomes ``pose_id`` when the CSV is exported).
     info : dict
@@ -90,8 +95,9 @@ class Target:
     def __post_init__(self) -> None:
         if self.move not in MOVES:
             raise ValueError(f"target {self.index}: move must be one of {MOVES}, got {self.move!r}")
-        if self.set not in ("calib", "valid"):
-            raise ValueError(f"target {self.index}: set must be calib or valid, got {self.set!r}")
+        if self.set not in SETS:
+            raise ValueError(f"target {self.index}: set must be calib, valid or drift, got "
+                             f"{self.set!r}")
         object.__setattr__(self, "q", _vec(self.q))
         object.__setattr__(self, "base_p_tcp", _vec(self.base_p_tcp))
         object.__setattr__(self, "via", _vec(self.via))

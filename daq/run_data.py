@@ -19,8 +19,11 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
     effects that are correlated over its samples (interferometer, angle encoders,
     air), which averaging does not reduce as 1/sqrt(n).
 
-    ``cmd``, ``temp_c``, ``pressure_hpa``, ``humidity_pct``, ``reflector``, ``face`` and
-    ``dirs`` are set only when every sample has them (a column is all or nothing).
+    ``cmd``, ``temp_c``, ``pressure_hpa``, ``humidity_pct``, ``reflector``, ``face``,
+    ``dirs`` and ``joint_temp`` (the joints' temperatures) are set only when every sample
+    has them (a column is all or nothing).
+
+    Drift checks (:mod:`daq.drift_checks`) are rows of set ``drift`` (``is_drift``).
 
     A point whose readings the capture could not resolve (verdict ``unresolved``,
     :mod:`daq.remeasure`) is left out. ``all_readings``: also those and the readings
@@ -44,23 +47,23 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
     rows = [s.sample(i) for i in range(len(s))]
     reading = ["rejected" if v == "unresolved" else "accepted" for v in s.verdict]
     reason = [VERDICTS.get(v or "", "") for v in s.verdict]
-    valid = [v == "valid" for v in s.set_name]
+    sets = list(s.set_name)
     if not all_readings:
         keep = [i for i, r in enumerate(reading) if r == "accepted"]
         if not keep:
             raise StoreError(f"{store.address}: run {run_id} has no accepted readings")
-        rows, ids, valid = ([a[i] for i in keep] for a in (rows, ids, valid))
+        rows, ids, sets = ([a[i] for i in keep] for a in (rows, ids, sets))
     else:
-        pid = {int(p): (ids[i], valid[i]) for i, p in enumerate(s.point_index)}
+        pid = {int(p): (ids[i], sets[i]) for i, p in enumerate(s.point_index)}
         for r in store.readings(run_id):
             rows.append(r.sample)
             ids.append(pid[r.sample.point_index][0])
-            valid.append(pid[r.sample.point_index][1])
+            sets.append(pid[r.sample.point_index][1])
             reading.append("rejected")
             reason.append(r.reason)
         order = sorted(range(len(rows)), key=lambda i: (rows[i].point_index, rows[i].t))
-        rows, ids, valid, reading, reason = ([a[i] for i in order]
-                                             for a in (rows, ids, valid, reading, reason))
+        rows, ids, sets, reading, reason = ([a[i] for i in order]
+                                            for a in (rows, ids, sets, reading, reason))
     std = np.array([r.std_mm for r in rows], float)
     sigma = np.sqrt(np.mean(std ** 2, axis=1))
     if sigma_mode == "mean":
@@ -87,7 +90,9 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
         t_s=np.array([r.t for r in rows], float), sigma_mm=sigma,
         pressure_hpa=every("pressure_hpa"), humidity_pct=every("humidity_pct"),
         reflector=reflector, face=every("face", int), dirs=every("dirs", int),
-        is_valid=np.array(valid, bool), meta=meta, source=f"{store.address} run {run_id}",
+        joint_temp=every("joint_temp_c"), is_valid=np.array([v == "valid" for v in sets]),
+        is_drift=np.array([v == "drift" for v in sets]), meta=meta,
+        source=f"{store.address} run {run_id}",
     )
     return (data, reading, reason) if all_readings else data
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from calibration.cell import CellSpec
 
 from .check import CheckResult
+from .drift_checks import DriftCheck
 from .errors import RequestError, one_line
 from .motion_guard import MotionLimits
 from .plans import Plan
@@ -40,8 +41,10 @@ class CaptureRequest:
     limits' defaults); ``tracker`` the tracker's setup and checks
     (:class:`~daq.run_context.TrackerSetup`); ``robot_id`` names the robot (default: the
     controller's ``MODEL/SERIAL`` when it reports a serial number,
-    :func:`daq.devices.default_robot_id`). Checked when made: :class:`RequestError`
-    for a tool or floor that is not finite, motion limits that are not valid.
+    :func:`daq.devices.default_robot_id`); ``drift_check`` the drift checks inserted into
+    the plan, ``require_warm_min`` the warm-up the run requires. Checked when made:
+    :class:`RequestError` for a tool or floor that is not finite, motion limits that are
+    not valid.
     """
 
     routine: str
@@ -63,6 +66,11 @@ class CaptureRequest:
     tracker: TrackerSetup = field(default_factory=TrackerSetup)
     motion: MotionLimits | None = None
     robot_id: str | None = None
+    #: reference poses measured again during the run (:mod:`daq.drift_checks`), or None
+    drift_check: DriftCheck | None = None
+    #: refuse the run unless the robot's last warm-up ended at most this many minutes ago
+    #: and its joints have not cooled since (:mod:`daq.warm_gate`); None: not required
+    require_warm_min: float | None = None
 
     def __post_init__(self) -> None:
         if self.tool_mm is not None and (len(self.tool_mm) != 3 or not all(

@@ -52,6 +52,7 @@ from .run_context import ExecutorOptions, RunContext, TrackerSetup
 from .run_request import CaptureRequest, PlannedRun, ProgressFn, RunOutcome
 from .store import InterruptionKind, RemeasureSummary, RunStore, RunSummary, StoreUnavailable
 from .store.leases import Leases
+from .warm_gate import require_warm
 
 __all__ = ["CaptureRequest", "ConfirmFn", "OtherCell", "PlannedRun", "ProgressFn",
            "Resumable", "RunOutcome", "execute", "plan_run", "prepare_resume",
@@ -91,12 +92,17 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
     LeaseBusy
         The robot is in use by another live process.
     RequestError
-        The robot does not fit the model (joint count, a simulator of another model).
+        The robot does not fit the model (joint count, a simulator of another model);
+        :class:`~daq.warm_gate.NotWarm` when the request requires a warm robot
+        (``require_warm_min``) and it is not.
     """
     req = planned.request
     with cell_session(store, planned.model, robot_url, tracker_url, req.tracker, req.executor,
                       devices=devices, leases=leases, confirm=confirm) as session:
         robot_id = default_robot_id(session.cell.robot, req.robot_id)
+        if req.require_warm_min is not None:
+            require_warm(store, session.robot, robot_id, req.require_warm_min,
+                         timeout=req.executor.io_timeout_s)
         frame = session.frame_run(req.frame_run, robot_id)
         context = RunContext(
             routine=planned.plan.routine, model=req.model,
@@ -209,7 +215,8 @@ def execute(store: RunStore, run_id: int, plan: Plan, robot, tracker, *, model,
                   acquisition=None if make_acquisition is None
                   else make_acquisition(model, context),
                   progress=progress, finalize=getattr(mod, "finalize", None),
-                  guard=MotionGuard(model, context.motion), remeasure=remeasure)
+                  guard=MotionGuard(model, context.motion), remeasure=remeasure,
+                  enough=getattr(mod, "enough", None))
     t0 = time.monotonic()
     try:
         status = ex.run()

@@ -126,3 +126,21 @@ def rejected_lines(rejected: list[dict]) -> list[str]:
     return [f"rejected readings ({len(rejected)}):"] + [
         f"  {local_time(x['t'])}  point {x['point']} ({x['pose_id']}): {x['reason']}"
         for x in rejected]
+
+
+def drift_lines(curves: list[dict]) -> list[str]:
+    """The drift checks of a run (``drift_checks`` of its JSON document, one curve per
+    reference pose): its drift from the first reading over time, flagged above the bound
+    (none: no lines)."""
+    lines = []
+    for c in curves:
+        flag = "  FLAGGED: above the bound" if c["flagged"] else ""
+        lines.append(f"drift checks, reference {c['reference']}: max {c['max_mm']:.3f} mm "
+                     f"(bound {c['bound_mm']:.3f} mm){flag}")
+        temps = c.get("joint_temp_c")
+        lines.append("   t (min)  drift (mm)" + ("  joints (°C, mean)" if temps else ""))
+        for i, (t, d) in enumerate(zip(c["t_s"], c["drift_mm"], strict=True)):
+            mark = "  !" if d > c["bound_mm"] else ""
+            temp = f"  {temps[i]:17.2f}" if temps else ""
+            lines.append(f"  {t / 60.0:8.2f}  {d:10.4f}{temp}{mark}")
+    return lines

@@ -9,7 +9,8 @@ import signal
 
 def outcome_lines(out: dict) -> list[str]:
     """The run, its status and counts; why it stopped, the re-measures, the measurement
-    frame, the tracker's checks, the line of sight; how to resume it."""
+    frame, the tracker's checks, the line of sight, how a warm-up ended and its drift
+    curve; how to resume it."""
     lines = [f"run {out['run']} ({out['routine']}): {out['status']}, "
              f"{out['samples']}/{out['points']} points stored, {out['faults']} faults, "
              f"{out['elapsed_s']:.1f} s  [{out['db']}]"]
@@ -36,6 +37,12 @@ def outcome_lines(out: dict) -> list[str]:
         lines.append(f"  line of sight: {summary.get('beam_breaks', 0)} beam breaks, "
                      f"{len(skipped)} points skipped {skipped[:10]}, "
                      f"{summary.get('spares_measured', 0)} spares measured in their place")
+    warm = summary.get("warmup")
+    if warm:
+        lines.append(f"  warm-up: {warm.get('reason')}")
+        curve = zip(warm.get("t_min") or [], warm.get("curve_mm") or [], strict=True)
+        lines.append("  drift curve (min: mm from the first reading): "
+                     + ", ".join(f"{t:.1f}: {d:.3f}" for t, d in curve))
     if out["status"] in ("paused", "stopped"):
         lines.append(f"  resume with: cellcal resume {out['run']} --db {out['db']}")
     return lines

@@ -10,7 +10,11 @@ Time
     ``duration_s``. Wall time = simulated time × ``time_scale``: with
     ``time_scale=0`` (the test default) everything is instantaneous and the
     simulated clock jumps; with ``time_scale>0`` the simulated clock follows the
-    wall clock (``sim = wall / time_scale``).
+    wall clock (``sim = wall / time_scale``). Readings carry wall-clock timestamps, except
+    in a cell with a thermal model: there the robot's and the tracker's timestamps are on
+    the simulated clock (the epoch at the cell's creation + simulated time), so a warm-up
+    of tens of simulated minutes under a small ``time_scale`` spans tens of minutes in the
+    data too, as the joint temperatures do.
 
 Tracker
     Noise per axis ``σ(L) = 0.5·(0.015 mm + 0.006 mm/m · L)``, L the distance
@@ -231,6 +235,7 @@ class SimCell(SixDofMeasuring):
                         if isinstance(thermal, str) else thermal)
         self._rng = np.random.default_rng(seed)
         self._lock = threading.RLock()
+        self._epoch0 = time.time()
         n = truth.n_joints
         limits = np.asarray(truth.limits, float)
         self._q = np.asarray(q0, float).copy() if q0 is not None else limits.mean(axis=1)
@@ -302,6 +307,14 @@ class SimCell(SixDofMeasuring):
             if self.time_scale > 0:
                 return self._sim_t + (time.monotonic() - self._wall0) / self.time_scale
             return self._sim_t
+
+    def stamp(self, t_s: float | None = None) -> float:
+        """The timestamp (epoch s) of a reading at simulated time ``t_s`` (default now): the
+        wall clock, or in a cell with a thermal model the simulated clock (module
+        docstring)."""
+        if self.thermal is None:
+            return time.time()
+        return self._epoch0 + (self.now() if t_s is None else t_s)
 
     def advance(self, dt_s: float) -> None:
         """Let ``dt_s`` simulated seconds pass (sleeps ``dt_s × time_scale`` wall s)."""
@@ -442,7 +455,7 @@ class SimCell(SixDofMeasuring):
                 emergency_stop=self._estop,
                 fault=self._fault,
                 error_code=self._error_code,
-                timestamp=time.time(),
+                timestamp=self.stamp(t),
                 sim_time=t,
                 joint_temp=self.joint_temperatures(t),
             )
@@ -627,7 +640,7 @@ class SimCell(SixDofMeasuring):
             self.n_measurements += 1
             seq = self.n_measurements
             # the tracker's clock: later than any earlier measurement (µs steps)
-            stamp = max(time.time(), self._last_meas_t + 1e-6)
+            stamp = max(self.stamp(), self._last_meas_t + 1e-6)
             self._last_meas_t = stamp
             if self.faults is not None and self.faults.fires("blunder"):
                 offset, along = blunder_offsets(p, self._blunder_rng)

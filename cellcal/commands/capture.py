@@ -24,7 +24,13 @@ from __future__ import annotations
 
 import sys
 
-from ..flags.capture_flags import EXEC_FLAGS, add_common, add_flag_table, add_tracker_flags
+from ..flags.capture_flags import (
+    EXEC_FLAGS,
+    add_common,
+    add_flag_table,
+    add_thermal_flags,
+    add_tracker_flags,
+)
 from ..flags.routine_args import ROUTINE_ARGS
 from .motion_prompt import confirm_motion, confirm_with
 from .parsers import add_subcommands, command_parser
@@ -95,6 +101,7 @@ def register(sub) -> None:
                        help="draw the plan: robot, SMR positions, tracker and beams")
         add_flag_table(r, EXEC_FLAGS + ROUTINE_ARGS[name].acquire_flags)
         add_tracker_flags(r)
+        add_thermal_flags(r)
         spec.add(r)
         r.set_defaults(func=run)
 

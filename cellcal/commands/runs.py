@@ -63,4 +63,6 @@ def run(args) -> int:
                     left=view.INTERRUPTIONS_LEFT))
     for line in view.rejected_lines(d["rejected_readings"]):
         print(line)
+    for line in view.drift_lines(d.get("drift_checks", [])):
+        print(line)
     return 0

@@ -14,6 +14,7 @@ import signal
 import sys
 import threading
 
+from ..flags.choices import THERMAL_STARTS
 from ..flags.sim_ports import DEFAULT_PORTS, PORT_FLAGS
 from .common import bounded_float, bounded_int, nonneg_float, seed_int
 from .parsers import add_subcommands, command_parser
@@ -49,6 +50,10 @@ def register(sub) -> None:
     s.add_argument("--hidden", default=None, metavar="EFFECTS",
                    help="hidden physical effects of the true robot, e.g. compliance:3 "
                    "(docs/formats.md §3)")
+    s.add_argument("--thermal", choices=THERMAL_STARTS, default=None,
+                   help="the robot warms up with its work and reports its joint "
+                   "temperatures; its links grow and its joint zeros move with them "
+                   "(hidden): from cold or already warm (default: no thermal model)")
     s.add_argument("--faults", default=None, metavar="SPEC",
                    help="fault spec, e.g. 'beam=0.05,slow=0.02,drop@3,delay=2'; "
                    "'blunder=0.03': 3 %% of tracker readings off by 0.5-5 mm")

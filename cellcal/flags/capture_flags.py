@@ -88,3 +88,20 @@ def add_tracker_flags(p, *, resume: bool = False) -> None:
                    "faces beyond the measurements' noise, mm (default 0.05)")
     p.add_argument("--no-two-face-check", action="store_true",
                    help="skip the two-face check before the run")
+
+
+def add_thermal_flags(p) -> None:
+    """Drift checks during the run and the warm-up it requires (``capture``)."""
+    p.add_argument("--drift-check", metavar="N|Nmin", default=None,
+                   help="measure a reference pose again every N points (or every N minutes "
+                   "of the estimated capture time: 5min), first and last too; stored as "
+                   "set=drift, shown by `cellcal runs RUN`")
+    p.add_argument("--drift-references", type=int, default=1, metavar="K",
+                   help="with --drift-check: reference poses measured each time, spread over "
+                   "the plan (default 1: its first posture)")
+    p.add_argument("--drift-bound-mm", type=float, default=None, metavar="MM",
+                   help="with --drift-check: flag a drift above this, mm (default 4x the "
+                   "tracker's sigma, at least 0.02)")
+    p.add_argument("--require-warm", type=float, default=None, metavar="MIN",
+                   help="refuse to start (exit 2) unless the robot's last `capture warmup` "
+                   "ended at most MIN minutes ago and its joints have not cooled since")

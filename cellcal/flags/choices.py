@@ -33,3 +33,6 @@ MAX_SIMULATED_POSES = 1_000_000
 #: the ``--db`` help of every command that reads or writes a run store
 DB_HELP = ("run store: a SQLite file or a PostgreSQL URL postgresql://user@host[:port]/db "
            "(password from PGPASSWORD or ~/.pgpass)")
+
+#: :data:`sim_drivers.thermal.STARTS`: the thermal starts of a simulated robot
+THERMAL_STARTS = ("cold", "warm")

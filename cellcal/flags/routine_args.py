@@ -126,6 +126,11 @@ _ZERO20_ACQUIRE = [
 ]
 
 
+def _max_reach(p) -> None:
+    p.add_argument("--max-reach-mm", type=float, default=None, metavar="MM",
+                   help="keep the tool point within this distance of the base, mm")
+
+
 # ------------------------------------------------------------------ poses
 _POSES = ("Random poses within the joint limits, above the floor and within "
           "--max-reach-mm; --method optimal picks them greedily from a candidate pool, each "
@@ -147,8 +152,7 @@ def _poses_add(p) -> None:
     p.add_argument("--pool", type=int, default=None, metavar="N",
                    help="with --method optimal: candidate pool size (default 5 x the "
                    "calibration poses, 50 to 3000)")
-    p.add_argument("--max-reach-mm", type=float, default=None, metavar="MM",
-                   help="keep the tool point within this distance of the base, mm")
+    _max_reach(p)
 
 
 def _poses_params(args) -> dict:
@@ -182,6 +186,37 @@ def _iso9283_params(args) -> dict:
             "cycles": args.cycles, "approach_mm": args.approach_mm}
 
 
+# ----------------------------------------------------------------- warmup
+_WARMUP = ("Repeats a cycle of work in the working space (--count random poses the tracker "
+           "sees, --seed, at the capture's speed) and measures a reference pose before every "
+           "cycle, until the reference's drift over the last --window-min minutes is below "
+           "--threshold-mm (default 3x the tracker's sigma) or --max-min minutes have "
+           "passed. Prints the drift curve and stores it with the run; `capture "
+           "--require-warm N` then refuses to start unless this warm-up ended less than N "
+           "minutes ago and the joints have not cooled since.")
+
+
+def _warmup_add(p) -> None:
+    p.add_argument("--count", type=int, default=6, metavar="N",
+                   help="working poses per cycle (default 6)")
+    p.add_argument("--window-min", type=float, default=15.0, metavar="MIN",
+                   help="the window the drift is judged over, minutes (default 15)")
+    p.add_argument("--threshold-mm", type=float, default=None, metavar="MM",
+                   help="settled when the drift over the window is below this, mm (default "
+                   "3x the tracker's sigma, at least 0.02)")
+    p.add_argument("--max-min", type=float, default=60.0, metavar="MIN",
+                   help="the time bound, minutes (default 60)")
+    p.add_argument("--cycles", type=int, default=None, metavar="N",
+                   help="cycles planned (default: enough for --max-min at 0.5 rad/s)")
+    _max_reach(p)
+
+
+def _warmup_params(args) -> dict:
+    return {"count": args.count, "seed": args.seed or 0, "window_min": args.window_min,
+            "threshold_mm": args.threshold_mm, "max_min": args.max_min, "cycles": args.cycles,
+            "floor_z_mm": args.floor_z_mm, "max_reach_mm": args.max_reach_mm}
+
+
 #: routine name -> its command-line options (every routine of :data:`daq.routines.ROUTINES`)
 ROUTINE_ARGS = {
     "frame": RoutineArgs(_frame_add, _frame_params, "measurement-frame setup — the joint-1 "
@@ -194,6 +229,8 @@ ROUTINE_ARGS = {
                          "random or chosen for observability.", _POSES),
     "iso9283": RoutineArgs(_iso9283_add, _iso9283_params, "pose accuracy and repeatability "
                            "cycles (ISO 9283 cube points).", _ISO9283),
+    "warmup": RoutineArgs(_warmup_add, _warmup_params, "work the robot until a reference pose "
+                          "stops drifting (a warm-up before a capture).", _WARMUP),
 }
 
 #: every routine's acquisition flags (given to ``resume``, they apply to a run of that routine)

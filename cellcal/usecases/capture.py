@@ -96,6 +96,10 @@ class CaptureArgs(Request):
     reflector: str | None = Field(None, alias="--reflector")
     two_face_tol_mm: float | None = Field(None, gt=0, alias="--two-face-tol-mm")
     no_two_face_check: bool = Field(False, alias="--no-two-face-check")
+    drift_check: str | None = Field(None, alias="--drift-check")
+    drift_references: int = Field(1, ge=1, alias="--drift-references")
+    drift_bound_mm: float | None = Field(None, gt=0, alias="--drift-bound-mm")
+    require_warm: float | None = Field(None, ge=0, alias="--require-warm")
     params: dict = {}
     executor: dict = {}
     acquire: dict = {}
@@ -169,7 +173,24 @@ def service_request(req: CaptureArgs):
         smr_radius_mm=req.smr_radius_mm, seed=req.seed, floor_z_mm=limits.floor_z_mm,
         max_reach_mm=limits.max_reach_mm, frame_run=req.frame_run,
         executor=executor_options(req.executor), acquire=req.acquire, motion=limits,
-        tracker=tracker_setup(req.tracker_given()), robot_id=req.robot_id)
+        tracker=tracker_setup(req.tracker_given()), robot_id=req.robot_id,
+        drift_check=drift_check(req), require_warm_min=req.require_warm)
+
+
+def drift_check(req: CaptureArgs):
+    """The drift checks asked for (:class:`daq.drift_checks.DriftCheck`), or None;
+    UsageError naming the flag."""
+    from daq.drift_checks import DriftCheck
+
+    if req.drift_check is None:
+        if req.drift_references != 1 or req.drift_bound_mm is not None:
+            raise UsageError("--drift-references and --drift-bound-mm go with --drift-check")
+        return None
+    try:
+        return DriftCheck.parse(req.drift_check, references=req.drift_references,
+                                bound_mm=req.drift_bound_mm)
+    except ValueError as e:
+        raise UsageError(f"--drift-check {req.drift_check!r}: {e}") from None
 
 
 @dataclass(frozen=True)

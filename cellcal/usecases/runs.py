@@ -68,7 +68,22 @@ def _detail(store, run_id: int) -> RunDetail:
         {"point": x.sample.point_index, "pose_id": x.sample.pose_id, "t": x.sample.t,
          "xyz": [float(v) for v in x.sample.tracker_p_smr], "reason": x.reason}
         for x in store.readings(r.id)]
+    curves = _drift_checks(store, r)
+    if curves:
+        d["drift_checks"] = curves
     return RunDetail(d, ExecutorOptions().model_dump(mode="json"))
+
+
+def _drift_checks(store, r) -> list[dict]:
+    """The run's drift checks (:func:`daq.drift_checks.drift_curve`), [] without any."""
+    import json
+
+    from daq.drift_checks import drift_curve
+
+    bound = (json.loads(r.plan_json).get("params", {}).get("drift_check") or {}).get("bound_mm")
+    if r.summary is not None and r.summary.warmup is not None:
+        bound = r.summary.warmup.threshold_mm
+    return [c.to_json() for c in drift_curve(store.samples(r.id), bound)]
 
 
 def read_runs(req: RunsRequest) -> RunListing | RunDetail:

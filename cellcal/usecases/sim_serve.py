@@ -47,6 +47,7 @@ class SimServeRequest(Request):
     cell: str | None = Field(None, alias="--cell")
     hidden: str | None = Field(None, alias="--hidden")
     faults: str | None = Field(None, alias="--faults")
+    thermal: str | None = Field(None, alias="--thermal")
     time_scale: float = Field(0.0, alias="--time-scale")
     host: str = Field("127.0.0.1", alias="--host")
     ports: dict[str, int] = {}
@@ -82,7 +83,8 @@ def sim_stack(req: SimServeRequest):
 
     _check_hidden(req)
     config = ServeConfig(seed=req.seed, hidden=req.hidden, faults=req.faults,
-                         time_scale=req.time_scale, host=req.host, ports=req.ports,
+                         time_scale=req.time_scale, thermal=req.thermal, host=req.host,
+                         ports=req.ports,
                          pty=not req.no_pty, rtde=not req.no_rtde, any_port=req.any_port)
     try:
         cell = load_cell(req.cell) if req.cell else None

@@ -7,6 +7,7 @@ Modules
     ``zero20``    20 postures on 4 planes through one point, with its closed-loop acquisition
     ``poses``     random or observability-optimised calibration/validation poses
     ``iso9283``   pose accuracy and repeatability cycles (ISO 9283 cube points)
+    ``warmup``    work the robot until a reference pose stops drifting (before a capture)
 
 Every routine module provides
 
@@ -18,6 +19,9 @@ and optionally
 ``resolve_params(params, open_store) -> dict``
     Parameters that refer to earlier runs, resolved against the run store
     (``open_store()`` opens it): zero20's ``--replay RUN``.
+``enough(plan, samples, run) -> str | None``
+    Checked after every stored point: a reason ends the run there, completed (the
+    routine's goal reached: warmup's settled reference).
 ``finalize(plan, samples, run) -> dict | None``
     What the routine computes once every point is stored (``frame`` and/or
     ``summary`` for the run) from the run's :class:`~daq.store.Samples`, e.g. the
@@ -42,6 +46,7 @@ ROUTINES = {
     "zero20": "daq.routines.zero20",
     "poses": "daq.routines.poses",
     "iso9283": "daq.routines.iso9283",
+    "warmup": "daq.routines.warmup",
 }
 
 

@@ -14,7 +14,8 @@ Keys
     ``frame``: ``circle_rms_mm``, ``line_rms_mm``, ``orthogonality_deg``;
     ``iso9283``: ``iso9283`` (RP and AP per cube point, :class:`Iso9283Point`);
     ``zero20``: ``tip_spread_max_mm``, ``tip_spread_rms_mm``, and, while capturing,
-    ``zero_target_tracker_mm`` and ``zero_tracker_R_base``.
+    ``zero_target_tracker_mm`` and ``zero_tracker_R_base``;
+    ``warmup``: ``warmup`` (:class:`WarmupSummary`).
 
 Units: mm, degrees, s.
 """
@@ -112,6 +113,26 @@ class Iso9283Point(StoredRecord):
     AP_mm: Number | None = None  # noqa: N815 - the standard's name
 
 
+class WarmupSummary(StoredRecord):
+    """How a warm-up ended (:mod:`daq.routines.warmup`): ``settled`` (the reference's drift
+    over the last ``window_min`` fell below ``threshold_mm``) or not (the time bound or the
+    plan's last cycle came first), after ``minutes`` and ``cycles``; ``drift_mm`` that last
+    window's drift; the drift curve of the reference (``t_min``, ``curve_mm`` from its first
+    reading) and the joints' temperatures at its last reading (``joint_temp_c``, °C; None
+    when the robot reports none)."""
+
+    settled: bool | None = None
+    reason: str | None = None
+    minutes: Number | None = None
+    cycles: int | None = None
+    drift_mm: Number | None = None
+    threshold_mm: Number | None = None
+    window_min: Number | None = None
+    t_min: list[Number] | None = None
+    curve_mm: list[Number] | None = None
+    joint_temp_c: list[Number] | None = None
+
+
 class RunSummary(StoredRecord):
     """A run's summary (see the module docstring for who writes which key)."""
 
@@ -128,6 +149,7 @@ class RunSummary(StoredRecord):
     tip_spread_rms_mm: Number | None = None
     zero_target_tracker_mm: list[Number] | None = None
     zero_tracker_R_base: list[list[Number]] | None = None  # noqa: N815 - a_R_b
+    warmup: WarmupSummary | None = None
 
     @classmethod
     def from_json(cls, text: str) -> RunSummary:

@@ -564,7 +564,16 @@ def build_cases() -> list[Case]:
     cases += _path_cases("capture", [*good_cap, "--cell", "{CELL}"], "{CELL}", "cell.yaml")[:3]
     cases += _number_cases("capture", good_cap, [
         ("--tracker-at", ["nan,0,0", "1,2", "a,b,c", "1e400,0,0"]),
-        ("--count", ["0", "-1", "x"]), ("--smr-radius-mm", ["-1", "nan"])])
+        ("--count", ["0", "-1", "x"]), ("--smr-radius-mm", ["-1", "nan"]),
+        ("--drift-check", ["0", "-5", "x", "2.5", "nanmin", "0min"]),
+        ("--drift-references", ["0", "x"]), ("--drift-bound-mm", ["0", "-1", "x"]),
+        ("--require-warm", ["-1", "x"])])
+    warm_cap = [a if a != "poses" else "warmup" for a in good_cap]
+    cases += _number_cases("capture", warm_cap, [
+        ("--window-min", ["0", "-1", "x", "90"]), ("--max-min", ["-5", "x"]),
+        ("--threshold-mm", ["0", "-1"]), ("--cycles", ["0", "x"]), ("--count", ["0"])])
+    cases.append(Case("capture", "drift_options_without_drift_check",
+                      [*good_cap, "--drift-bound-mm", "0.1"], 2, r"--drift-check"))
 
     # ---- calibrate --db: the store a calibration is recorded in (a new file is made)
     cases += _store_cases("calibrate", [*good_cal, "--db", "{DB}", "--robot-id", "R1"],
@@ -603,7 +612,8 @@ def build_cases() -> list[Case]:
                           mode="subprocess", slow=True))
     cases += _number_cases("sim", ["sim", "serve", "--no-pty", "--no-rtde"], [
         ("--tracker-at", ["nan,0,0", "1,2"]), ("--tracker-warmup-s", ["-1", "nan"]),
-        ("--time-scale", ["nan", "-1"]), ("--seed", ["-1"]), ("--hidden", ["bogus"])])
+        ("--time-scale", ["nan", "-1"]), ("--seed", ["-1"]), ("--hidden", ["bogus"]),
+        ("--thermal", ["hot"])])
     for c in cases:
         if (c.command == "sim" and c.name.startswith("num:")) or "100000000" in c.argv:
             c.mode, c.slow = "subprocess", True
