@@ -7,6 +7,7 @@ Modules
     ``zero20``    20 postures on 4 planes through one point, with its closed-loop acquisition
     ``poses``     random or observability-optimised calibration/validation poses
     ``iso9283``   pose accuracy and repeatability cycles (ISO 9283 cube points)
+    ``validate``  a program's waypoints, as written and compensated (``cellcal validate``)
 
 Every routine module provides
 
@@ -42,6 +43,7 @@ ROUTINES = {
     "zero20": "daq.routines.zero20",
     "poses": "daq.routines.poses",
     "iso9283": "daq.routines.iso9283",
+    "validate": "daq.routines.validate",
 }
 
 

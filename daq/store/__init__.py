@@ -30,9 +30,9 @@ from .errors import StoreError, StoreFull, StoreUnavailable
 from .records import STATUSES, Calibration, Interruption, InterruptionKind, Run, RunStatus
 from .runstore import RunStore, open_if_exists, open_store
 from .samples import Reading, Sample, Samples
-from .summary import Iso9283Point, RemeasureSummary, RunSummary
+from .summary import Iso9283Point, RemeasureSummary, RunSummary, ValidationVariant
 
 __all__ = ["STATUSES", "Calibration", "Interruption", "InterruptionKind", "Iso9283Point",
            "Reading", "RemeasureSummary", "Run", "RunStatus", "RunStore", "RunSummary",
-           "Sample", "Samples", "StoreError", "StoreFull", "StoreUnavailable",
+           "Sample", "Samples", "StoreError", "StoreFull", "StoreUnavailable", "ValidationVariant",
            "display_address", "open_if_exists", "open_store"]
