@@ -91,8 +91,8 @@ def test_compensated_program_reaches_the_validation_rms(tmp_path, monkeypatch):
         after = urscript.parse_program((tmp_path / "compensated.script").read_text())
         assert [t.line for t in after.targets] == [t.line for t in before.targets]
         out = json.loads(_cellcal("validate", "--params", "params.json", "--program",
-                                  "taught.script", "--cycles", "2", "--remeasure", "0", "--no-floor",
-                                  *devices, "--json"))
+                                  "taught.script", "--cycles", "2", "--remeasure", "0",
+                                  "--no-floor", *devices, "--json"))
     v = out["validation"]
     assert out["status"] == "completed" and out["calibration_valid_rms_mm"] == valid_rms
     e_u, e_c, e_g = (v[k]["rms_mm"] for k in ("uncompensated", "compensated", "geometric"))
