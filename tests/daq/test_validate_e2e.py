@@ -3,11 +3,12 @@
 ``cellcal sim serve`` (a UR10e with hidden compliance of joints 2 and 3 and a gear
 harmonic of joint 1; its robot moved over Modbus TCP: the served ``ur://`` RTDE server is
 read-only) → ``capture frame`` → ``capture poses`` → ``calibrate`` with the effects →
-``compensate --program`` writes the compensated URScript → ``validate`` runs the program's
-taught waypoints as written, compensated and with calibration.conf's geometric deltas
-alone, and the simulated tracker measures where the SMR went. The compensated waypoints
-must land within 1.3x the calibration's validation RMS while the program as written
-misses by the uncalibrated error; the geometric-only figure is reported beside them.
+``compensate --program`` writes the compensated URScript → ``validate`` runs the taught
+waypoints of examples/taught.script as written, compensated and with calibration.conf's
+geometric deltas alone, and the simulated tracker measures where the SMR went. The
+compensated waypoints must land within 1.3x the calibration's validation RMS while the
+program as written misses by the uncalibrated error; the geometric-only figure is
+reported beside them.
 """
 
 from __future__ import annotations
@@ -16,21 +17,18 @@ import contextlib
 import io
 import json
 
-import numpy as np
 import pytest
 
-from calibration.kinematics import run_chain
-from calibration.visibility import solve_facing
 from cellcal.cli import main
 from cellcal.programs import urscript
-from cellcal.programs.poses import T_to_ur
 from daq.store import RunStore
-from sim_drivers.model_truth import DEFAULT_TRACKER_AT_MM
 
-from .capture_helpers import sim_serve, ur10e_controller_model
+from .capture_helpers import ROOT, sim_serve
 from .test_readme_workflow import _urls
 
 SEED, HIDDEN = 6, "compliance:2,compliance:3,harmonic:1"
+#: taught targets whose SMR faces the tracker at the simulated cell's default place
+PROGRAM = ROOT / "examples" / "taught.script"
 
 
 def _cellcal(*args: str, rc: int = 0) -> str:
@@ -41,31 +39,10 @@ def _cellcal(*args: str, rc: int = 0) -> str:
     return out.getvalue()
 
 
-def taught_program(n: int = 8) -> str:
-    """A URScript program: the SMR as its TCP, a joint move home, then ``n`` linear moves to
-    pose literals whose SMR faces the tracker at its default place (front of the robot)."""
-    model = ur10e_controller_model()
-    rng = np.random.default_rng(3)
-    p = np.column_stack([rng.uniform(650, 900, n), rng.uniform(-250, 250, n),
-                         rng.uniform(250, 650, n)])
-    seed = np.radians([0, -100, 100, -90, -90, 0])
-    q, ok = solve_facing(model, p, np.asarray(DEFAULT_TRACKER_AT_MM) - p, np.zeros(n),
-                         np.tile(seed, (n, 1)), (0.0, 0.0, 1.0))
-    q = q[ok]
-    r = run_chain(model.convention, model.dh_table(), q, model.tool_mm())
-    home = ", ".join(f"{v:.6f}" for v in q[0])
-    lines = ["def taught():", "  set_tcp(p[0, 0, 0.06, 0, 0, 0])", f"  movej([{home}])"]
-    for pos, R in zip(r.base_p_tcp, r.base_R_flange, strict=True):
-        T = np.eye(4)
-        T[:3, :3], T[:3, 3] = R, pos
-        lines.append("  movel(p[" + ", ".join(f"{v:.6f}" for v in T_to_ur(T)) + "])")
-    return "\n".join([*lines, "end", ""])
-
-
 @pytest.mark.slow
 def test_compensated_program_reaches_the_validation_rms(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    (tmp_path / "taught.script").write_text(taught_program())
+    (tmp_path / "taught.script").write_bytes(PROGRAM.read_bytes())
     with sim_serve("--seed", str(SEED), "--hidden", HIDDEN, "--no-pty", "--no-rtde") as serve:
         urls = _urls(serve)
         R = next(u for u in urls if u.startswith("modbus+tcp://"))
@@ -83,7 +60,7 @@ def test_compensated_program_reaches_the_validation_rms(tmp_path, monkeypatch):
         comp = json.loads(_cellcal("compensate", "--params", "params.json", "--program",
                                    "taught.script", "--out", "compensated.script", "--json"))
         assert comp["written"] and not comp["refused"], comp
-        assert comp["n_compensated"] == comp["n_targets"] >= 7
+        assert comp["n_compensated"] == comp["n_targets"] == 8
         assert "identified position is used" in comp["notes"][0]
         # the program's other text is unchanged: the compensated file parses to the same
         # targets, line for line
@@ -92,7 +69,7 @@ def test_compensated_program_reaches_the_validation_rms(tmp_path, monkeypatch):
         assert [t.line for t in after.targets] == [t.line for t in before.targets]
         out = json.loads(_cellcal("validate", "--params", "params.json", "--program",
                                   "taught.script", "--cycles", "2", "--remeasure", "0",
-                                  "--no-floor", *devices, "--json"))
+                                  *devices, "--json"))
     v = out["validation"]
     assert out["status"] == "completed" and out["calibration_valid_rms_mm"] == valid_rms
     e_u, e_c, e_g = (v[k]["rms_mm"] for k in ("uncompensated", "compensated", "geometric"))
