@@ -12,9 +12,8 @@ from __future__ import annotations
 from .text_table import fmt, table
 
 #: what each variant is, in the table
-VARIANT_NAMES = {"uncompensated": "uncompensated (as written)",
-                 "compensated": "compensated (cellcal)",
-                 "geometric": "geometric only (calibration.conf)"}
+VARIANT_NAMES = {"uncompensated": "as written", "compensated": "compensated",
+                 "geometric": "calibration.conf only"}
 
 
 def validation_lines(summary: dict, valid_rms_mm: float | None, notes: list[str]
@@ -30,12 +29,12 @@ def validation_lines(summary: dict, valid_rms_mm: float | None, notes: list[str]
         rows.append([VARIANT_NAMES.get(v, v), str(f["n"]), fmt(f["rms_mm"]),
                      fmt(f["mean_mm"]), fmt(f["max_mm"]), fmt(f.get("ap_max_mm")),
                      fmt(f.get("rp_max_mm")), ratio])
-    out = ["", f"waypoint error ({summary.get('validation_frame', 'the run frame')}):",
-           table(rows, ["program", "visits", "rms mm", "mean mm", "max mm", "AP max mm",
-                        "RP max mm", "x valid"])]
-    if valid_rms_mm:
-        out.append(f"calibration's validation RMS {valid_rms_mm:.4f} mm (x valid: the RMS "
-                   "over it)")
+    out = ["", f"waypoint error, in {summary.get('validation_frame', 'the run frame')}:",
+           table(rows, ["program", "n", "rms mm", "mean mm", "max mm", "AP mm", "RP mm",
+                        "/valid"])]
+    out.append("AP, RP: ISO 9283 accuracy and repeatability, the worst waypoint"
+               + (f"; /valid: the RMS over the calibration's validation RMS "
+                  f"{valid_rms_mm:.4f} mm" if valid_rms_mm else ""))
     out += [f"note: {n}" for n in notes]
     return out
 

@@ -154,7 +154,7 @@ def _eval_frame(em, x, frame_T, frame_run, rows) -> tuple[dict | None, str]:
     p = np.array([w["xyz_mm"] for w in rows])
     apart = np.linalg.norm((p @ T[:3, :3].T + T[:3, 3]) - (p @ frame_T[:3, :3].T
                                                            + frame_T[:3, 3]), axis=1)
-    return ({"tracker_T_base": T.tolist(), "source": "the calibration's base"},
+    return ({"tracker_T_base": T.tolist(), "source": "the calibration's base frame"},
             f"errors in the calibration's base frame (frame run {frame_run}'s is up to "
             f"{apart.max():.3f} mm from it at the waypoints)")
 
