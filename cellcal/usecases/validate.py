@@ -75,7 +75,19 @@ def _waypoints_of_program(request: ValidateRequest, em, x, variants):
     labels = [f"L{t.line}" + (f".{k}" if sum(u.line == t.line for u in solved.targets) > 1
                               else "")
               for k, t in enumerate(solved.targets)]
-    return _rows(solved.joints, labels, [t.line for t in solved.targets], variants), notes
+    smr = _smr_targets(em, x, solved.joints.compensation.target, solved.tcp, solved.measured)
+    return _rows(solved.joints, labels, [t.line for t in solved.targets], variants,
+                 smr), notes
+
+
+def _smr_targets(em, x, target, tcp, measured) -> np.ndarray:
+    """Where the SMR must be (n, 3) when the program's TCP is at its target: the target's
+    point for the measured TCP, else the identified SMR point carried by the flange the
+    target implies (the tracker measures the SMR, whatever the program's TCP)."""
+    flange = target @ np.linalg.inv(tcp)
+    p_smr = np.asarray(em.perturb(x).tool, float)
+    return np.where(measured[:, None], target[:, :3, 3],
+                    flange[:, :3, :3] @ p_smr + flange[:, :3, 3])
 
 
 def _waypoints_of_csv(request: ValidateRequest, em, x, variants):
@@ -88,16 +100,17 @@ def _waypoints_of_csv(request: ValidateRequest, em, x, variants):
     cj = controller_joints(em, x, t.q, pose=pose, is_pose=np.ones(len(t.q), bool),
                            measured=True, columns=t.columns,
                            geometric="geometric" in variants)
-    return _rows(cj, list(t.pose_id), [None] * len(t.q), variants), []
+    return _rows(cj, list(t.pose_id), [None] * len(t.q), variants,
+                 cj.compensation.target[:, :3, 3]), []
 
 
-def _rows(cj, labels, lines, variants) -> list[dict]:
-    """The plan's waypoints: those every variant reaches (the others are noted)."""
+def _rows(cj, labels, lines, variants, smr) -> list[dict]:
+    """The plan's waypoints (``smr``: where the SMR must be, (n, 3) mm): those every
+    variant reaches (the others are noted)."""
     ok = np.all([cj.success[v] for v in variants], axis=0)
-    return [{"label": labels[i], "line": lines[i], "xyz_mm": cj.compensation.target[i, :3, 3]
-             .tolist(), "joints_deg": {v: np.degrees(cj.joints[v][i]).tolist()
-                                       for v in variants}, "reached": bool(ok[i])}
-            for i in range(len(labels))]
+    return [{"label": labels[i], "line": lines[i], "xyz_mm": smr[i].tolist(),
+             "joints_deg": {v: np.degrees(cj.joints[v][i]).tolist() for v in variants},
+             "reached": bool(ok[i])} for i in range(len(labels))]
 
 
 def validate(request: ValidateRequest, capture_args: CaptureArgs, **run_options

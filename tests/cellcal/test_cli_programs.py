@@ -118,3 +118,16 @@ def test_validate_runs_the_waypoints_on_the_cell(params, tmp_path, capsys):
         assert figures["compensated"].n == 8 and len(figures["compensated"].waypoints) == 8
         assert run.summary.validation_frame == "the calibration's base frame"
         assert run.routine == "validate"
+    # a targets CSV (points and their nominal joints), dry-run: planned, nothing moves
+    from calibration.kinematics import tool_points
+
+    model = load_model("ur10e").with_changes(tool=(0.0, 0.0, 60.0))
+    q = np.array([[0.6007, -1.9745, -2.2809, 1.2080, 0.9082, -1.6289]])
+    p = tool_points(model, q)[0]
+    csv = tmp_path / "targets.csv"
+    csv.write_text("pose_id,x,y,z,q1,q2,q3,q4,q5,q6\nA," + ",".join(
+        f"{v:.6f}" for v in [*p, *np.degrees(q[0])]) + "\n")
+    rc, text, err = _run(capsys, "validate", csv, "--params", params, "--cycles", "3",
+                         "--dry-run", *devices)
+    assert rc == 0, err
+    assert text.startswith("validate: 9 points") and "plan ok: 9 targets" in text
