@@ -126,6 +126,18 @@ def neighbour_seeds(is_pose: np.ndarray, joints: np.ndarray, default: np.ndarray
     return out
 
 
+def calibrated_points(error_model: ErrorModel, x: np.ndarray, tcp: np.ndarray,
+                      measured: np.ndarray) -> np.ndarray | None:
+    """The TCP point (n, 3) the calibrated robot carries: the identified one (the tool
+    stage's) where ``measured``, else the TCP's own; None when every row is measured."""
+    if measured.all():
+        return None
+    points = tcp[:, :3, 3].copy()
+    if measured.any():
+        points[measured] = error_model.perturb(x).tool
+    return points
+
+
 def _per_target(flange_T_tcp: np.ndarray | None, n: int) -> np.ndarray:
     T = np.eye(4) if flange_T_tcp is None else np.asarray(flange_T_tcp, float)
     return np.broadcast_to(T, (n, 4, 4)).copy()
@@ -166,7 +178,7 @@ def compensate_targets(
     is_pose: np.ndarray | None = None,
     flange_T_tcp: np.ndarray | None = None,
     columns: dict | None = None,
-    calibrated_tool: bool = False,
+    calibrated_tool: bool | np.ndarray = False,
     max_iter: int = 50,
 ) -> PoseCompensation:
     """Compensated joints and poses for a program's targets, in program order.
@@ -181,9 +193,9 @@ def compensate_targets(
     flange_T_tcp : (4, 4) or (n, 4, 4) the active TCP per target (default the flange)
     columns : per-target data for the effects (``temp_c``, ``payload_kg``: (n,);
         ``dirs``: (n, N))
-    calibrated_tool : the TCP is the point the calibration measured (its tool stage): the
-        calibrated robot carries the identified point, the nominal one ``flange_T_tcp``'s
-        (default: the model's tool)
+    calibrated_tool : bool or (n,) bool, the TCP is the point the calibration measured (its
+        tool stage): the calibrated robot carries the identified point, the nominal one
+        ``flange_T_tcp``'s (default: the model's tool); per target when an array
     """
     model = error_model.model
     joints = np.atleast_2d(np.asarray(joints, float))
@@ -192,7 +204,8 @@ def compensate_targets(
         raise ValueError(f"targets have {N} joints, the model {model.name} has "
                          f"{model.n_joints}")
     is_pose = np.zeros(n, bool) if is_pose is None else np.asarray(is_pose, bool)
-    if flange_T_tcp is None and calibrated_tool:
+    measured = np.broadcast_to(np.asarray(calibrated_tool, bool), (n,))
+    if flange_T_tcp is None and measured.all():
         flange_T_tcp = np.eye(4)
         flange_T_tcp[:3, 3] = model.tool_mm()
     tcp = _per_target(flange_T_tcp, n)
@@ -207,7 +220,7 @@ def compensate_targets(
     cols = dict(columns or {})
     if "dirs" not in cols:
         cols["dirs"] = derive_directions(q_nom)
-    cal = CalibratedFK(error_model, x, cols, None if calibrated_tool else tcp[:, :3, 3])
+    cal = CalibratedFK(error_model, x, cols, calibrated_points(error_model, x, tcp, measured))
     R_flange = target[:, :3, :3] @ np.swapaxes(tcp[:, :3, :3], 1, 2)
     res = solve_ik(cal, q_nom, target[:, :3, 3], R_flange if N >= 6 else None,
                    limits=model.limits_rad(), max_iter=max_iter, success_mm=1e-6,

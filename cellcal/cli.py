@@ -52,6 +52,7 @@ COMMANDS = [
     "cellcal.commands.zero",
     "cellcal.commands.report",
     "cellcal.commands.compensate",
+    "cellcal.commands.validate",
 ]
 
 

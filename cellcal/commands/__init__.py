@@ -24,4 +24,6 @@ Modules (sub-command in brackets)
     ``zero``              [zero] zero-point recalibration from 20 postures
     ``report``            [report] the HTML calibration report
     ``compensate``        [compensate] joints and corrected targets from a calibration
+    ``compensate_program`` [compensate --program] a robot program compensated
+    ``validate``          [validate] a program's waypoints run as written and compensated
 """

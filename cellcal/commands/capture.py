@@ -28,6 +28,8 @@ from ..flags.capture_flags import (
     EXEC_FLAGS,
     add_common,
     add_flag_table,
+    add_plan_flags,
+    add_sight_flags,
     add_thermal_flags,
     add_tracker_flags,
 )
@@ -56,6 +58,8 @@ def register(sub) -> None:
     )
     rsub = add_subcommands(p, "routine", "ROUTINE")
     for name, spec in ROUTINE_ARGS.items():
+        if spec.command is not None:  # run by a command of its own (cellcal validate)
+            continue
         r = command_parser(rsub, name, help=spec.summary,
                            description=spec.summary[0].upper() + spec.summary[1:] + "\n\n"
                            + spec.description)
@@ -72,31 +76,11 @@ def register(sub) -> None:
                        "tracker reports it)")
         r.add_argument("--seed", type=int, default=None,
                        help="random seed of the plan (recorded; default 0)")
-        r.add_argument("--floor-z-mm", type=float, default=0.0, metavar="MM",
-                       help="dry run: lowest z of link origins and tool, mm (default 0)")
-        r.add_argument("--no-floor", action="store_true", help="dry run: no floor check")
-        r.add_argument("--keepout-mm", action="append", default=[],
-                       metavar="X0,Y0,Z0,X1,Y1,Z1",
-                       help="a box (base frame, mm) no link origin or tool point may enter, "
-                       "checked by the dry run and before every move (repeatable)")
-        r.add_argument("--check-paths", action="store_true",
-                       help="also check the floor, keep-out boxes and reach along every joint "
-                       "move, not only where it ends")
-        r.add_argument("--frame-run", type=int, default=None, metavar="RUN",
-                       help="measurement frame from this frame run (default: the latest "
-                       "completed one in the store, if any)")
-        r.add_argument("--dry-run", action="store_true",
-                       help="check and print the plan (the points the tracker would not see, "
-                       "the estimated capture time), do not move")
+        add_plan_flags(r)
         r.add_argument("--tracker-at", metavar="X,Y,Z", default=None,
                        help="where the tracker head stands, robot base frame, mm (rough is "
                        "fine; default: from the latest frame run in --db, else --cell)")
-        r.add_argument("--cell", metavar="cell.yaml", default=None,
-                       help="the cell: tracker position, SMR axis and reflector, margins, "
-                       "fixtures (docs/formats.md section 7)")
-        r.add_argument("--no-visibility", action="store_true",
-                       help="plan without the tracker's line of sight (the dry run still "
-                       "lists the points it would not see)")
+        add_sight_flags(r)
         r.add_argument("--plot", metavar="PNG", default=None,
                        help="draw the plan: robot, SMR positions, tracker and beams")
         add_flag_table(r, EXEC_FLAGS + ROUTINE_ARGS[name].acquire_flags)
@@ -136,11 +120,11 @@ def run(args) -> int:
         return failed
     if result.outcome is not None:
         return print_outcome(result.outcome, args.json)
-    _print_dry_run(result, args.json)
+    print_dry_run(result, args.json)
     return 0
 
 
-def _print_dry_run(result, as_json: bool) -> None:
+def print_dry_run(result, as_json: bool) -> None:
     """The plan, its dry run, what the tracker would see and the estimated time."""
     from daq.sight import format_time
 

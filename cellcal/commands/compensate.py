@@ -7,6 +7,8 @@ from __future__ import annotations
 import sys
 
 from .common import print_json
+from .compensate_program import add_flags as add_program_flags
+from .compensate_program import run_program, uses_program
 from .parsers import command_parser
 
 
@@ -53,10 +55,13 @@ def register(sub) -> None:
     p.add_argument("--export-dh", metavar="FILE.csv",
                    help="write the calibrated DH/MDH table as CSV (units in the header)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    add_program_flags(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    if uses_program(args):
+        return run_program(args)
     from presentation.compensation_text import (
         compensation_summary,
         compensation_text,

@@ -105,3 +105,34 @@ def add_thermal_flags(p) -> None:
     p.add_argument("--require-warm", type=float, default=None, metavar="MIN",
                    help="refuse to start (exit 2) unless the robot's last `capture warmup` "
                    "ended at most MIN minutes ago and its joints have not cooled since")
+
+
+def add_plan_flags(p) -> None:
+    """The dry run's limits and the run's frame: ``--floor-z-mm``, ``--no-floor``,
+    ``--keepout-mm``, ``--check-paths``, ``--frame-run``, ``--dry-run``."""
+    p.add_argument("--floor-z-mm", type=float, default=0.0, metavar="MM",
+                   help="dry run: lowest z of link origins and tool, mm (default 0)")
+    p.add_argument("--no-floor", action="store_true", help="dry run: no floor check")
+    p.add_argument("--keepout-mm", action="append", default=[],
+                   metavar="X0,Y0,Z0,X1,Y1,Z1",
+                   help="a box (base frame, mm) no link origin or tool point may enter, "
+                   "checked by the dry run and before every move (repeatable)")
+    p.add_argument("--check-paths", action="store_true",
+                   help="also check the floor, keep-out boxes and reach along every joint "
+                   "move, not only where it ends")
+    p.add_argument("--frame-run", type=int, default=None, metavar="RUN",
+                   help="measurement frame from this frame run (default: the latest "
+                   "completed one in the store, if any)")
+    p.add_argument("--dry-run", action="store_true",
+                   help="check and print the plan (the points the tracker would not see, "
+                   "the estimated capture time), do not move")
+
+
+def add_sight_flags(p) -> None:
+    """The tracker's line of sight: ``--cell``, ``--no-visibility``."""
+    p.add_argument("--cell", metavar="cell.yaml", default=None,
+                   help="the cell: tracker position, SMR axis and reflector, margins, "
+                   "fixtures (docs/formats.md section 7)")
+    p.add_argument("--no-visibility", action="store_true",
+                   help="plan without the tracker's line of sight (the dry run still "
+                   "lists the points it would not see)")

@@ -29,6 +29,9 @@ class RoutineArgs:
     summary: str
     description: str
     acquire_flags: list = field(default_factory=list)
+    #: the command that runs the routine when it is not ``cellcal capture ROUTINE`` (its
+    #: plan needs inputs a capture does not take: ``validate``, a calibration and a program)
+    command: str | None = None
 
 
 # ------------------------------------------------------------------ frame
@@ -217,6 +220,37 @@ def _warmup_params(args) -> dict:
             "floor_z_mm": args.floor_z_mm, "max_reach_mm": args.max_reach_mm}
 
 
+# ------------------------------------------------------------------ validate
+#: the variants ``cellcal validate`` can run (calibration.controller_joints.VARIANTS)
+VALIDATE_VARIANTS = ("uncompensated", "compensated", "geometric")
+
+
+def _validate_add(p) -> None:
+    p.add_argument("--cycles", type=int, default=1, metavar="N",
+                   help="run the waypoints N times per variant (N >= 2: ISO 9283 RP too; "
+                   "default 1)")
+    p.add_argument("--variants", default=",".join(VALIDATE_VARIANTS), metavar="V,..",
+                   help="which programs run, in order: uncompensated (as written), "
+                   "compensated, geometric (the calibrated DH table alone, what "
+                   "calibration.conf holds); default all three")
+
+
+def _validate_params(args) -> dict:
+    variants = [v.strip() for v in args.variants.split(",") if v.strip()]
+    bad = [v for v in variants if v not in VALIDATE_VARIANTS]
+    if bad or not variants or len(set(variants)) != len(variants):
+        raise ValueError(f"--variants {args.variants!r}: give some of "
+                         f"{', '.join(VALIDATE_VARIANTS)}, each once")
+    if args.cycles < 1:
+        raise ValueError(f"--cycles {args.cycles}: give 1 or more")
+    return {"cycles": args.cycles, "variants": variants}
+
+
+_VALIDATE = ("Run by `cellcal validate`: a program's waypoints (or a targets CSV), as "
+             "written, compensated by the calibration and with the calibrated DH table "
+             "alone, moved to by joint moves and measured by the tracker; the run's summary "
+             "gets each variant's error and ISO 9283 AP (RP with --cycles 2 or more).")
+
 #: routine name -> its command-line options (every routine of :data:`daq.routines.ROUTINES`)
 ROUTINE_ARGS = {
     "frame": RoutineArgs(_frame_add, _frame_params, "measurement-frame setup — the joint-1 "
@@ -231,6 +265,9 @@ ROUTINE_ARGS = {
                            "cycles (ISO 9283 cube points).", _ISO9283),
     "warmup": RoutineArgs(_warmup_add, _warmup_params, "work the robot until a reference pose "
                           "stops drifting (a warm-up before a capture).", _WARMUP),
+    "validate": RoutineArgs(_validate_add, _validate_params, "a program's waypoints, as "
+                            "written and compensated, measured by the tracker.", _VALIDATE,
+                            command="validate"),
 }
 
 #: every routine's acquisition flags (given to ``resume``, they apply to a run of that routine)

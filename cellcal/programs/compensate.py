@@ -6,8 +6,10 @@ target it can (:func:`calibration.pose_compensation.compensate_targets`: joint t
 the full model, pose targets near their neighbouring joint targets with the active TCP),
 writes the result atomically, and returns a :class:`ProgramReport` (what the command
 prints, and its exit code: 1 when something could not be compensated, unless
-``allow_partial``). Units are converted here, at the edge: URScript m and rad, KRL mm and
-deg; the core works in mm and rad.
+``allow_partial``). A TCP at the calibration's tool (the SMR it measured) carries the
+identified point; any other TCP rides on the calibration's view of the flange (the report
+says which). :func:`solve` is shared with ``cellcal validate``. Units are converted here,
+at the edge: URScript m and rad, KRL mm and deg; the core works in mm and rad.
 """
 
 from __future__ import annotations
@@ -17,13 +19,14 @@ from pathlib import Path
 
 import numpy as np
 
+from calibration.controller_joints import ControllerJoints, controller_joints
 from calibration.files import read_input, write_atomic
-from calibration.pose_compensation import compensate_targets, neighbour_seeds
+from calibration.pose_compensation import neighbour_seeds
 
 from . import krl, urscript
 from .poses import T_to_krl, T_to_ur, krl_to_T, ur_to_T
 from .program_report import ProgramReport, target_row
-from .targets import Correction, Program, ProgramError, Refusal
+from .targets import Correction, Program, ProgramError, Refusal, Target
 
 #: a 6-axis arm's usual working configuration (deg), the seed when a program has no joints
 DEFAULT_SEED_DEG = {"urscript": (0.0, -90.0, 90.0, -90.0, -90.0, 0.0),
@@ -66,6 +69,9 @@ def language_of(path: str | Path, language: str | None = None) -> Dialect:
     if language:
         return DIALECTS[language]
     suffix = Path(path).suffix.lower()
+    if suffix == ".urp":
+        raise ProgramError(f"{path}: a PolyScope program (.urp) is not URScript text; save "
+                           "it as a .script file (PolyScope writes one beside it)")
     if suffix not in SUFFIXES:
         raise ProgramError(f"{path}: cannot tell the program's language from {suffix!r}; "
                            f"known: {', '.join(sorted(SUFFIXES))}")
@@ -103,9 +109,29 @@ def _frames(program: Program, dialect: Dialect, options: Options):
     return out
 
 
-def compensate(program: Program, dialect: Dialect, error_model, x, options: Options
-               ) -> tuple[dict[int, Correction], list[dict], list[Refusal]]:
-    """Corrections for a parsed program's targets; (corrections, report rows, refusals)."""
+#: a TCP this close (mm) to the calibration's tool is the point the calibration measured
+MEASURED_TOL_MM = 1e-3
+
+
+@dataclass
+class Solved:
+    """A program's targets solved (:func:`solve`): the targets used (program order), their
+    bases (n, 4, 4), TCPs (n, 4, 4), which TCPs are the calibration's measured point, the
+    joints of each controller variant (:class:`~calibration.controller_joints.ControllerJoints`)
+    and the targets refused."""
+
+    targets: list[Target]
+    base: np.ndarray
+    tcp: np.ndarray
+    measured: np.ndarray
+    joints: ControllerJoints | None
+    refusals: list[Refusal]
+
+
+def solve(program: Program, dialect: Dialect, error_model, x, options: Options, *,
+          geometric: bool = False) -> Solved:
+    """The joints each controller uses for a parsed program's targets (``geometric``: the
+    geometric-only controller's too); targets that cannot be solved are refused."""
     model = error_model.model
     N = model.n_joints
     refusals, use = [], []
@@ -119,7 +145,8 @@ def compensate(program: Program, dialect: Dialect, error_model, x, options: Opti
         else:
             use.append(t)
     if not use:
-        return {}, [], refusals
+        empty = np.zeros((0, 4, 4))
+        return Solved([], empty, empty, np.zeros(0, bool), None, refusals)
     n = len(use)
     is_pose = np.array([t.kind == "pose" for t in use])
     joints = np.zeros((n, N))
@@ -130,6 +157,7 @@ def compensate(program: Program, dialect: Dialect, error_model, x, options: Opti
     joints = neighbour_seeds(is_pose, joints, default)
     tcp = np.stack([frames[t.index][0] for t in use])
     base = np.stack([frames[t.index][1] for t in use])
+    measured = np.linalg.norm(tcp[:, :3, 3] - model.tool_mm(), axis=1) < MEASURED_TOL_MM
     pose = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
     pose[is_pose] = [base[i] @ dialect.to_T(t.values) for i, t in enumerate(use) if is_pose[i]]
     columns = {}
@@ -138,21 +166,54 @@ def compensate(program: Program, dialect: Dialect, error_model, x, options: Opti
     payload = [t.payload_kg if t.payload_kg is not None else options.payload_kg for t in use]
     if any(p is not None for p in payload):
         columns["payload_kg"] = np.array([0.0 if p is None else p for p in payload])
-    c = compensate_targets(error_model, x, joints, pose=pose, is_pose=is_pose,
-                           flange_T_tcp=tcp, columns=columns)
-    corrections, rows = {}, []
-    for i, t in enumerate(use):
+    cj = controller_joints(error_model, x, joints, pose=pose, is_pose=is_pose,
+                           flange_T_tcp=tcp, measured=measured, columns=columns,
+                           geometric=geometric)
+    return Solved(use, base, tcp, measured, cj, refusals)
+
+
+def tcp_notes(solved: Solved, model) -> list[str]:
+    """What the report says about the TCPs: the measured point's identified position is
+    used; any other TCP rides on the calibration's view of the flange."""
+    notes, seen = [], set()
+    for t, m, T in zip(solved.targets, solved.measured, solved.tcp, strict=True):
+        key = (bool(m), tuple(np.round(T[:3, 3], 3)))
+        if key in seen:
+            continue
+        seen.add(key)
+        xyz = ", ".join(f"{v:g}" for v in np.round(T[:3, 3], 3))
+        if m:
+            notes.append(f"line {t.line}: the TCP ({xyz} mm) is the point the calibration "
+                         "measured: its identified position is used")
+        else:
+            notes.append(f"line {t.line}: the TCP ({xyz} mm) is not the point the "
+                         f"calibration measured ({', '.join(f'{v:g}' for v in model.tool_mm())}"
+                         " mm): it is compensated as well as the calibration knows the "
+                         "flange (docs/programs.md)")
+    return notes
+
+
+def corrections(solved: Solved, dialect: Dialect
+                ) -> tuple[dict[int, Correction], list[dict], list[Refusal]]:
+    """The new values of a solved program's targets; (corrections, report rows, refusals:
+    the solved ones' and those the calibrated robot cannot reach)."""
+    refusals = list(solved.refusals)
+    out, rows = {}, []
+    if solved.joints is None:
+        return out, rows, refusals
+    c = solved.joints.compensation
+    for i, t in enumerate(solved.targets):
         if not c.success[i]:
             refusals.append(Refusal(t.line, t.context, "the calibrated robot cannot reach it "
                                     "(out of reach or at a singularity)"))
             continue
         if t.kind == "pose":
-            values = dialect.from_T(np.linalg.inv(base[i]) @ c.cmd[i], near=t.values)
+            values = dialect.from_T(np.linalg.inv(solved.base[i]) @ c.cmd[i], near=t.values)
         else:
             values = tuple(float(v) for v in c.q[i] / dialect.joint_unit)
-        corrections[t.index] = Correction(values, float(c.correction_mm[i]))
+        out[t.index] = Correction(values, float(c.correction_mm[i]))
         rows.append(target_row(t, c, i))
-    return corrections, rows, refusals
+    return out, rows, refusals
 
 
 def compensate_program(path: str | Path, error_model, x, out: str | Path, *,
@@ -169,13 +230,13 @@ def compensate_program(path: str | Path, error_model, x, out: str | Path, *,
         raise ProgramError(f"{path}: line {program.compensated_at}: this program was "
                            "compensated already (a 'cellcal:' comment); compensate the "
                            "original")
-    corrections, rows, refused = compensate(program, dialect, error_model, x,
-                                            options or Options())
+    solved = solve(program, dialect, error_model, x, options or Options())
+    new, rows, refused = corrections(solved, dialect)
     refusals = sorted(program.refusals + refused, key=lambda r: r.line)
     report = ProgramReport(str(path), str(out), dialect.name, len(program.targets), rows,
-                           refusals, program.notes)
+                           refusals, program.notes + tcp_notes(solved, error_model.model))
     if not refusals or allow_partial:
-        text = dialect.rewrite(program, corrections)
+        text = dialect.rewrite(program, new)
         write_atomic(out, text.encode("utf-8", "surrogateescape"))
         report.written = True
     return report

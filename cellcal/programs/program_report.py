@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numpy as np
+from presentation.program_text import program_lines, program_summary
 
 from .targets import Refusal
 
@@ -47,36 +47,9 @@ class ProgramReport:
         """0 all compensated; 1 something was not (written or not, see ``written``)."""
         return 1 if self.refusals else 0
 
-    def _stats(self, key: str) -> tuple[float, float]:
-        v = np.array([r[key] for r in self.rows])
-        return (float(np.sqrt(np.mean(v**2))), float(v.max())) if v.size else (0.0, 0.0)
-
     def lines(self) -> list[str]:
-        """The report in words, as the command prints it."""
-        out = [f"{self.source}: {self.language}, {self.n_targets} targets found, "
-               f"{len(self.rows)} compensated"]
-        if self.rows:
-            rms, worst = self._stats("predicted_miss_mm")
-            out.append(f"  predicted miss without compensation: RMS {rms:.3f} mm, "
-                       f"worst {worst:.3f} mm")
-            rms, worst = self._stats("correction_mm")
-            out.append(f"  correction: RMS {rms:.3f} mm, worst {worst:.3f} mm")
-        if self.refusals:
-            out.append(f"  not compensated ({len(self.refusals)}):")
-            out += [f"    {r}" for r in self.refusals]
-        out += [f"  note: {n}" for n in self.notes]
-        if self.written:
-            out.append(f"  wrote {self.out}" + (" (partly compensated)" if self.refusals
-                                                else ""))
-        elif self.refusals:
-            out.append(f"  nothing written: {len(self.refusals)} construct(s) cannot be "
-                       "compensated (--allow-partial writes the rest)")
-        return out
+        """The report in words, as the command prints it (:mod:`presentation.program_text`)."""
+        return program_lines(self)
 
     def to_json(self) -> dict:
-        return {"source": self.source, "out": self.out if self.written else None,
-                "language": self.language, "n_targets": self.n_targets,
-                "n_compensated": len(self.rows), "targets": self.rows,
-                "refused": [{"line": r.line, "construct": r.construct, "reason": r.reason}
-                            for r in self.refusals],
-                "notes": self.notes, "written": self.written}
+        return program_summary(self)

@@ -14,12 +14,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..errors import UsageError
 
-class ProgramError(ValueError):
+
+class ProgramError(UsageError, ValueError):
     """A program that does not parse (unbalanced brackets, an unterminated string...):
-    the message names the line."""
-
-    exit_code = 2
+    the message names the line (bad input, exit code 2)."""
 
 
 @dataclass(frozen=True)

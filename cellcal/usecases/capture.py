@@ -211,14 +211,16 @@ class CaptureResult:
                 "params": plan.params, "sight": self.planned.sight.to_json(), **self.estimate}
 
 
-def capture(req: CaptureArgs, *, on_planned: Callable[[CaptureResult], None] | None = None,
+def capture(req: CaptureArgs, *, model=None,
+            on_planned: Callable[[CaptureResult], None] | None = None,
             progress=None, on_started: Callable[[int, int], None] | None = None,
             confirm=None) -> CaptureResult:
     """Plan and dry-run the request (the plan drawn into ``req.plot`` when given); unless
     ``req.dry_run``, store and execute the run.
 
-    ``on_planned(result)`` is called once the plan is accepted (before the store is
-    opened); ``progress``, ``on_started`` and ``confirm`` go to
+    ``model``: the robot model already loaded (``req.model`` names it; ``validate``
+    passes its calibration's). ``on_planned(result)`` is called once the plan is accepted
+    (before the store is opened); ``progress``, ``on_started`` and ``confirm`` go to
     :func:`daq.service.start_run`. Raises what the service raises (RequestError,
     PlanRefused, ConnectFailed, StoreUnavailable, LeaseBusy); a run store that cannot be
     opened is a UsageError.
@@ -228,7 +230,7 @@ def capture(req: CaptureArgs, *, on_planned: Callable[[CaptureResult], None] | N
     from daq.store import RunStore, StoreError
 
     request = service_request(req)
-    planned = plan_run(request, db=req.db)
+    planned = plan_run(request, model=model, db=req.db)
     result = CaptureResult(planned, estimate_time(planned.plan, request.executor))
     if req.plot:
         from presentation.plan_figure import plan_figure

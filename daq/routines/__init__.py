@@ -8,6 +8,7 @@ Modules
     ``poses``     random or observability-optimised calibration/validation poses
     ``iso9283``   pose accuracy and repeatability cycles (ISO 9283 cube points)
     ``warmup``    work the robot until a reference pose stops drifting (before a capture)
+    ``validate``  a program's waypoints, as written and compensated (``cellcal validate``)
 
 Every routine module provides
 
@@ -47,6 +48,7 @@ ROUTINES = {
     "poses": "daq.routines.poses",
     "iso9283": "daq.routines.iso9283",
     "warmup": "daq.routines.warmup",
+    "validate": "daq.routines.validate",
 }
 
 

@@ -30,9 +30,16 @@ from .errors import StoreError, StoreFull, StoreUnavailable
 from .records import STATUSES, Calibration, Interruption, InterruptionKind, Run, RunStatus
 from .runstore import RunStore, open_if_exists, open_store
 from .samples import Reading, Sample, Samples
-from .summary import Iso9283Point, RemeasureSummary, RunSummary, WarmupSummary
+from .summary import (
+    Iso9283Point,
+    RemeasureSummary,
+    RunSummary,
+    ValidationVariant,
+    WarmupSummary,
+)
 
 __all__ = ["STATUSES", "Calibration", "Interruption", "InterruptionKind", "Iso9283Point",
            "Reading", "RemeasureSummary", "Run", "RunStatus", "RunStore", "RunSummary",
            "Sample", "Samples", "StoreError", "StoreFull", "StoreUnavailable",
-           "WarmupSummary", "display_address", "open_if_exists", "open_store"]
+           "ValidationVariant", "WarmupSummary", "display_address", "open_if_exists",
+           "open_store"]

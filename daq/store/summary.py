@@ -13,6 +13,8 @@ Keys
     the re-measure policy: ``remeasure`` (:class:`RemeasureSummary`);
     ``frame``: ``circle_rms_mm``, ``line_rms_mm``, ``orthogonality_deg``;
     ``iso9283``: ``iso9283`` (RP and AP per cube point, :class:`Iso9283Point`);
+    ``validate``: ``validation`` (per variant, :class:`ValidationVariant`) and
+    ``validation_frame`` (the frame the errors are measured in);
     ``zero20``: ``tip_spread_max_mm``, ``tip_spread_rms_mm``, and, while capturing,
     ``zero_target_tracker_mm`` and ``zero_tracker_R_base``;
     ``warmup``: ``warmup`` (:class:`WarmupSummary`).
@@ -131,6 +133,20 @@ class WarmupSummary(StoredRecord):
     t_min: list[Number] | None = None
     curve_mm: list[Number] | None = None
     joint_temp_c: list[Number] | None = None
+class ValidationVariant(StoredRecord):
+    """One variant of a validation run (``validate``: the program as written, compensated,
+    geometric only): the position error of every visit against its target, ``n`` visits
+    (RMS, mean, max, mm), and ISO 9283 per waypoint (``waypoints``: label -> AP, and RP
+    where the waypoint was visited more than once); ``ap_max_mm``, ``rp_max_mm`` the
+    worst."""
+
+    n: int | None = None
+    rms_mm: Number | None = None
+    mean_mm: Number | None = None
+    max_mm: Number | None = None
+    ap_max_mm: Number | None = None
+    rp_max_mm: Number | None = None
+    waypoints: dict[str, Iso9283Point] | None = None
 
 
 class RunSummary(StoredRecord):
@@ -150,6 +166,8 @@ class RunSummary(StoredRecord):
     zero_target_tracker_mm: list[Number] | None = None
     zero_tracker_R_base: list[list[Number]] | None = None  # noqa: N815 - a_R_b
     warmup: WarmupSummary | None = None
+    validation: dict[str, ValidationVariant] | None = None
+    validation_frame: str | None = None
 
     @classmethod
     def from_json(cls, text: str) -> RunSummary:

@@ -632,7 +632,9 @@ def build_cases() -> list[Case]:
                            chmod_ro("ro/cell.db"), chmod_ro("ro/v2.db"),
                            lambda ws: (ws / "ro").chmod(0o555)],
                           mode="subprocess", slow=True, unprivileged=True))
-    return cases
+    from .program_cases import program_cases  # it imports this module's helpers
+
+    return cases + program_cases()
 
 
 def _store_cases(command, argv, *, ok: bool, skip=(), creates=()) -> list[Case]:
