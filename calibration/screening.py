@@ -36,6 +36,7 @@ import scipy.stats
 
 from .dataset import Dataset
 from .effects import Effect, EffectError
+from .effects.physical import Harmonic
 from .effects.table import SMOOTHING_GRID, Table, penalised_path
 from .error_model import Bound, ErrorModel
 from .identify import Fit
@@ -57,7 +58,8 @@ class Linearised:
     trace0 : tr H₀ (degrees of freedom of the fit)
     loo0 : (n,) squared leave-one-out error of every pose, mm²
     G : (n, 3, N) dP/dq_j at the fit (what a joint correction acts through)
-    rv, Wv, Gv : the same for the validation poses (None without them)
+    P : (n, 3) the fit's predictions (what a measure-stage effect acts on)
+    rv, Wv, Gv, Pv : the same for the validation poses (None without them)
     """
 
     fit: Fit
@@ -69,11 +71,16 @@ class Linearised:
     trace0: float
     loo0: np.ndarray
     G: np.ndarray
+    P: np.ndarray | None = None
     valid: Dataset | None = None
     bound_v: Bound | None = None
     rv: np.ndarray | None = None
     Wv: np.ndarray | None = None
     Gv: np.ndarray | None = None
+    Pv: np.ndarray | None = None
+    #: Wᵀ W (m, m), made when a table is first screened (not I when the fit has penalty
+    #: rows)
+    WtW: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -118,7 +125,7 @@ def linearise(fit: Fit, calib: Dataset, valid: Dataset | None = None) -> Lineari
     u = scipy.linalg.solve_triangular(L, g, lower=True, check_finite=False)  # X δ₀ = W u
     r = r - (W @ u).reshape(n, 3)
     loo0 = np.sum(_loo(h0, r) ** 2, axis=-1)
-    lin = Linearised(fit, calib, bound, r, W, h0, float(np.sum(W * W)), loo0, G)
+    lin = Linearised(fit, calib, bound, r, W, h0, float(np.sum(W * W)), loo0, G, P)
     if valid is not None and valid.n:
         bound_v = em.bind(valid)
         Pv, Jv, Gv = em.evaluate(x, bound_v, jacobian=True, joints=True)
@@ -126,7 +133,7 @@ def linearise(fit: Fit, calib: Dataset, valid: Dataset | None = None) -> Lineari
         lin.Wv = scipy.linalg.solve_triangular(L, (Xv / d).T, lower=True,
                                                check_finite=False).T
         rv = valid.tracker_p_smr - Pv - (lin.Wv @ u).reshape(valid.n, 3)
-        lin.valid, lin.bound_v, lin.rv, lin.Gv = valid, bound_v, rv, Gv
+        lin.valid, lin.bound_v, lin.rv, lin.Gv, lin.Pv = valid, bound_v, rv, Gv, Pv
     return lin
 
 
@@ -184,16 +191,41 @@ class Screened:
 
 
 def effect_columns(effect: Effect, data: Dataset, bound: Bound, G: np.ndarray, em: ErrorModel,
-                   x: np.ndarray) -> np.ndarray:
-    """A candidate's Jacobian columns at the fit ``x`` of ``em``, (n, 3, k)."""
+                   x: np.ndarray, P: np.ndarray | None = None) -> np.ndarray:
+    """A candidate's Jacobian columns at the fit ``x`` of ``em``, (n, 3, k). ``P``: the
+    fit's predictions on ``data`` when the caller has them (a measure-stage effect, the
+    last to act, takes its columns from them instead of a new pass along the chain)."""
     if effect.stage == "joint":
         partials = _joint_partials(effect, data, bound)
         return G[:, :, effect.joint - 1, None] * partials[:, None, :]
+    if effect.stage == "measure" and P is not None:
+        return effect.measure(np.zeros(effect.n_params), P)[2]
     # other stages: evaluate the extended model once
     ext = ErrorModel(em.model, em.effects + [effect])
     xe = np.concatenate([x, np.zeros(effect.n_params)])
     _, J = ext.evaluate(xe, ext.bind(data))
     return J[:, :, em.n_params :]
+
+
+def _harmonic_columns(lin: Linearised, effects: list[Harmonic]) -> dict:
+    """The columns of many harmonic candidates at once, ``{id(effect): (C, Cv)}``: per
+    joint, the sines and cosines of every order in one call each (what
+    :func:`effect_columns` gives one effect at a time: ``Harmonic.bind``'s ``K θ``)."""
+    out: dict[int, tuple] = {}
+    by_joint: dict[int, list[Harmonic]] = {}
+    for e in effects:
+        by_joint.setdefault(e.joint, []).append(e)
+    sets = [(lin.calib, lin.G)] + ([] if lin.valid is None else [(lin.valid, lin.Gv)])
+    for j, group in by_joint.items():
+        orders = np.array([float(e.order) for e in group])
+        cols = []
+        for data, G in sets:
+            k_theta = data.q[:, j - 1, None] * orders  # (n, K)
+            basis = np.stack([np.sin(k_theta), np.cos(k_theta)], axis=-1)  # (n, K, 2)
+            cols.append(G[:, :, j - 1, None, None] * basis[:, None])  # (n, 3, K, 2)
+        for a, e in enumerate(group):
+            out[id(e)] = (cols[0][:, :, a], cols[1][:, :, a] if len(cols) > 1 else None)
+    return out
 
 
 def _joint_partials(effect: Effect, data: Dataset, bound: Bound) -> np.ndarray:
@@ -215,6 +247,7 @@ def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = 
     em, x = fit.error_model, fit.values
     out: list[Screened] = []
     groups: dict[int, list[tuple[Effect, np.ndarray, np.ndarray | None]]] = {}
+    periodic = _harmonic_columns(lin, [e for e in effects if type(e) is Harmonic])
     for eff in effects:
         try:
             if isinstance(eff, Table):
@@ -222,9 +255,12 @@ def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = 
                 if s is not None:
                     out.append(s)
                 continue
-            C = effect_columns(eff, lin.calib, lin.bound, lin.G, em, x)
-            Cv = (None if lin.valid is None else
-                  effect_columns(eff, lin.valid, lin.bound_v, lin.Gv, em, x))
+            if id(eff) in periodic:
+                C, Cv = periodic[id(eff)]
+            else:
+                C = effect_columns(eff, lin.calib, lin.bound, lin.G, em, x, lin.P)
+                Cv = (None if lin.valid is None else
+                      effect_columns(eff, lin.valid, lin.bound_v, lin.Gv, em, x, lin.Pv))
         except EffectError as e:
             notes.append(f"{eff.label}: skipped ({e})")
             continue
@@ -339,35 +375,30 @@ def _screen_table(lin: Linearised, joint: int, spacings) -> Screened | None:
     if lin.valid is not None:
         theta = np.concatenate([theta, lin.valid.q[:, joint - 1]])
     n = lin.n
-    r = lin.r.ravel()
     best = None
     curves = {}
     finest = data_gap_deg(lin.calib.q[:, joint - 1])
-    U = None
+    products = None
     usable = [sp for sp in spacings if sp >= finest] or [max(spacings)]
     for spacing in usable:
         if np.ptp(np.degrees(theta)) < 2 * spacing:
             continue
         table = Table.covering(em.model, joint, theta, spacing)
         B = _joint_partials(table, lin.calib, lin.bound)
-        C = lin.G[:, :, joint - 1, None] * B[:, None, :]  # effect_columns of a joint effect
-        Cf = C.reshape(3 * n, -1)
-        # Wᵀ C = U B with U the poses' Wᵢᵀ gᵢ (m, n), computed once per joint: a third of
-        # the work of Wᵀ C over all 3n rows
-        if U is None:
-            U = np.einsum("nim,ni->mn", lin.W.reshape(n, 3, -1), lin.G[:, :, joint - 1])
-        V = Cf - lin.W @ (U @ B)
-        VtV = V.T @ V  # = Cᵀ V (the projection is idempotent), symmetric by construction
-        path = penalised_path(VtV, Cf.T @ r, V.T @ r, VtV, lin.rss0,
-                              table.penalty_matrix(), SMOOTHING_GRID, 3 * n, lin.trace0)
+        if products is None:
+            products = _joint_products(lin, joint)
+        VtV, Ctr, Vtr = _table_normal(products, B)
+        path = penalised_path(VtV, Ctr, Vtr, VtV, lin.rss0, table.penalty_matrix(),
+                              SMOOTHING_GRID, 3 * n, lin.trace0)
         g = float(path["gcv"][path["best"]])
         curves[spacing] = [(float(s), float(np.sqrt(3 * v))) for s, v in
                            zip(path["grid"], path["gcv"], strict=True)]
         if best is None or g < best[0]:
-            best = (g, table, C, float(path["grid"][path["best"]]))
+            best = (g, table, B, float(path["grid"][path["best"]]))
     if best is None:
         return None
-    _, table, C, s = best
+    _, table, B, s = best
+    C = lin.G[:, :, joint - 1, None] * B[:, None, :]  # effect_columns of a joint effect
     table.smoothing = s
     table.cv_curve = curves[int(table.spacing_deg)]
     Cv = (None if lin.valid is None else
@@ -375,6 +406,32 @@ def _screen_table(lin: Linearised, joint: int, spacings) -> Screened | None:
     res = _evaluate(lin, C[:, :, None], Cv, table.penalty_matrix(), s)
     return _screened(lin, table, {k: v[0] for k, v in res.items()},
                      gcv_by_spacing={sp: min(v for _, v in cv) for sp, cv in curves.items()})
+
+
+def _joint_products(lin: Linearised, joint: int) -> tuple:
+    """What every table on ``joint`` shares (a table's columns are ``C_i = g_i b_iᵀ``, g_i
+    = dP_i/dq_joint, b_i its basis at pose i): U = (W_iᵀ g_i) (m, n), |g_i|² and g_iᵀ r_i
+    (n,), Wᵀ r (m,) and Wᵀ W (m, m)."""
+    n = lin.n
+    g = lin.G[:, :, joint - 1]
+    U = np.einsum("nim,ni->mn", lin.W.reshape(n, 3, -1), g)
+    if lin.WtW is None:
+        lin.WtW = lin.W.T @ lin.W
+    return U, np.sum(g * g, axis=1), np.sum(g * lin.r, axis=1), lin.W.T @ lin.r.ravel(), \
+        lin.WtW
+
+
+def _table_normal(products: tuple, B: np.ndarray) -> tuple:
+    """VᵀV, Cᵀr and Vᵀr of a table with basis B (n, k) from :func:`_joint_products`,
+    without forming C or V = C - W WᵀC (3n x k each): with Y = WᵀC = U B,
+    ``VᵀV = CᵀC - 2 YᵀY + Yᵀ (WᵀW) Y`` and ``CᵀC = Bᵀ diag(|g_i|²) B`` (n rows, not 3n),
+    ``Vᵀr = Cᵀr - Yᵀ Wᵀr``. A third of the work; the same numbers to rounding."""
+    U, gg, gr, Wr, WtW = products
+    Y = U @ B
+    VtV = B.T @ (gg[:, None] * B) - 2.0 * (Y.T @ Y) + Y.T @ (WtW @ Y)
+    VtV = 0.5 * (VtV + VtV.T)
+    Ctr = B.T @ gr
+    return VtV, Ctr, Ctr - Y.T @ Wr
 
 
 def kfold_errors(fit: Fit, folds: int = 10, seed: int = 0) -> np.ndarray:
