@@ -350,7 +350,9 @@ def screen_fit(fit, mode: str, refit: Callable, **test_kw):
         out = new
         current = refit(full.subset(~out), current.values) if out.any() else fit
         rounds += 1
-    if screen.clean_cloud:  # name exactly the points left out of ``current``
+    if screen.clean_cloud and not np.array_equal(screen.beyond, out):
+        # name exactly the points left out of ``current`` (when the loop settled, the
+        # points out of line are those: the test as it stands names them)
         screen = find_blunders(resid, sig, named=out, **kw)
     if not settled:
         screen.notes.append("the exclusion loop did not settle; its last set is used")
