@@ -370,7 +370,7 @@ def _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress)
         if not effects:
             reason = "no candidate effects left to try"
             break
-        screened = screen(lin, effects, notes=notes)
+        screened = screen(lin, effects, notes=notes, heldout_alpha=alpha)
         n_screened = len(screened)
         good = [s for s in screened if _significant(s, n_screened, alpha) and s.loo_gain > 0]
         if not good:

@@ -240,12 +240,18 @@ def _joint_partials(effect: Effect, data: Dataset, bound: Bound) -> np.ndarray:
 
 
 def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = None,
-           table_spacings=TABLE_SPACINGS_DEG) -> list[Screened]:
+           table_spacings=TABLE_SPACINGS_DEG, heldout_alpha: float | None = None
+           ) -> list[Screened]:
     """Screen ``effects`` (not in the fit's model) at the linearised fit.
 
     A ``Table`` in ``effects`` stands for "a table on that joint": it is replaced by the
     table whose knots span the data's angles at the spacing (among ``table_spacings``) and
     smoothing GCV prefers. Effects the data cannot test are left out with a note.
+
+    ``heldout_alpha``: the leave-one-out and validation figures (most of the work: a 3 x 3
+    block per pose and candidate) only for candidates significant at this level
+    (F-test, Bonferroni-corrected over every candidate screened), NaN for the others;
+    what ``diagnose --auto`` ranks (it ranks only significant candidates). None: for all.
     """
     notes = [] if notes is None else notes
     fit = lin.fit
@@ -270,20 +276,43 @@ def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = 
             notes.append(f"{eff.label}: skipped ({e})")
             continue
         groups.setdefault(eff.n_params, []).append((eff, C, Cv))
+    waiting = []  # (index in out, effect, C, Cv): held-out figures still to compute
     for items in groups.values():
-        for i in range(0, len(items), _BATCH):
-            batch = items[i : i + _BATCH]
-            C = np.stack([c for _, c, _ in batch], axis=2)
-            Cv = None if lin.valid is None else np.stack([c for _, _, c in batch], axis=2)
-            res = _evaluate(lin, C, Cv)
-            for a, (eff, _, _) in enumerate(batch):
-                out.append(_screened(lin, eff, {k: v[a] for k, v in res.items()}))
+        _evaluate_all(lin, items, out, heldout=heldout_alpha is None, waiting=waiting)
+    if heldout_alpha is not None and waiting:
+        bar = math.log10(heldout_alpha) - math.log10(max(len(out), 1))
+        chosen = [w for w in waiting if out[w[0]].edf >= 0.5 and out[w[0]].log10_p < bar]
+        by_k: dict[int, list] = {}
+        for w in chosen:
+            by_k.setdefault(w[1].n_params, []).append(w)
+        for ws in by_k.values():
+            done: list[Screened] = []
+            _evaluate_all(lin, [w[1:] for w in ws], done)
+            for w, s in zip(ws, done, strict=True):
+                out[w[0]] = s
     return out
 
 
+def _evaluate_all(lin: Linearised, items: list, out: list[Screened], heldout: bool = True,
+                  waiting: list | None = None) -> None:
+    """Evaluate candidates ``items`` [(effect, C, Cv)] with the same number of columns in
+    batches of :data:`_BATCH`, appending their :class:`Screened` to ``out`` (and, without
+    the ``heldout`` figures, ``(index, effect, C, Cv)`` to ``waiting``)."""
+    for i in range(0, len(items), _BATCH):
+        batch = items[i : i + _BATCH]
+        C = np.stack([c for _, c, _ in batch], axis=2)
+        Cv = None if lin.valid is None else np.stack([c for _, _, c in batch], axis=2)
+        res = _evaluate(lin, C, Cv, heldout=heldout)
+        for a, (eff, c, cv) in enumerate(batch):
+            out.append(_screened(lin, eff, {k: v[a] for k, v in res.items()}))
+            if not heldout and waiting is not None:
+                waiting.append((len(out) - 1, eff, c, cv))
+
+
 def _evaluate(lin: Linearised, C: np.ndarray, Cv: np.ndarray | None,
-              omega: np.ndarray | None = None, s: float = 0.0) -> dict:
-    """Evaluate candidates C (n, 3, M, k) together; penalty s Ω (k, k) for all of them."""
+              omega: np.ndarray | None = None, s: float = 0.0, heldout: bool = True) -> dict:
+    """Evaluate candidates C (n, 3, M, k) together; penalty s Ω (k, k) for all of them.
+    Without ``heldout``, the leave-one-out and validation figures are NaN (not computed)."""
     n, _, M, k = C.shape
     r = lin.r.ravel()
     Cf = C.reshape(3 * n, M * k)
@@ -308,12 +337,6 @@ def _evaluate(lin: Linearised, C: np.ndarray, Cv: np.ndarray | None,
     c = (Minv @ Ctr[:, :, None])[:, :, 0]
     e = r[:, None] - (V3 @ c[:, :, None])[:, :, 0].T  # (3n, M)
     edf = np.sum(Minv * VtV.transpose(0, 2, 1), axis=(1, 2))
-    V4 = V3.reshape(M, n, 3, k)
-    Y = (V3 @ Minv).reshape(M, n, 3, k)  # one product per candidate, not one per pose
-    dH = Y @ V4.transpose(0, 1, 3, 2)  # (M, n, 3, 3)
-    e3 = e.T.reshape(M, n, 3)
-    loo = np.sum(_loo(lin.h0[None] + dH, e3) ** 2, axis=-1).T  # (n, M)
-    gain = lin.loo0[:, None] - loo
     rss = np.sum(e**2, axis=0)
     d_rss = np.maximum(lin.rss0 - rss, 0.0)
     ok = (edf >= 0.5) & (d_rss > 0)
@@ -321,15 +344,20 @@ def _evaluate(lin: Linearised, C: np.ndarray, Cv: np.ndarray | None,
     if ok.any():
         logp[ok] = log10_f_sf(d_rss[ok], np.maximum(rss[ok], 1e-300), edf[ok],
                               np.maximum(lin.dof0 - edf[ok], 1.0))
-    out = {
-        "logp": logp,
-        "rss": rss,
-        "edf": edf,
-        "loo_gain": gain.mean(axis=0),
-        "loo_gain_se": gain.std(axis=0, ddof=1) / math.sqrt(n) if n > 1 else np.zeros(M),
-        "loo_rms": np.sqrt(loo.mean(axis=0)),
-        "valid_rms": np.full(M, np.nan),
-    }
+    nan = np.full(M, np.nan)
+    out = {"logp": logp, "rss": rss, "edf": edf, "loo_gain": nan, "loo_gain_se": nan,
+           "loo_rms": nan, "valid_rms": nan}
+    if not heldout:
+        return out
+    V4 = V3.reshape(M, n, 3, k)
+    Y = (V3 @ Minv).reshape(M, n, 3, k)  # one product per candidate, not one per pose
+    dH = Y @ V4.transpose(0, 1, 3, 2)  # (M, n, 3, 3)
+    e3 = e.T.reshape(M, n, 3)
+    loo = np.sum(_loo(lin.h0[None] + dH, e3) ** 2, axis=-1).T  # (n, M)
+    gain = lin.loo0[:, None] - loo
+    out["loo_gain"] = gain.mean(axis=0)
+    out["loo_gain_se"] = gain.std(axis=0, ddof=1) / math.sqrt(n) if n > 1 else np.zeros(M)
+    out["loo_rms"] = np.sqrt(loo.mean(axis=0))
     if Cv is not None:
         nv = Cv.shape[0]
         Cvf = Cv.reshape(3 * nv, M, k)
