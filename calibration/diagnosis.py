@@ -39,14 +39,15 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import scipy.special
 
+from .candidate_columns import effect_columns
 from .dataset import Dataset
 from .effects import Effect, EffectError, parse_effect
 from .effects.physical import derive_directions
 from .error_model import ErrorModel
+from .f_test import log10_f_sf
 from .gravity import gravity_torques, has_mass_model
 from .identify import Fit, identify, screen_for_diagnosis
 from .outliers import BlunderScreen, concentration
-from .screening import effect_columns, log10_f_sf
 
 #: harmonic orders scanned on every joint
 HARMONIC_ORDERS = range(1, 61)
