@@ -131,8 +131,9 @@ def command(n: int, runs: int) -> None:
         model = load_model("ur10e")
         data = load_csv(csv, model)
         em = ErrorModel(model)
-        free = identify(em, data).free
-        ref = median_s(lambda: textbook_lm(em, em.prepare(data), free), runs)
+        with threadpool_limits(limits=1, user_api="blas"):
+            free = identify(em, data).free
+            ref = median_s(lambda: textbook_lm(em, em.prepare(data), free), runs)
     row(f"cellcal calibrate {n} poses (process)", calib, ref, "s")
     numpy = process_s(["-c", "import numpy"], runs)
     row("cellcal --help (process) vs import numpy", process_s(["-m", "cellcal", "--help"],
