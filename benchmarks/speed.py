@@ -10,40 +10,72 @@ else). Rows:
   (``--outliers keep``), and the structural identifiability check alone;
 - ``diagnose --auto`` on 500 and 2 000 poses with fifteen hidden effects (the loop of
   benchmarks/diagnose.py): the whole loop, its steps, against one textbook fit of the
-  model it ends with.
+  model it ends with;
+- the command, end to end: ``cellcal calibrate`` of 150 poses (a CSV from ``cellcal
+  simulate``; a fresh process, its start included) against the same process's fit alone
+  by the textbook LM, and ``cellcal --help`` against ``python -c "import numpy"``
+  (median wall time of fresh processes).
 
-BLAS runs on one thread (as identify runs a small problem).
+BLAS runs on one thread (as identify runs a small problem). Each figure is wall time;
+with ``--cpu`` the in-process rows give the process's CPU time instead (on a shared
+machine what a lone user would wait, whatever the neighbours do).
 
-    python benchmarks/speed.py            # the table (minutes)
-    python benchmarks/speed.py --quick    # tiny sizes, one run: that the script works
+    python benchmarks/speed.py                   # the table (minutes)
+    python benchmarks/speed.py --only identify   # some rows: identify, auto, command
+    python benchmarks/speed.py --quick           # tiny sizes, one run: that it works
+    PYTHONPATH=DIR python benchmarks/speed.py    # another checkout's code (before/after)
 """
 
 from __future__ import annotations
 
 import os
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
+from pathlib import Path
 
 from diagnose import auto_problem
 from identify import problem
 from reference_lm import textbook_lm
 from threadpoolctl import threadpool_limits
 
+import calibration
 from calibration import ErrorModel, identify, load_model
 from calibration.auto_diagnosis import auto_diagnose
 from calibration.heap import keep_freed_memory
 from calibration.identify import structural_identifiability
 
+#: the checkout measured: the one ``calibration`` is imported from (PYTHONPATH)
+ROOT = Path(calibration.__file__).resolve().parents[1]
+#: the clock of the in-process rows (``--cpu``: the process's CPU time)
+CLOCK = time.perf_counter
+
 
 def median_s(fn, runs: int) -> float:
-    """Median wall time of ``fn()`` over ``runs`` calls."""
+    """Median time of ``fn()`` over ``runs`` calls (:data:`CLOCK`)."""
     times = []
     for _ in range(runs):
-        t = time.perf_counter()
+        t = CLOCK()
         fn()
-        times.append(time.perf_counter() - t)
+        times.append(CLOCK() - t)
     return statistics.median(times)
+
+
+def solve_s(fit, runs: int) -> float:
+    """Median ``Fit.solve_s`` of ``fit()`` over ``runs`` calls (``--cpu``: the CPU time of
+    the whole call)."""
+    if CLOCK is time.process_time:
+        return median_s(fit, runs)
+    return statistics.median(fit().solve_s for _ in range(runs))
+
+
+def timed(fn) -> tuple[object, float]:
+    """``fn()`` and its time (:data:`CLOCK`)."""
+    t = CLOCK()
+    out = fn()
+    return out, CLOCK() - t
 
 
 def row(what: str, value_s: float, ref_s: float, unit: str = "ms") -> None:
@@ -58,9 +90,8 @@ def identification(n: int, runs: int) -> None:
     calib = em.prepare(data).calib()
     fit = identify(em, data)  # warm-up; its free parameters for the reference
     ref = median_s(lambda: textbook_lm(em, calib, fit.free), runs)
-    screened = statistics.median(identify(em, data).solve_s for _ in range(runs))
-    kept = statistics.median(identify(em, data, outliers="keep").solve_s
-                             for _ in range(runs))
+    screened = solve_s(lambda: identify(em, data), runs)
+    kept = solve_s(lambda: identify(em, data, outliers="keep"), runs)
     struct = median_s(lambda: structural_identifiability(em, calib), runs)
     row(f"identify {n} poses, blunder test (default)", screened, ref)
     row(f"identify {n} poses, --outliers keep", kept, ref)
@@ -70,23 +101,68 @@ def identification(n: int, runs: int) -> None:
 def auto(n: int, max_steps: int) -> None:
     data = auto_problem(n)
     fit = identify(ErrorModel(load_model("ur10e")), data)
-    res = auto_diagnose(fit, data, max_steps=max_steps)
-    ref = textbook_lm(res.fit.error_model, data.calib(), res.fit.free)[2]
-    row(f"diagnose --auto {n} poses ({len(res.steps)} steps)", res.total_s, ref, "s")
+    res, took = timed(lambda: auto_diagnose(fit, data, max_steps=max_steps))
+    ref = timed(lambda: textbook_lm(res.fit.error_model, data.calib(), res.fit.free))[1]
+    row(f"diagnose --auto {n} poses ({len(res.steps)} steps)", took, ref, "s")
+    print(f"|   steps: {', '.join(s.effect for s in res.steps)}")
 
 
-def main(quick: bool) -> None:
+def process_s(args: list[str], runs: int) -> float:
+    """Median wall time of a fresh ``python args...`` process (start included)."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    times = []
+    for _ in range(runs):
+        t = time.perf_counter()
+        subprocess.run([sys.executable, *args], env=env, check=True,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        times.append(time.perf_counter() - t)
+    return statistics.median(times)
+
+
+def command(n: int, runs: int) -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        csv = str(Path(tmp) / "poses.csv")
+        subprocess.run([sys.executable, "-m", "cellcal", "simulate", "--model", "ur10e",
+                        "--poses", str(n), "--valid", "0", "--out", csv], check=True,
+                       env={**os.environ, "PYTHONPATH": str(ROOT)}, stdout=subprocess.DEVNULL)
+        calib = process_s(["-m", "cellcal", "calibrate", "--model", "ur10e", csv], runs)
+        from calibration import load_csv
+
+        model = load_model("ur10e")
+        data = load_csv(csv, model)
+        em = ErrorModel(model)
+        with threadpool_limits(limits=1, user_api="blas"):
+            free = identify(em, data).free
+            ref = median_s(lambda: textbook_lm(em, em.prepare(data), free), runs)
+    row(f"cellcal calibrate {n} poses (process)", calib, ref, "s")
+    numpy = process_s(["-c", "import numpy"], runs)
+    row("cellcal --help (process) vs import numpy", process_s(["-m", "cellcal", "--help"],
+                                                                runs), numpy, "s")
+
+
+def main(quick: bool, only: set[str]) -> None:
     keep_freed_memory()  # as identify does: the reference runs first
-    print(f"one BLAS thread; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} "
-          "cores; reference: a textbook numpy LM on the same problem\n")
+    clock = "CPU" if CLOCK is time.process_time else "wall"
+    print(f"one BLAS thread; {clock} time; load average {os.getloadavg()[0]:.1f} on "
+          f"{os.cpu_count()} cores; reference: a textbook numpy LM on the same problem\n")
     print(f"| {'':<46} | {'time':>12} | {'reference':>12} | {'ratio':>6} |")
     print(f"|{'-' * 48}|{'-' * 14}|{'-' * 14}|{'-' * 8}|")
     with threadpool_limits(limits=1, user_api="blas"):
-        identification(60 if quick else 1000, 1 if quick else 15)
-        for n in (60,) if quick else (500, 2000):
-            auto(n, 1 if quick else 12)
+        if "identify" in only:
+            identification(60 if quick else 1000, 1 if quick else 15)
+        if "auto" in only:
+            for n in (60,) if quick else (500, 2000):
+                auto(n, 1 if quick else 12)
+    if "command" in only:
+        command(30 if quick else 150, 1 if quick else 7)
     print(f"\nload average afterwards {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":
-    main("--quick" in sys.argv[1:])
+    argv = sys.argv[1:]
+    if "--cpu" in argv:
+        CLOCK = time.process_time
+    rows = {"identify", "auto", "command"}
+    if "--only" in argv:
+        rows = set(argv[argv.index("--only") + 1].split(","))
+    main("--quick" in argv, rows)

@@ -23,6 +23,8 @@ blas            one BLAS thread for small problems (timings independent of the n
 identify        identify -> Fit (values, uncertainties, residuals, statistics), fit_at
 uncertainty     correlations, Monte-Carlo re-identification, position uncertainty
 diagnosis       diagnose: where a fit fails and which missing effect explains it
+screening       candidates screened at a linearised fit (linear_screen: the formulas;
+                candidate_columns; table_screening: spacing and smoothing by GCV; f_test)
 workflow        staged_fit: uncalibrated -> current -> current + the recommended effect
 params_io       params.json: a fit's parameters written and read back
 compensation    compensated joints and corrected targets from a calibration

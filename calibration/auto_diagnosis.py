@@ -31,7 +31,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-import scipy.stats
+import scipy.special
 
 from .dataset import Dataset
 from .diagnosis import ALPHA, MIN_HELDOUT, candidate_names
@@ -291,7 +291,7 @@ def at_noise_floor(lin, sigma: float | None, alpha: float = ALPHA) -> tuple[bool
     """(at the floor, p-value): the residual is consistent with the instrument's noise."""
     if sigma is None:
         return False, None
-    p = float(scipy.stats.chi2.sf(lin.rss0 / sigma**2, max(lin.dof0, 1.0)))
+    p = float(scipy.special.chdtrc(max(lin.dof0, 1.0), lin.rss0 / sigma**2))  # chi2.sf
     return p > alpha, p
 
 
@@ -370,7 +370,7 @@ def _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress)
         if not effects:
             reason = "no candidate effects left to try"
             break
-        screened = screen(lin, effects, notes=notes)
+        screened = screen(lin, effects, notes=notes, heldout_alpha=alpha)
         n_screened = len(screened)
         good = [s for s in screened if _significant(s, n_screened, alpha) and s.loo_gain > 0]
         if not good:

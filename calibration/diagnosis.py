@@ -37,16 +37,17 @@ import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-import scipy.stats
+import scipy.special
 
+from .candidate_columns import effect_columns
 from .dataset import Dataset
 from .effects import Effect, EffectError, parse_effect
 from .effects.physical import derive_directions
 from .error_model import ErrorModel
+from .f_test import log10_f_sf
 from .gravity import gravity_torques, has_mass_model
 from .identify import Fit, identify, screen_for_diagnosis
 from .outliers import BlunderScreen, concentration
-from .screening import effect_columns, log10_f_sf
 
 #: harmonic orders scanned on every joint
 HARMONIC_ORDERS = range(1, 61)
@@ -361,7 +362,7 @@ def diagnose(
     floor_p = None
     at_floor = False
     if sigma is not None:
-        floor_p = float(scipy.stats.chi2.sf(rss0 / sigma**2, max(dof0, 1)))
+        floor_p = float(scipy.special.chdtrc(max(dof0, 1), rss0 / sigma**2))  # chi2.sf
         at_floor = floor_p > alpha
     M = max(len(screened), 1)
     cands: list[Candidate] = []
@@ -463,6 +464,8 @@ def where_it_fails(fit: Fit, calib: Dataset, G: np.ndarray, resid: np.ndarray,
     if has_mass_model(fit.error_model.model):
         torque = gravity_torques(fit.error_model.model, fit.error_model.bind(calib).nominal,
                                  calib.payload_kg)
+    import scipy.stats  # here: loading it costs a third of a second at every command's start
+
     corr = {}
     order = np.arange(calib.n)
     series = {"capture order": order, "time": calib.t_s, "temperature": calib.temp_c}

@@ -56,13 +56,13 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.stats
+import scipy.special
 
 from .leverage import residual_factors, residuals_on, studentised_norms
 from .leverage import studentise as studentise
 
 #: median and MAD of the chi distribution with 3 degrees of freedom
-CHI3_MEDIAN = float(scipy.stats.chi(3).median())
+CHI3_MEDIAN = float(np.sqrt(2 * scipy.special.gammaincinv(1.5, 0.5)))  # chi(3).median()
 CHI3_MAD = 0.46024377
 #: significance of one false alarm in a clean Gaussian cloud (Bonferroni over the points)
 ALPHA = 0.01
@@ -194,7 +194,7 @@ def _robust_scale(u: np.ndarray) -> float:
 
 def threshold(n: int, alpha: float = ALPHA) -> float:
     """k: the chi(3) quantile at 1 - alpha / n."""
-    return float(math.sqrt(scipy.stats.chi2.isf(alpha / max(n, 1), 3)))
+    return float(math.sqrt(scipy.special.chdtri(3, alpha / max(n, 1))))  # chi2(3).isf
 
 
 def line_of_sight_known(xyz: np.ndarray) -> bool:
@@ -350,7 +350,9 @@ def screen_fit(fit, mode: str, refit: Callable, **test_kw):
         out = new
         current = refit(full.subset(~out), current.values) if out.any() else fit
         rounds += 1
-    if screen.clean_cloud:  # name exactly the points left out of ``current``
+    if screen.clean_cloud and not np.array_equal(screen.beyond, out):
+        # name exactly the points left out of ``current`` (when the loop settled, the
+        # points out of line are those: the test as it stands names them)
         screen = find_blunders(resid, sig, named=out, **kw)
     if not settled:
         screen.notes.append("the exclusion loop did not settle; its last set is used")

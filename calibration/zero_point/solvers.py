@@ -12,7 +12,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.stats
+import scipy.special
 
 from ..identifiability import analyse
 from ..identify import covariance
@@ -277,7 +277,8 @@ def _worst_outlier(r, Jf, sigma_mm, p, n, measured):
     # unknown scatter: a robust scale (the median of chi2_3 / 3 is 0.79)
     s2 = float(np.median(chi / dof_share)) / 0.79 if sigma_mm is None else sigma_mm**2
     stat = chi / (s2 * dof_share / (6.0 if measured else 3.0))
-    limit = scipy.stats.chi2.ppf(1 - p, 6 if measured else 3)
+    dof = 6 if measured else 3
+    limit = 2 * scipy.special.gammaincinv(dof / 2, 1 - p)  # chi2(dof).ppf(1 - p)
     k = int(np.argmax(stat))
     return k if stat[k] > limit else None
 

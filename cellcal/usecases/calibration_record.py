@@ -5,19 +5,26 @@ from __future__ import annotations
 
 import contextlib
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from calibration.identify import Fit
 from calibration.params_io import fit_to_dict
-from daq.store import RunStore, StoreError, open_store
 
 from ..errors import UsageError
+
+if TYPE_CHECKING:
+    from daq.store import RunStore
 
 
 def open_history_store(address: str) -> RunStore:
     """The run store the calibration is recorded in (made when missing); a store that
     cannot be opened is a UsageError naming it."""
+    # here, not at the top: the store's modules cost every calibrate a tenth of a second
+    # at start, and only --db needs them
+    from daq.store import StoreError, open_store
+
     try:
         return open_store(address)
     except (StoreError, OSError) as e:
@@ -31,6 +38,8 @@ def record_calibration(store: RunStore, fit: Fit, *, data_file: str,
     name (``# robot_id:``), else a UsageError. Its time is when the data were measured
     (the latest ``t_s``, when those are epoch times), else now; its source run the run
     the data were exported from, when that run is in this store."""
+    from daq.store import StoreError
+
     data = fit.data
     robot_id = robot_id or data.meta.get("robot_id")
     if not robot_id:
