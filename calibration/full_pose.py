@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .effects import NestedTool, ToolRotation
 from .effects.tool_frame import mean_rotation
+from .error_model import ErrorModel
 from .errors import InputError
 from .orientation_residuals import OrientationRows, orientation_stats, rotation_residuals
 from .transforms import quat_to_matrix
@@ -134,3 +136,32 @@ def structural_rows(error_model, bound, x: np.ndarray) -> np.ndarray | None:
     W = error_model.evaluate_pose(x, bound, jacobian=True)[3]
     w = OrientationRows.of(bound.data).weight
     return (W * w[:, None, None]).reshape(-1, error_model.n_params)
+
+
+def for_data(error_model, data, position_only: bool = False):
+    """The error model the data call for, and notes saying what changed.
+
+    Rows naming several targets (``tool_id``) get a tool point per SMR nest
+    (:class:`~calibration.effects.NestedTool`); orientations get the target's
+    orientation in the flange (``tool_rotation``), unless ``position_only`` (which also
+    drops a ``tool_rotation`` the effects name).
+    """
+    effects, notes = list(error_model.effects), []
+    nests = list(dict.fromkeys(data.tool_id)) if data.tool_id is not None else []
+    for i, e in enumerate(effects):
+        if e.family == "tool" and len(nests) > 1 and getattr(e, "nests", None) != nests:
+            effects[i] = NestedTool(error_model.model, nests)
+            notes.append(f"{data.source}: {len(nests)} targets on the tool (tool_id "
+                         f"{', '.join(nests)}): each nest's point is identified")
+    has_target = any(e.stage == "target" for e in effects)
+    if position_only and has_target:
+        effects = [e for e in effects if e.stage != "target"]
+    elif data.quat is not None and not position_only and not has_target and any(
+            e.family == "tool" for e in effects):
+        effects.append(ToolRotation(error_model.model))
+        notes.append(f"{data.source}: the rows have orientations (a 6-DoF target): full-pose "
+                     "calibration, the target's orientation in the flange (tool_rotation) "
+                     "added to the effects (--position-only fits positions only)")
+    if effects == error_model.effects:
+        return error_model, notes
+    return ErrorModel(error_model.model, effects), notes

@@ -53,7 +53,8 @@ def realistic_truth(
             t = direction * rng.uniform(*base_distance_mm)
             x[sl] = np.concatenate([t, matrix_to_rotvec(random_rotation(rng))])
         elif e.family == "tool":
-            x[sl] = e.model.tool_mm() + rng.normal(0, tool_error_mm, 3)
+            x[sl] = (np.tile(e.model.tool_mm(), e.n_params // 3)  # one point per SMR nest
+                     + rng.normal(0, tool_error_mm, e.n_params))
         elif e.family == "geometric":
             sig = np.where(np.array(e.units) == "rad", np.radians(angle_deg), length_mm)
             x[sl] = rng.normal(0, 1, e.n_params) * sig

@@ -186,3 +186,52 @@ def test_rotation_residual_is_the_turn_from_predicted_to_measured():
     r = rng.normal(0, 0.01, (4, 3))
     np.testing.assert_allclose(rotation_residuals(rotvecs_to_matrices(r) @ R, R), r,
                                atol=1e-12)
+
+
+def _nest_data(model, nests, n=72, seed=6):
+    """Positions of SMR nests (no orientations): each row one nest, cycling."""
+    from calibration.effects import NestedTool
+
+    em = ErrorModel(model, POSITION)
+    em = ErrorModel(model, [em.effects[0], em.effects[1],
+                            NestedTool(model, list(nests))])
+    rng = np.random.default_rng(seed)
+    x = realistic_truth(em, rng)
+    x[em.slices[2]] = np.concatenate(list(nests.values()))
+    ids = np.array([list(nests)[i % len(nests)] for i in range(n)], dtype=object)
+    data = simulate(em, x, random_joints(model, n, rng), SIGMA_MM, rng, tool_id=ids,
+                    is_valid=np.arange(n) >= n - 18)
+    return em, x, data
+
+
+def test_smr_nests_are_each_identified_and_see_the_orientation(ur10e, tmp_path):
+    from calibration.full_pose import for_data
+    from calibration.params_io import read_params, save_params
+
+    nests = {"A": [0.0, 0.0, 60.0], "B": [80.0, 0.0, 40.0], "C": [0.0, 80.0, 40.0]}
+    _, _, data = _nest_data(ur10e, nests)
+    em, notes = for_data(ErrorModel(ur10e, POSITION), data)
+    assert "tool.B.x" in em.names and any("3 targets" in n for n in notes)
+    fit = identify(em, data)
+    assert fit.valid["rms_mm"] <= 1.1 * FLOOR_MM
+    got = {k: np.array([fit.param(f"tool.{k}.{c}")[0] for c in "xyz"]) for k in nests}
+    for a, b in (("A", "B"), ("A", "C"), ("B", "C")):  # the flange's own errors move all
+        true = np.linalg.norm(np.subtract(nests[a], nests[b]))
+        assert abs(np.linalg.norm(got[a] - got[b]) - true) < 0.05
+    single = identify(ErrorModel(ur10e, POSITION), data.subset(data.tool_id == "A"))
+    assert orientation_blindness(fit).hidden_deg < 0.5 * orientation_blindness(single).hidden_deg
+    save_params(fit, tmp_path / "p.json")
+    back = read_params(tmp_path / "p.json", model=ur10e)
+    assert back.error_model.names == em.names and np.allclose(back.values, fit.values)
+
+
+def test_for_data_adds_tool_rotation_for_orientations_unless_position_only(ur10e):
+    from calibration.full_pose import for_data
+
+    data = _data(ur10e, n=10, n_valid=0)
+    em, notes = for_data(ErrorModel(ur10e, POSITION), data)
+    assert em.labels[-1] == "tool_rotation" and "full-pose" in notes[0]
+    em2, notes2 = for_data(ErrorModel(ur10e, FULL), data, position_only=True)
+    assert "tool_rotation" not in em2.labels and not notes2
+    plain = ErrorModel(ur10e, POSITION)
+    assert for_data(plain, _data(ur10e, n=10, n_valid=0, sigma_deg=None)) == (plain, [])
