@@ -571,6 +571,8 @@ def build_cases() -> list[Case]:
                           ok=False, skip=("missing", "empty"))
     cases.append(Case("calibrate", "robot_id_without_db", [*good_cal, "--robot-id", "R1"], 2,
                       r"--robot-id needs --db"))
+    cases.append(Case("calibrate", "position_only_with_value",
+                      [*good_cal, "--position-only=yes"], 2, r"--position-only"))
 
     # ---- history: the run store, the threshold, the plot (never over an input or a store)
     cases += _store_cases("history", ["history", "R1", "--db", "{DB}"], ok=False)
