@@ -88,6 +88,8 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
         pressure_hpa=every("pressure_hpa"), humidity_pct=every("humidity_pct"),
         reflector=reflector, face=every("face", int), dirs=every("dirs", int),
         is_valid=np.array(valid, bool), meta=meta, source=f"{store.address} run {run_id}",
+        quat=every("quat_wxyz"), sigma_deg=every("sigma_deg"),
+        tool_id=None if any(r.tool_id is None for r in rows) else [r.tool_id for r in rows],
     )
     return (data, reading, reason) if all_readings else data
 

@@ -565,6 +565,8 @@ def build_cases() -> list[Case]:
     cases += _number_cases("capture", good_cap, [
         ("--tracker-at", ["nan,0,0", "1,2", "a,b,c", "1e400,0,0"]),
         ("--count", ["0", "-1", "x"]), ("--smr-radius-mm", ["-1", "nan"])])
+    cases.append(Case("capture", "six_dof_with_value", [*good_cap, "--six-dof=yes"], 2,
+                      r"--six-dof"))
 
     # ---- calibrate --db: the store a calibration is recorded in (a new file is made)
     cases += _store_cases("calibrate", [*good_cal, "--db", "{DB}", "--robot-id", "R1"],
@@ -605,7 +607,8 @@ def build_cases() -> list[Case]:
                           mode="subprocess", slow=True))
     cases += _number_cases("sim", ["sim", "serve", "--no-pty", "--no-rtde"], [
         ("--tracker-at", ["nan,0,0", "1,2"]), ("--tracker-warmup-s", ["-1", "nan"]),
-        ("--time-scale", ["nan", "-1"]), ("--seed", ["-1"]), ("--hidden", ["bogus"])])
+        ("--time-scale", ["nan", "-1"]), ("--seed", ["-1"]), ("--hidden", ["bogus"]),
+        ("--six-dof", ["nan,0,0", "1,2"])])
     for c in cases:
         if (c.command == "sim" and c.name.startswith("num:")) or "100000000" in c.argv:
             c.mode, c.slow = "subprocess", True
