@@ -7,6 +7,7 @@ to ``on_ready`` and serves until ``stop`` is set (or Ctrl-C), then stops them cl
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable
 from typing import Annotated, Any, Self
@@ -106,6 +107,10 @@ def sim_stack(req: SimServeRequest):
         if req.model == "toy":
             raise UsageError("--six-dof needs a robot model (the toy arm has no flange "
                              "orientation)")
+        if not all(math.isfinite(v) and abs(v) <= 360.0 for v in req.six_dof):
+            raise UsageError(f"--six-dof {','.join(f'{v:g}' for v in req.six_dof)}: the "
+                             "target's nominal orientation is a rotation vector of three "
+                             "finite angles within +-360 deg")
         from sim_drivers.six_dof import SixDofTarget
 
         extra["six_dof"] = SixDofTarget.on_tool(tuple(req.six_dof), seed=req.seed)
