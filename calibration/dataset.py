@@ -19,6 +19,7 @@ import numpy as np
 from .capture_meta import CaptureMeta
 from .errors import DataError
 from .files import read_text, write_atomic
+from .orientation_columns import QUAT_COLUMNS, read_orientation_columns
 from .robot_model import RobotModel
 
 
@@ -39,6 +40,10 @@ class Dataset:
     face : (n,) int, the tracker face (1 or 2), or None
     dirs : (n, N) approach direction per joint (-1, 0, +1), or None
     joint_temp : (n, N) each joint's temperature as the controller reports it, °C, or None
+    quat : (n, 4) unit quaternions (w, x, y, z) of a 6-DoF target's frame in the tracker
+        frame (the CSV's ``qw, qx, qy, qz``), or None
+    sigma_deg : (n,) the orientation's standard uncertainty, deg, or None
+    tool_id : (n,) str (object array), which target on the tool each row measured, or None
     is_valid : (n,) bool, True for validation rows (``set=valid``)
     is_drift : (n,) bool, True for a capture's drift checks (``set=drift``: a reference
         pose measured again during the capture; calibration rows that also show the
@@ -64,6 +69,9 @@ class Dataset:
     is_valid: np.ndarray | None = None
     joint_temp: np.ndarray | None = None
     is_drift: np.ndarray | None = None
+    quat: np.ndarray | None = None
+    sigma_deg: np.ndarray | None = None
+    tool_id: np.ndarray | None = None
     meta: dict[str, str] = field(default_factory=dict)
     source: str = "<arrays>"
     lines: np.ndarray | None = None
@@ -94,6 +102,13 @@ class Dataset:
             if self.joint_temp.shape != self.q.shape:
                 raise DataError(f"{self.source}: joint_temp has shape {self.joint_temp.shape}, "
                                 f"expected {self.q.shape} (one temperature per joint)")
+        if self.quat is not None:
+            self.quat = np.atleast_2d(np.asarray(self.quat, float))
+            if self.quat.shape != (n, 4):
+                raise DataError(f"{self.source}: quat has shape {self.quat.shape}, expected "
+                                f"({n}, 4) (qw, qx, qy, qz per row)")
+        if self.tool_id is not None:
+            self.tool_id = np.array([str(t) for t in self.tool_id], dtype=object)
 
     # ---- views -----------------------------------------------------------
     @property
@@ -129,6 +144,9 @@ class Dataset:
             is_valid=pick(self.is_valid),
             joint_temp=pick(self.joint_temp),
             is_drift=pick(self.is_drift),
+            quat=pick(self.quat),
+            sigma_deg=pick(self.sigma_deg),
+            tool_id=pick(self.tool_id),
             lines=pick(self.lines),
         )
 
@@ -202,6 +220,9 @@ class Dataset:
             joint_temp=cat(self.joint_temp, other.joint_temp),
             is_drift=(None if self.is_drift is None and other.is_drift is None else
                       np.concatenate([self.drift_rows(), other.drift_rows()])),
+            quat=cat(self.quat, other.quat),
+            sigma_deg=cat(self.sigma_deg, other.sigma_deg),
+            tool_id=cat(self.tool_id, other.tool_id),
             meta={**other.meta, **self.meta},
             source=self.source,
             lines=np.concatenate([self.lines, other.lines]),
@@ -229,6 +250,12 @@ class Dataset:
         if self.joint_temp is not None:
             for j in range(N):
                 cols[f"joint_temp{j + 1}"] = self.joint_temp[:, j]
+        if self.quat is not None:  # full precision (repr), far beyond 10 decimals
+            for k, c in enumerate(QUAT_COLUMNS):
+                cols[c] = self.quat[:, k]
+        for name in ("sigma_deg", "tool_id"):
+            if getattr(self, name) is not None:
+                cols[name] = getattr(self, name)
         if self.is_valid.any() or self.is_drift is not None:
             cols["set"] = np.where(self.is_valid, "valid",
                                    np.where(self.drift_rows(), "drift", "calib"))
@@ -562,6 +589,7 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
         dirs = dirs.astype(int)
 
     joint_temp = _joint_temperatures(t, N)
+    orientation = read_orientation_columns(t)
 
     is_valid, is_drift = np.zeros(len(t), bool), np.zeros(len(t), bool)
     if "set" in t:
@@ -576,7 +604,9 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
 
     return Dataset(q=np.radians(q), tracker_p_smr=xyz, pose_id=pose_id, cmd=cmd, dirs=dirs,
                    is_valid=is_valid, is_drift=is_drift, meta=meta, source=source, lines=t.lines,
-                   reflector=reflector, face=face, joint_temp=joint_temp, **opt)
+                   reflector=reflector, face=face, joint_temp=joint_temp,
+                   quat=orientation.quat, sigma_deg=orientation.sigma_deg,
+                   tool_id=orientation.tool_id, **opt)
 
 
 def _joint_temperatures(t: CsvTable, n_joints: int) -> np.ndarray | None:

@@ -6,7 +6,9 @@ parameter vector.
 table, length scale, tool, base pose): the one place where an identified model is
 applied, used by evaluation, compensation, model export and the zero-point command;
 ``evaluate(x, bound)`` returns the predicted target centres in the tracker frame
-and the exact Jacobian with respect to every parameter, vectorised over poses.
+and the exact Jacobian with respect to every parameter, vectorised over poses;
+``evaluate_pose(x, bound)`` adds a 6-DoF target's predicted orientations and their
+Jacobian (:mod:`calibration.orientation_model`).
 """
 
 from __future__ import annotations
@@ -19,10 +21,11 @@ import numpy as np
 from .dataset import Dataset
 from .effects import DEFAULT_EFFECTS, Effect, parse_effects
 from .kinematics import A, ChainResult, D, run_chain
+from .orientation_model import target_orientations
 from .robot_model import RobotModel
-from .transforms import fit_rigid, matrix_to_rotvec
+from .transforms import fit_rigid, matrix_to_rotvec, rotvec_to_matrix
 
-_STAGES = ("joint", "table", "length", "tool", "base", "drift", "measure")
+_STAGES = ("joint", "table", "length", "tool", "target", "base", "drift", "measure")
 #: stages that need per-pose data (a bound data set) to be applied
 _PER_POSE = ("joint", "length")
 #: stages that are not the robot's chain: evaluated, never applied by :meth:`perturb`
@@ -67,10 +70,13 @@ class Perturbed:
     q : (n, N) joints as they really are (reported + every joint-stage correction), rad;
         None when no data were bound
     table : (N, 5) nominal table plus the table-stage deltas (rad, mm)
-    tool : (3,) target centre in the flange frame (tool stage, else the nominal tool), mm
+    tool : (3,) target centre in the flange frame (tool stage, else the nominal tool), mm;
+        (n, 3) per pose for a tool of several SMR nests with bound data
     length_scale : (n,) per-pose relative growth of the lengths (length stage), or None
     tracker_T_base : the base stage's pose of the robot base in the tracker frame, as
         (R (3, 3), t (3,)), or None
+    flange_R_target : (3, 3) a 6-DoF target's orientation in the flange frame (target
+        stage), or None (the flange's own orientation)
     applied : the stages an effect acted at
     skipped : indices of the effects not applied: per-pose stages (joint, length) without
         bound data, the drift stage (the cell over time) and the measure stage (the
@@ -83,9 +89,29 @@ class Perturbed:
     tool: np.ndarray
     length_scale: np.ndarray | None = None
     tracker_T_base: tuple[np.ndarray, np.ndarray] | None = None
+    flange_R_target: np.ndarray | None = None
     applied: set[str] = field(default_factory=set)
     skipped: list[int] = field(default_factory=list)
     partials: dict[int, np.ndarray] = field(default_factory=dict)
+
+
+def _base_and_tool(Rf: np.ndarray, pf: np.ndarray, meas: np.ndarray, t: np.ndarray):
+    """The base (R, c) and the tool point t estimated together from the nominal flange
+    poses (Rf (n, 3, 3), pf (n, 3)) and the measured points (n, 3), starting at t:
+    alternating a rigid fit for the base and linear least squares for the tool."""
+    for _ in range(8):
+        R, c = fit_rigid(pf + Rf @ t, meas)
+        # meas = R (pf + Rf t) + c  ->  (R Rf) t = meas - c - R pf, linear in t;
+        # its columns are orthonormal per pose (sum of (R Rf)ᵀ(R Rf) = n I), so
+        # the least-squares t is the mean of Rfᵀ (Rᵀ (meas - c) - pf)
+        v = (meas - c) @ R - pf
+        t_new = np.einsum("nji,nj->i", Rf, v) / len(v)
+        done = np.linalg.norm(t_new - t) < 1e-9
+        t = t_new
+        if done:
+            break
+    R, c = fit_rigid(pf + Rf @ t, meas)
+    return R, c, t
 
 
 class ErrorModel:
@@ -167,25 +193,28 @@ class ErrorModel:
             x[sl] = e.initial(bound.data, bound.nominal, st)
         base = [i for i in self._by_stage["base"] if self.effects[i].family == "base"]
         tool = [i for i in self._by_stage["tool"] if self.effects[i].family == "tool"]
-        if base and tool and bound.data.n >= 4:
+        nom, data = bound.nominal, bound.data
+        if base and tool and data.n >= 4:
             sb, st_ = self.slices[base[0]], self.slices[tool[0]]
-            nom = bound.nominal
-            Rf, pf, meas = nom.base_R_flange, nom.base_p_flange, bound.data.tracker_p_smr
-            t = x[st_].copy()
-            for _ in range(8):
-                R, c = fit_rigid(pf + Rf @ t, meas)
-                # meas = R (pf + Rf t) + c  ->  (R Rf) t = meas - c - R pf, linear in t;
-                # its columns are orthonormal per pose (sum of (R Rf)ᵀ(R Rf) = n I), so
-                # the least-squares t is the mean of Rfᵀ (Rᵀ (meas - c) - pf)
-                v = (meas - c) @ R - pf
-                t_new = np.einsum("nji,nj->i", Rf, v) / len(v)
-                done = np.linalg.norm(t_new - t) < 1e-9
-                t = t_new
-                if done:
-                    break
-            R, c = fit_rigid(pf + Rf @ t, meas)
+            Rf, pf, meas = nom.base_R_flange, nom.base_p_flange, data.tracker_p_smr
+            nests = getattr(self.effects[tool[0]], "nests", None)
+            if nests is None:
+                R, c, x[st_] = _base_and_tool(Rf, pf, meas, x[st_].copy())
+            else:  # the base from the first nest's rows, then each nest's point under it
+                nest = bound.states[tool[0]]
+                t = x[st_].reshape(-1, 3).copy()
+                first = nest == 0
+                R, c, t[0] = _base_and_tool(Rf[first], pf[first], meas[first], t[0].copy())
+                for k in range(1, len(nests)):
+                    rows = nest == k
+                    if rows.any():
+                        v = (meas[rows] - c) @ R - pf[rows]
+                        t[k] = np.einsum("nji,nj->i", Rf[rows], v) / int(rows.sum())
+                x[st_] = t.ravel()
             x[sb] = np.concatenate([c, matrix_to_rotvec(R)])
-            x[st_] = t
+        for i in self._by_stage["target"]:
+            R_base = rotvec_to_matrix(x[self.slices[base[0]]][3:]) if base else np.eye(3)
+            x[self.slices[i]] = self.effects[i].start_from(data, R_base @ nom.base_R_flange)
         return x
 
     def normalize(self, x: np.ndarray) -> np.ndarray:
@@ -218,7 +247,13 @@ class ErrorModel:
             d, out.partials[i] = eff[i].table_delta(x[sls[i]])
             out.table = out.table + d
         for i in self._by_stage["tool"]:
-            out.tool, out.partials[i] = eff[i].tool_point(x[sls[i]])
+            if bound is not None and hasattr(eff[i], "tool_points"):  # SMR nests, per pose
+                out.tool, out.partials[i] = eff[i].tool_points(x[sls[i]], bound.data,
+                                                               bound.states[i])
+            else:
+                out.tool, out.partials[i] = eff[i].tool_point(x[sls[i]])
+        for i in self._by_stage["target"]:
+            out.flange_R_target, out.partials[i] = eff[i].target_rotation(x[sls[i]])
         for i in self._by_stage["base"]:
             if hasattr(eff[i], "transform"):
                 out.tracker_T_base = eff[i].transform(x[sls[i]])
@@ -241,6 +276,27 @@ class ErrorModel:
         G : (n, 3, N), d P / d q_j in the tracker frame (only with ``joints=True``): the
             column any joint correction acts through
         """
+        P, J, G, _, _ = self._evaluate(x, bound, jacobian, joints)
+        if joints:
+            return P, J, G
+        return P, J
+
+    def evaluate_pose(self, x: np.ndarray, bound: Bound, jacobian: bool = True):
+        """:meth:`evaluate`, and the predicted orientations of a 6-DoF target.
+
+        Returns
+        -------
+        P, J : as :meth:`evaluate`
+        R : (n, 3, 3) ``tracker_R_target``
+        W : (n, 3, n_params) its Jacobian as an angular velocity in the tracker frame,
+            ``R(x + dx) = exp([W dx]x) R(x)`` (rad per internal unit), or None
+        """
+        P, J, _, c, r = self._evaluate(x, bound, jacobian, False)
+        R, W = target_orientations(self, np.asarray(x, float), c, r, jacobian)
+        return P, J, R, W
+
+    def _evaluate(self, x, bound, jacobian, joints):
+        """:meth:`evaluate`: (P, J, G, the perturbed inputs, the chain's result)."""
         x = np.asarray(x, float)
         n = bound.data.n
         eff, sls = self.effects, self.slices
@@ -266,7 +322,9 @@ class ErrorModel:
             grow = None if scale is None else (1.0 + scale)[:, None, None]
             for i in self._by_stage["tool"]:
                 # (n, 3, 3) x (3, k) as one product, not n small ones
-                cols = np.tensordot(r.base_R_flange, c.partials[i], axes=(2, 0))
+                cols = (np.tensordot(r.base_R_flange, c.partials[i], axes=(2, 0))
+                        if c.partials[i].ndim == 2
+                        else np.matmul(r.base_R_flange, c.partials[i]))  # per-pose nests
                 J[:, :, sls[i]] = cols if grow is None else cols * grow
             for i in self._by_stage["length"]:
                 lengths = dP[:, :, :, D] * table[:, D] + dP[:, :, :, A] * table[:, A]
@@ -291,9 +349,7 @@ class ErrorModel:
                 J[:, :, sls[i]] = Jm
                 if joints:
                     G = G * factor
-        if joints:
-            return P, J, G
-        return P, J
+        return P, J, G, c, r
 
     def penalty(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         """Regularisation pseudo-observations of the effects that have them (mm), with their

@@ -29,7 +29,7 @@ import scipy.linalg
 
 #: tiers for breaking exact redundancies: a parameter is only fixed in favour of
 #: parameters of the same or an earlier tier
-_TIERS = ({"base", "tool"}, {"geometric"})
+_TIERS = ({"base", "tool", "tool_rotation"}, {"geometric"})
 
 
 def _tier(family: str) -> int:

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg
 
+from . import full_pose
 from .blas import blas_threads
 from .dataset import Dataset
 from .effects import display_unit
@@ -61,6 +62,11 @@ class Fit:
         ``Q_i Q_iᵀ`` with ``Q_i = J_i M`` (the blunder test's leverage)
     jacobian : (n, 3, p) the Jacobian at ``values`` on the calibration rows, kept for the
         blunder test while :func:`identify` runs (None after it)
+    orientation_residuals, valid_orientation_residuals : (n, 3) rad, the rotation vectors
+        of measured times predicted-transposed orientations on calibration and validation
+        rows, when the data have orientations (else None); ``orientation_fitted`` says
+        whether the fit used them (full pose) or only predicts them (position only,
+        :mod:`calibration.full_pose`)
     """
 
     error_model: ErrorModel
@@ -86,6 +92,9 @@ class Fit:
     outliers: BlunderScreen | None = None
     hat_factor: np.ndarray | None = field(default=None, repr=False)
     jacobian: np.ndarray | None = field(default=None, repr=False)
+    orientation_residuals: np.ndarray | None = field(default=None, repr=False)
+    valid_orientation_residuals: np.ndarray | None = field(default=None, repr=False)
+    orientation_fitted: bool | None = None
 
     # ---- access --------------------------------------------------------------
     @property
@@ -232,6 +241,9 @@ def _structural(error_model: ErrorModel, calib: Dataset, rtol: float):
     P0, J0 = error_model.evaluate(x_nominal, bound, jacobian=True)
     families = [error_model.effect_of(k).family for k in range(error_model.n_params)]
     J2 = J0.reshape(-1, error_model.n_params)
+    rows = full_pose.structural_rows(error_model, bound, x_nominal)
+    if rows is not None:  # a full-pose problem: what orientations determine too
+        J2 = np.vstack([J2, rows])
     groups = penalised_groups(error_model)
     ident = analyse(
         J2,
@@ -327,15 +339,17 @@ def _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
         if ident.free[k]:
             ident.free[k] = False
             ident.fixed[name] = "fixed by the user"
-    problem = Problem(error_model, bound, x_start, ident.free.copy())
+    problem = Problem(error_model, bound, x_start, ident.free.copy(),
+                      pose=full_pose.orientation_rows(error_model, calib, solver))
     problem.remember(x_nominal, *at_nominal)
-    result = SOLVERS[solver](problem, **(solver_options or {}))
+    result = full_pose.solve(problem, SOLVERS[solver], solver_options or {})
     x = problem.full(result.xf)
     P, J = problem.evaluate(x)  # the solver's last evaluation: no new pass
     resid = calib.tracker_p_smr - P
     weights = result.info.get("weights")
     r_w = resid if weights is None else resid * np.sqrt(weights)[:, None]
     J_w = J if weights is None else J * np.sqrt(weights)[:, None, None]
+    r_w, J_w = full_pose.with_orientation_rows(problem, x, r_w, J_w)
     cov, sigma, hat = covariance_and_factor(J_w, r_w, ident.free, penalty=error_model.penalty(x))
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     fit = Fit(
@@ -362,6 +376,7 @@ def _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
     if held is not None and held.n:
         vres = held.tracker_p_smr - error_model.evaluate(x, error_model.bind(held), False)[0]
         fit.valid_data, fit.valid_residuals, fit.valid = held, vres, error_stats(vres)
+    full_pose.attach_orientations(fit, problem)
     if outliers != "keep":
         def refit(rows, x):
             return identify(error_model, rows, solver, valid=held, x0=x, rtol=rtol,

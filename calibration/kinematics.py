@@ -87,6 +87,20 @@ class ChainResult:
     #: (N,) bool, the prismatic joints (None: all revolute); their ``joint_axes`` are the
     #: directions of travel
     prismatic: np.ndarray | None = None
+    #: the rotation axes of the elementary rotations (3, k, n) and their (row, column) in
+    #: the table (2, k), kept for :attr:`dW_internal` (None without the Jacobian)
+    rotation_axes: tuple[np.ndarray, np.ndarray] | None = None
+
+    @property
+    def dW_internal(self) -> np.ndarray:
+        """(N, 5, 3, n) the flange's angular velocity (base frame) per table entry, in the
+        layout of ``dP_internal``: the unit axis of an elementary rotation, zero for a
+        translation (rad per rad; the orientation counterpart of ``dP_internal``)."""
+        U, (rj, rc) = self.rotation_axes
+        N, n = self.joint_axes.shape[1], self.joint_axes.shape[0]
+        dW = np.zeros((N, 5, 3, n))
+        dW[rj, rc] = U.transpose(1, 0, 2)
+        return dW
 
     @property
     def dP_dq(self) -> np.ndarray:
@@ -245,6 +259,8 @@ def run_chain(
         Fp.transpose(2, 0, 1),
     )
     result.dP_internal = dPi
+    if jacobian:
+        result.rotation_axes = (U, np.array(rot_at).T)
     result.prismatic = slide if slide.any() else None
     return result
 

@@ -36,6 +36,9 @@ def calibrated_table(error_model: ErrorModel, x: np.ndarray):
     for e in error_model.effects:
         if e.stage == "base":
             notes.append("base: the robot's pose in the tracker frame is not part of the model")
+        elif e.stage == "target":
+            notes.append(f"{e.label}: the 6-DoF target's orientation in the flange is not "
+                         "part of the model files (params.json keeps it)")
         elif e.stage not in ("table", "tool"):
             notes.append(f"{e.label}: not a fixed kinematic parameter, not exported")
     table, tool = c.table, np.asarray(c.tool, float)

@@ -16,7 +16,7 @@ from .dataset import Dataset
 from .effects import JointEffect
 from .error_model import ErrorModel
 from .robot_model import RobotModel
-from .transforms import matrix_to_rotvec, random_rotation
+from .transforms import matrix_to_quat, matrix_to_rotvec, random_rotation, rotvecs_to_matrices
 
 
 def random_joints(
@@ -53,7 +53,8 @@ def realistic_truth(
             t = direction * rng.uniform(*base_distance_mm)
             x[sl] = np.concatenate([t, matrix_to_rotvec(random_rotation(rng))])
         elif e.family == "tool":
-            x[sl] = e.model.tool_mm() + rng.normal(0, tool_error_mm, 3)
+            x[sl] = (np.tile(e.model.tool_mm(), e.n_params // 3)  # one point per SMR nest
+                     + rng.normal(0, tool_error_mm, e.n_params))
         elif e.family == "geometric":
             sig = np.where(np.array(e.units) == "rad", np.radians(angle_deg), length_mm)
             x[sl] = rng.normal(0, 1, e.n_params) * sig
@@ -76,16 +77,24 @@ def simulate(
     q: np.ndarray,
     sigma_mm: float,
     rng: np.random.Generator,
+    sigma_deg: float | None = None,
     **columns,
 ) -> Dataset:
     """Measure the true robot at joints ``q`` (rad, (n, N)) with Gaussian tracker noise.
 
     ``columns`` are passed to :class:`Dataset` (``temp_c``, ``dirs``, ``is_valid``...); the
-    result carries ``tracker_sigma_mm`` metadata so the noise floor is known.
+    result carries ``tracker_sigma_mm`` metadata so the noise floor is known. With
+    ``sigma_deg`` a 6-DoF target is measured too: the true ``tracker_R_target`` turned by
+    a noise rotation of ``sigma_deg`` per axis (drawn after the positions' noise), and
+    the ``sigma_deg`` column.
     """
     data = Dataset(q=q, tracker_p_smr=np.zeros((len(q), 3)), source="simulated", **columns)
-    P = error_model.evaluate(x_true, error_model.bind(data), jacobian=False)[0]
+    P, _, R, _ = error_model.evaluate_pose(x_true, error_model.bind(data), jacobian=False)
     data.tracker_p_smr = P + rng.normal(0.0, sigma_mm, P.shape)
+    if sigma_deg is not None:
+        noise = rotvecs_to_matrices(rng.normal(0.0, np.radians(sigma_deg), (len(q), 3)))
+        data.quat = matrix_to_quat(noise @ R)
+        data.sigma_deg = np.full(len(q), float(sigma_deg))
     data.meta = {"tracker_sigma_mm": repr(float(sigma_mm)), **data.meta}
     return data
 

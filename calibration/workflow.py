@@ -31,6 +31,7 @@ from .dataset import Dataset
 from .diagnosis import Diagnosis, diagnose
 from .effects import DEFAULT_EFFECTS
 from .error_model import ErrorModel
+from .full_pose import for_data
 from .identify import Fit, fit_at, identify
 from .params_io import ParamsError, read_auto_steps, read_params
 from .robot_model import RobotModel
@@ -48,7 +49,8 @@ ParamsSource = str | Path | tuple[ErrorModel, np.ndarray]
 def fit_uncalibrated(model: RobotModel, data: Dataset, **kw) -> Fit:
     """The nominal robot's accuracy: only the base and tool fitted (see
     :data:`UNCALIBRATED_EFFECTS`); ``kw`` go to :func:`~calibration.identify.identify`."""
-    return identify(ErrorModel(model, UNCALIBRATED_EFFECTS), data, **kw)
+    em, _ = for_data(ErrorModel(model, UNCALIBRATED_EFFECTS), data, position_only=True)
+    return identify(em, data, **kw)
 
 
 def current_fit(model: RobotModel, data: Dataset, effects: str = DEFAULT_EFFECTS,

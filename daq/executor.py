@@ -650,7 +650,8 @@ class Executor:
         worst = None
         dev = f"tracker {getattr(self.tracker, 'url', '')}"
         for _ in range(max(1, o.max_remeasure)):
-            m = self.tracker.measure(duration_s=o.measure_s, timeout=o.measure_timeout_s)
+            measure = self.tracker.measure_pose if o.six_dof else self.tracker.measure
+            m = measure(duration_s=o.measure_s, timeout=o.measure_timeout_s)
             last, self._last_meas = self._last_meas, m
             if last is not None and (m.timestamp <= last.timestamp or (
                     np.array_equal(m.xyz, last.xyz) and np.array_equal(m.std, last.std))):
@@ -740,6 +741,7 @@ class Executor:
             humidity_pct=env.get("humidity_pct"), base_p_tcp_cmd=cmd, dirs=dirs,
             attempts=attempt, joints_t=jr.timestamp, reflector=m.reflector or None,
             face=m.face or None, cov_mm2=m.cov, joint_temp_c=joint_temp,
+            quat_wxyz=getattr(m, "quat", None), sigma_deg=getattr(m, "sigma_deg", None),
         )
 
     def _joint_temperatures(self) -> np.ndarray | None:

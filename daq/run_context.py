@@ -72,6 +72,8 @@ class ExecutorOptions(BaseModel):
     #: a lost run store connection (a PostgreSQL server restarting): how long the executor
     #: waits for it, holding the robot, before it pauses the run
     store_wait_s: float = Field(30.0, ge=0)
+    #: measure a 6-DoF target's pose (a SixDof tracker): each sample keeps its orientation
+    six_dof: bool = False
 
 
 #: plausible air for ``--meteo``: (°C, hPa, %RH) ranges

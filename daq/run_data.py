@@ -93,6 +93,8 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
         joint_temp=every("joint_temp_c"), is_valid=np.array([v == "valid" for v in sets]),
         is_drift=np.array([v == "drift" for v in sets]), meta=meta,
         source=f"{store.address} run {run_id}",
+        quat=every("quat_wxyz"), sigma_deg=every("sigma_deg"),
+        tool_id=None if any(r.tool_id is None for r in rows) else [r.tool_id for r in rows],
     )
     return (data, reading, reason) if all_readings else data
 

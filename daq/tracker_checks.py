@@ -41,6 +41,7 @@ from drivers.protocols import (
     Readiness,
     ReadyGate,
     ReflectorSelect,
+    SixDof,
     TwoFace,
 )
 
@@ -87,6 +88,9 @@ def _name(tracker) -> str:
 
 def _check(tracker, setup: TrackerSetup, o: ExecutorOptions, two_face: bool) -> TrackerCheck:
     t = o.io_timeout_s + 1.0
+    if o.six_dof and not isinstance(tracker, SixDof):
+        raise TrackerRefused(f"{_name(tracker)} cannot measure a 6-DoF target's pose "
+                             "(--six-dof); nothing was stored")
     reflector = _select_reflector(tracker, setup.reflector, t)
     readiness = tracker.ready(t) if isinstance(tracker, ReadyGate) else None
     env = tracker.environment(t) if isinstance(tracker, EnvironmentSensor) else None

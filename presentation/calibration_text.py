@@ -15,6 +15,7 @@ from calibration.robot_model import RobotModel
 from calibration.uncertainty import MonteCarlo, correlations
 from calibration.workflow import UNCALIBRATED_LABEL
 
+from .orientation_text import orientation_lines
 from .text_table import fmt, table
 
 
@@ -75,6 +76,7 @@ def calibration_text(fit: Fit, baseline: Fit, out_path: str | None = None,
         lines.append(f"noise floor sqrt(3)*sigma = {floor:.4f} mm; "
                      f"{'validation' if fit.valid else 'calibration'} RMS is "
                      f"{ref['rms_mm'] / floor:.2f} x the floor")
+    lines += orientation_lines(fit)
     lines += ["", *_parameter_lines(fit)]
     if fit.solver == "ridge":
         lines += ["", *_ridge_lines(fit.info, ridge_plot)]

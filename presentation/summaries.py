@@ -11,9 +11,14 @@ import math
 import numpy as np
 
 from calibration.identify import Fit
+from calibration.orientation_blindness import Blindness
+from calibration.orientation_view import orientation_view
 from calibration.params_io import params_by_name, solver_summary
 from calibration.uncertainty import MonteCarlo, correlations
 from calibration.zero_point import ZeroResult, assess
+
+#: the orientation keys of ``calib`` and ``valid`` (docs/formats.md §4), with orientations
+ORIENTATION_KEYS = ("orientation_rms_deg", "orientation_mean_deg", "orientation_max_deg")
 
 
 def fit_summary(fit: Fit) -> dict:
@@ -25,12 +30,17 @@ def fit_summary(fit: Fit) -> dict:
         "n_params": fit.error_model.n_params,
         "n_identifiable": fit.identifiability.n_identifiable,
         "unidentifiable": fit.identifiability.unidentifiable,
-        "calib": {k: fit.calib[k] for k in ("n", "rms_mm", "mean_mm", "max_mm", "p95_mm")},
+        "calib": {k: fit.calib[k] for k in ("n", "rms_mm", "mean_mm", "max_mm", "p95_mm")
+                  + ORIENTATION_KEYS if k in fit.calib},
     }
     if fit.valid is not None:
         out["valid"] = {
             k: fit.valid[k] for k in ("n", "rms_mm", "mean_mm", "max_mm", "p95_mm")
+            + ORIENTATION_KEYS if k in fit.valid
         }
+    view = orientation_view(fit)
+    if view is not None:
+        out["orientation"] = {**view.to_json(), "noise_floor_deg": orientation_floor_deg(fit)}
     out.update(
         {
             "noise_floor_mm": fit.noise_floor_mm,
@@ -46,10 +56,12 @@ def fit_summary(fit: Fit) -> dict:
 
 
 def calibration_summary(fit: Fit, baseline: Fit, *, params_file: str | None,
-                        mc: MonteCarlo | None = None, ridge_plot: str | None = None) -> dict:
+                        mc: MonteCarlo | None = None, ridge_plot: str | None = None,
+                        blindness: Blindness | None = None) -> dict:
     """The ``calibrate --json`` object (docs/formats.md §4): :func:`fit_summary`, the
     parameters by name, the blunders, the uncalibrated ``baseline``, the strongest
-    correlations, the solver's details and a Monte-Carlo check (``mc``)."""
+    correlations, the solver's details, a Monte-Carlo check (``mc``) and, when a
+    position-only fit leaves the tool's orientation weakly determined, ``blindness``."""
     out = fit_summary(fit)
     out["params_file"] = params_file
     out["params"] = params_by_name(fit)
@@ -66,7 +78,15 @@ def calibration_summary(fit: Fit, baseline: Fit, *, params_file: str | None,
         out["monte_carlo"] = monte_carlo_summary(mc, fit)
     if ridge_plot:
         out["ridge_plot"] = ridge_plot
+    if blindness is not None and blindness.blind:
+        out["orientation_blindness"] = blindness.to_json()
     return out
+
+
+def orientation_floor_deg(fit: Fit) -> float | None:
+    """sqrt(3) times the data's orientation uncertainty (deg), None when not given."""
+    s = fit.data.sigma_deg
+    return None if s is None else float(np.sqrt(3.0 * np.mean(np.square(s))))
 
 
 def monte_carlo_summary(mc: MonteCarlo, fit: Fit) -> dict:

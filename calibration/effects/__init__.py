@@ -7,7 +7,9 @@ adds its own with :func:`load_effect_file`.
 Modules
 -------
 base       the Effect interface and its stages, JointEffect, EffectError, display units
-geometric  geometric (the DH/MDH table), base (robot in the tracker frame), tool (SMR)
+geometric  geometric (the DH/MDH table), base (robot in the tracker frame), tool (SMR;
+           one point per SMR nest, NestedTool)
+tool_frame tool_rotation, the orientation of a 6-DoF target in the flange frame
 physical   compliance, harmonic, scale, backlash, coupling, thermal, tracker_scale
 table      table:J, a smooth correction table for joint errors no formula captures
 drift      thermal_growth, thermal_zero:J (joint temperatures), time_growthK, base_driftK (time)
@@ -26,11 +28,13 @@ from ..files import check_regular_file
 from ..robot_model import RobotModel
 from .base import Effect, EffectError, JointEffect, display_unit
 from .drift import DRIFT
-from .geometric import BUILTIN, Base, Geometric, Tool
+from .geometric import BUILTIN, Base, Geometric, NestedTool, Tool
 from .physical import PHYSICAL
 from .table import Table
+from .tool_frame import TOOL_FRAME, ToolRotation
 
-REGISTRY: dict[str, type[Effect]] = {**BUILTIN, **PHYSICAL, "table": Table, **DRIFT}
+REGISTRY: dict[str, type[Effect]] = {**BUILTIN, **TOOL_FRAME, **PHYSICAL, "table": Table,
+                                     **DRIFT}
 
 DEFAULT_EFFECTS = "geometric,base,tool"
 
@@ -44,7 +48,9 @@ __all__ = [
     "EffectError",
     "Geometric",
     "JointEffect",
+    "NestedTool",
     "Tool",
+    "ToolRotation",
     "display_unit",
     "effect_source",
     "load_effect_file",
@@ -67,7 +73,8 @@ def register(cls: type[Effect]) -> type[Effect]:
     if not cls.family or not re.fullmatch(r"[a-z][a-z_]*", cls.family):
         raise EffectError(f"{cls.__name__}: family {cls.family!r} must be lower-case "
                           "letters/underscores")
-    if cls.stage not in ("joint", "table", "length", "tool", "base", "drift", "measure"):
+    if cls.stage not in ("joint", "table", "length", "tool", "target", "base", "drift",
+                         "measure"):
         raise EffectError(f"{cls.__name__}: unknown stage {cls.stage!r}")
     current = REGISTRY.get(cls.family)
     if (cls.family in BUILTIN_FAMILIES and current is not cls
@@ -113,7 +120,7 @@ def parse_effects(spec: str | list[str], model: RobotModel) -> list[Effect]:
     if dupes:
         raise EffectError(f"effect(s) given twice: {', '.join(dupes)}")
     stages = [e.stage for e in effects]
-    for stage in ("base", "tool", "table", "measure", "length", "drift"):
+    for stage in ("base", "tool", "target", "table", "measure", "length", "drift"):
         if stages.count(stage) > 1:
             raise EffectError(f"only one effect may act at the {stage!r} stage")
     return effects

@@ -9,6 +9,7 @@ composes the stages in this order:
 ``table``   adds deltas to the (n_joints, 5) parameter table (geometric errors)
 ``length``  grows every link length by a per-pose factor (thermal)
 ``tool``    gives the target centre in the flange frame (tool)
+``target``  gives a 6-DoF target's orientation in the flange frame (tool_rotation)
 ``base``    maps base-frame points into the tracker frame (base)
 ``drift``   moves the point in the tracker frame per pose, over time (base_drift)
 ``measure`` distorts the tracker's reading (tracker_scale)

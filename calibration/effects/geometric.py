@@ -10,7 +10,7 @@ from ..dataset import Dataset
 from ..kinematics import ALPHA, BETA, THETA
 from ..robot_model import DH_COLUMNS, RobotModel
 from ..transforms import fit_rigid, matrix_to_rotvec, right_jacobian, rotvec_to_matrix
-from .base import Effect
+from .base import Effect, EffectError
 
 _LENGTH_SCALE = 0.1  # mm, typical size of a length error
 _ANGLE_SCALE = np.radians(0.01)  # rad, typical size of an angle error
@@ -119,6 +119,55 @@ class Tool(Effect):
 
     def tool_point(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return p, np.eye(3)
+
+    def with_parameter_names(self, local: list[str]) -> Tool:
+        """This tool as params.json names its parameters: one point per SMR nest
+        (``<tool_id>.x``...) makes a :class:`NestedTool` of those nests, in their order."""
+        nests = list(dict.fromkeys(n.rsplit(".", 1)[0] for n in local if "." in n))
+        return NestedTool(self.model, nests) if nests else self
+
+
+class NestedTool(Tool):
+    """Several targets on the tool (SMR nests, the ``tool_id`` of each row), each a point of
+    its own in the flange frame: ``<tool_id>.x, .y, .z`` (mm) per nest, in the order given.
+    The first nest is the tool where one point is asked for (exports, perturbations
+    without data). Rows without a ``tool_id`` measured the first nest."""
+
+    def __init__(self, model, nests: list[str]):
+        super().__init__(model)
+        self.nests = [str(k) for k in nests]
+        if not self.nests or len(set(self.nests)) != len(self.nests):
+            raise EffectError(f"tool nests must be distinct and at least one: {self.nests}")
+        self.param_names = [f"{k}.{c}" for k in self.nests for c in "xyz"]
+        self.units = ["mm"] * self.n_params
+        self.scales = np.ones(self.n_params)
+
+    def initial(self, data, nominal, state) -> np.ndarray:
+        return np.tile(self.model.tool_mm(), len(self.nests))
+
+    def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
+        """The nest of each row, (n,) index into :attr:`nests`."""
+        if data.tool_id is None:
+            return np.zeros(data.n, int)
+        unknown = sorted(set(data.tool_id) - set(self.nests))
+        if unknown:
+            raise EffectError(f"{data.source}: tool_id {', '.join(unknown)} not among the "
+                              f"tool's nests ({', '.join(self.nests)})")
+        where = {k: i for i, k in enumerate(self.nests)}
+        return np.array([where[t] for t in data.tool_id], int)
+
+    def tool_point(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        partials = np.zeros((3, self.n_params))
+        partials[:, :3] = np.eye(3)
+        return p[:3], partials
+
+    def tool_points(self, p: np.ndarray, data: Dataset, nest: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+        """Each row's nest centre in the flange frame (n, 3), and the partials (n, 3, k)."""
+        partials = np.zeros((len(nest), 3, self.n_params))
+        for c in range(3):
+            partials[np.arange(len(nest)), c, 3 * nest + c] = 1.0
+        return p.reshape(-1, 3)[nest], partials
 
 
 BUILTIN: dict[str, type[Effect]] = {

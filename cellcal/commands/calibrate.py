@@ -49,6 +49,9 @@ def register(sub) -> None:
     p.add_argument("--robot-id", metavar="NAME",
                    help="the robot calibrated (default with --db: the robot_id the data were "
                    "exported with)")
+    p.add_argument("--position-only", action="store_true",
+                   help="fit positions only, even when the rows have orientations (qw..qz of "
+                   "a 6-DoF target): the orientation error is then only predicted")
     p.set_defaults(func=run)
 
 
@@ -63,7 +66,7 @@ def run(args) -> int:
     fit = result.fit
     if args.json:
         out = calibration_summary(fit, result.baseline, params_file=request.out, mc=result.mc,
-                                  ridge_plot=request.ridge_plot)
+                                  ridge_plot=request.ridge_plot, blindness=result.blindness)
         if request.db:
             out["calibration"] = result.recorded
         print_json(out)

@@ -80,6 +80,11 @@ def register(sub) -> None:
                    help="the tracker's two-face (collimation) error, µrad (default 0)")
     s.add_argument("--tracker-warmup-s", type=nonneg_float, default=0.0, metavar="S",
                    help="simulated seconds until the tracker is warmed up (default 0)")
+    s.add_argument("--six-dof", nargs="?", const="0,0,0", default=None, metavar="RX,RY,RZ",
+                   help="mount a simulated 6-DoF target (a T-Mac, orientation noise 0.01 deg) "
+                   "on the tool at this nominal orientation in the flange (rotation vector, "
+                   "deg; default 0,0,0), turned by a hidden mounting error; measured over "
+                   "emScon (ES_MM_6DStationary) and the line protocol (MEAS6D)")
     s.set_defaults(func=run)
 
 

@@ -24,6 +24,9 @@ EXEC_FLAGS = [
     ("--store-wait", "store_wait_s", float,
      "a lost run store connection (PostgreSQL): wait this long for it, holding the robot, "
      "before pausing the run, s (default 30)"),
+    ("--six-dof", "six_dof", bool,
+     "measure a 6-DoF target's pose (a T-Mac: emscon://, or MEAS6D of tracker+tcp://): "
+     "every point keeps its orientation (qw..qz, sigma_deg in the export)"),
 ]
 
 
@@ -33,9 +36,13 @@ def metavar(typ) -> str:
 
 
 def add_flag_table(p, flags) -> None:
-    """Options from a ``(flag, attribute, type, help)`` table (default None: not given)."""
+    """Options from a ``(flag, attribute, type, help)`` table (default None: not given; a
+    ``bool`` is a switch)."""
     for flag, _, typ, hlp in flags:
-        p.add_argument(flag, type=typ, default=None, help=hlp, metavar=metavar(typ))
+        if typ is bool:  # a switch
+            p.add_argument(flag, action="store_const", const=True, default=None, help=hlp)
+        else:
+            p.add_argument(flag, type=typ, default=None, help=hlp, metavar=metavar(typ))
 
 
 def flag_values(args, flags) -> dict:

@@ -16,7 +16,9 @@ import numpy as np
 from pydantic import Field
 
 from calibration import DEFAULT_EFFECTS, identify, load_csv
+from calibration.full_pose import for_data
 from calibration.identify import Fit
+from calibration.orientation_blindness import Blindness, orientation_blindness
 from calibration.params_io import read_params, save_params
 from calibration.uncertainty import MonteCarlo, monte_carlo
 from calibration.workflow import fit_uncalibrated
@@ -41,6 +43,7 @@ class CalibrateRequest(DataInputs):
     ridge_plot: str | None = Field(None, alias="--ridge-plot")
     db: str | None = Field(None, alias="--db")
     robot_id: str | None = Field(None, alias="--robot-id")
+    position_only: bool = Field(False, alias="--position-only")
 
     def check(self) -> None:
         """Refuse flags that do not go together (UsageError, exit 2)."""
@@ -63,6 +66,8 @@ class Calibrated:
     recorded : the ``calibration`` JSON object of the fit recorded with ``--db`` (None:
         not recorded, the fit did not converge, or no ``--db``)
     notes : remarks for the user on the data and the start parameters
+    blindness : how much tool orientation a position-only fit leaves undetermined
+        (:mod:`calibration.orientation_blindness`), None for a full-pose fit
     """
 
     fit: Fit
@@ -70,6 +75,7 @@ class Calibrated:
     mc: MonteCarlo | None = None
     recorded: dict | None = None
     notes: list[str] = field(default_factory=list)
+    blindness: Blindness | None = None
 
 
 def calibrate(request: CalibrateRequest,
@@ -91,6 +97,11 @@ def calibrate(request: CalibrateRequest,
     store = open_history_store(request.db) if request.db else None
     try:
         fit, baseline, notes = _fit(request, on_note)
+        blindness = orientation_blindness(fit)
+        if blindness is not None and blindness.blind:
+            notes.append(blindness.note())
+            if on_note is not None:
+                on_note(blindness.note())
         recorded = (record_calibration(store, fit, data_file=request.data,
                                        robot_id=request.robot_id)
                     if store is not None else None)
@@ -107,20 +118,20 @@ def calibrate(request: CalibrateRequest,
                          seed=request.seed if request.seed is not None else 0)
     if request.out:
         save_params(fit, request.out, list(request.effect_file), capture=fit.data.capture)
-    return Calibrated(fit, baseline, mc, recorded, notes)
+    return Calibrated(fit, baseline, mc, recorded, notes, blindness)
 
 
 def _fit(request: CalibrateRequest, on_note) -> tuple[Fit, Fit, list[str]]:
     """(fit, uncalibrated baseline on the same points, notes)."""
     model, data = load_inputs(request)
-    em = error_model_of(model, request.effects)
+    em, more = for_data(error_model_of(model, request.effects), data, request.position_only)
     valid = load_csv(request.valid, model) if request.valid else None
     x0 = None
     notes = []
     if request.params:
         start = read_params(request.params, model=model)
         notes += start.notes
-    notes += check_data(em, data)
+    notes += more + check_data(em, data)
     if request.params:
         x0 = em.initial(em.bind(data.calib() if data.is_valid.any() else data))
         for k, name in enumerate(start.error_model.names):

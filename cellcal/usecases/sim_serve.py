@@ -7,6 +7,7 @@ to ``on_ready`` and serves until ``stop`` is set (or Ctrl-C), then stops them cl
 
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable
 from typing import Annotated, Any, Self
@@ -57,6 +58,7 @@ class SimServeRequest(Request):
     no_weather_station: bool = Field(False, alias="--no-weather-station")
     tracker_collimation_urad: float = Field(0.0, alias="--tracker-collimation-urad")
     tracker_warmup_s: float = Field(0.0, alias="--tracker-warmup-s")
+    six_dof: Annotated[Point | None, comma_numbers(3)] = Field(None, alias="--six-dof")
 
     @classmethod
     def from_args(cls, args: Any, **given: Any) -> Self:
@@ -102,8 +104,20 @@ def sim_stack(req: SimServeRequest):
         def factory(seed, hidden):
             return ModelTruth.from_spec(req.model, hidden, seed, tracker_at=at, smr_axis=axis)
 
+    extra = {}
+    if req.six_dof is not None:
+        if req.model == "toy":
+            raise UsageError("--six-dof needs a robot model (the toy arm has no flange "
+                             "orientation)")
+        if not all(math.isfinite(v) and abs(v) <= 360.0 for v in req.six_dof):
+            raise UsageError(f"--six-dof {','.join(f'{v:g}' for v in req.six_dof)}: the "
+                             "target's nominal orientation is a rotation vector of three "
+                             "finite angles within +-360 deg")
+        from sim_drivers.six_dof import SixDofTarget
+
+        extra["six_dof"] = SixDofTarget.on_tool(tuple(req.six_dof), seed=req.seed)
     try:
-        return SimStack(config, truth_factory=factory, cell=cell,
+        return SimStack(config, truth_factory=factory, cell=cell, **extra,
                         weather_station=not req.no_weather_station,
                         tracker_collimation_rad=req.tracker_collimation_urad * 1e-6,
                         warmup_s=req.tracker_warmup_s)

@@ -574,12 +574,16 @@ def build_cases() -> list[Case]:
         ("--threshold-mm", ["0", "-1"]), ("--cycles", ["0", "x"]), ("--count", ["0"])])
     cases.append(Case("capture", "drift_options_without_drift_check",
                       [*good_cap, "--drift-bound-mm", "0.1"], 2, r"--drift-check"))
+    cases.append(Case("capture", "six_dof_with_value", [*good_cap, "--six-dof=yes"], 2,
+                      r"--six-dof"))
 
     # ---- calibrate --db: the store a calibration is recorded in (a new file is made)
     cases += _store_cases("calibrate", [*good_cal, "--db", "{DB}", "--robot-id", "R1"],
                           ok=False, skip=("missing", "empty"))
     cases.append(Case("calibrate", "robot_id_without_db", [*good_cal, "--robot-id", "R1"], 2,
                       r"--robot-id needs --db"))
+    cases.append(Case("calibrate", "position_only_with_value",
+                      [*good_cal, "--position-only=yes"], 2, r"--position-only"))
 
     # ---- history: the run store, the threshold, the plot (never over an input or a store)
     cases += _store_cases("history", ["history", "R1", "--db", "{DB}"], ok=False)
@@ -613,7 +617,7 @@ def build_cases() -> list[Case]:
     cases += _number_cases("sim", ["sim", "serve", "--no-pty", "--no-rtde"], [
         ("--tracker-at", ["nan,0,0", "1,2"]), ("--tracker-warmup-s", ["-1", "nan"]),
         ("--time-scale", ["nan", "-1"]), ("--seed", ["-1"]), ("--hidden", ["bogus"]),
-        ("--thermal", ["hot"])])
+        ("--thermal", ["hot"]), ("--six-dof", ["nan,0,0", "1,2"])])
     for c in cases:
         if (c.command == "sim" and c.name.startswith("num:")) or "100000000" in c.argv:
             c.mode, c.slow = "subprocess", True
