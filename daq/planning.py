@@ -15,7 +15,7 @@ from .check import check_plan
 from .errors import PlanRefused, RequestError, one_line
 from .routines import get as get_routine
 from .run_request import CaptureRequest, PlannedRun
-from .sight import frame_from_store, predict, resolve_cell
+from .sight import frame_from_store, predict, require_tracker, resolve_cell
 from .store import RunStore, StoreError
 
 
@@ -42,15 +42,18 @@ def plan_run(request: CaptureRequest, *, model=None, db: str | Path | None = Non
         routine's parameters refer to an earlier run (zero20 ``--replay``).
 
     The plan is made for the tracker's line of sight (unless ``request.visibility`` is
-    False) when the tracker position is known: ``request.tracker_at``, else the frame run
+    False): the tracker position is ``request.tracker_at``, else the frame run
     (``request.frame_run`` or the latest in ``db``), else ``request.cell``
-    (:func:`daq.sight.resolve_cell`); the planned run's ``sight`` says what the tracker
-    will see of it either way.
+    (:func:`daq.sight.resolve_cell`); none of them is refused unless the reflector accepts
+    every direction (:func:`daq.sight.require_tracker`). The planned run's ``sight`` says
+    what the tracker will see of it either way.
 
     Raises
     ------
     RequestError
         Unknown routine or model, bad parameters or acquisition options.
+    TrackerUnknown
+        The tracker's position is unknown and the line of sight not waived (exit code 2).
     NotEnoughVisible
         The tracker would not see enough of the plan (a RequestError, exit code 3).
     PlanRefused
@@ -68,6 +71,8 @@ def plan_run(request: CaptureRequest, *, model=None, db: str | Path | None = Non
             params = resolve(params, lambda: _open_existing(db))
         cell = resolve_cell(request.cell, request.tracker_at,
                             *frame_from_store(db, request.frame_run))
+        if request.visibility:
+            require_tracker(cell)
         plan = mod.make_plan(model, **params, cell=cell if request.visibility else None)
         acquire = acquire_options(mod, request.acquire)
     except RequestError:  # NotEnoughVisible keeps its exit code

@@ -56,7 +56,8 @@ class ResumeArgs(Request):
 @dataclass(frozen=True)
 class ResumeResult:
     """The run found (a :class:`~daq.service.Resumable`) and how the session ended (a
-    :class:`~daq.service.RunOutcome`; None when the run was already completed)."""
+    :class:`~daq.service.RunOutcome`; None when the run was already finished: completed,
+    or incomplete)."""
 
     resumable: Any
     outcome: Any = None
@@ -84,7 +85,7 @@ def resume(req: ResumeArgs, *, progress=None,
                                  tracker_url=req.tracker, leases=leases,
                                  robot_id=req.robot_id)
             r = res.run
-            if res.completed:
+            if res.finished:
                 return ResumeResult(res)
             given = {} if req.meteo is None else {"meteo": req.meteo}
             tracker_setup(given, r.context.tracker.model_dump())  # checked over the stored

@@ -34,6 +34,7 @@ from ._common import (
     nominal_point,
     require_visible,
     visibility_params,
+    what_hides,
 )
 
 #: the narrowest joint-1 arc the frame fit is given (deg): below it the circle's normal is poor
@@ -127,8 +128,10 @@ def make_plan(model, *, start_deg=None, circle_span_deg: float = 90.0, circle_po
         starts = (np.radians(np.atleast_2d(start_deg)) if start_deg is not None
                   else facing_starts(model, cell)[0])
         if len(starts) == 0:
+            cause = what_hides(model, cell)
             raise NotEnoughVisible(f"frame: no posture found whose SMR faces the tracker at "
-                                   f"{np.round(cell.tracker_mm).tolist()} mm; change: {change}")
+                                   f"{np.round(cell.tracker_mm).tolist()} mm; "
+                                   f"{f'the cause: {cause}; ' if cause else ''}change: {change}")
         lo, hi = visible_arcs(model, starts, cell, span)
         found = None
         for k in np.argsort(-(hi - lo), kind="stable")[:20]:  # the widest arcs first
