@@ -71,10 +71,10 @@ def plan_run(request: CaptureRequest, *, model=None, db: str | Path | None = Non
             params = resolve(params, lambda: _open_existing(db))
         cell = resolve_cell(request.cell, request.tracker_at,
                             *frame_from_store(db, request.frame_run))
-        if request.visibility:
-            require_tracker(cell)
         plan = mod.make_plan(model, **params, cell=cell if request.visibility else None)
         acquire = acquire_options(mod, request.acquire)
+        if request.visibility:  # after the parameters' own refusals
+            require_tracker(cell)
     except RequestError:  # NotEnoughVisible keeps its exit code
         raise
     except (ValueError, StoreError) as e:  # ModelError, CellError, pydantic's ValidationError
