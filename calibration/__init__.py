@@ -34,6 +34,7 @@ zero_point/     zero-point recalibration from 20 postures on one fixed point
 frame_fit       circle, line and measurement-frame fits of the frame routine
 cell            CellSpec: the cell YAML (tracker position, SMR axis and reflector, fixtures)
 visibility      the tracker's line of sight: facing angle, link capsules, fixtures, facing IK
+sight_cause     why no pose is visible: the SMR inside the wrist, the constraint hiding most
 simulate        synthetic measurements with a known truth
 """
 

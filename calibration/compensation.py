@@ -238,12 +238,14 @@ class Targets:
     pose_id : n labels
     columns : optional per-target data: ``temp_c``, ``payload_kg`` (n,), ``dirs`` (n, N)
         approach directions (for backlash)
+    lines : n line numbers in the file (None: not read from a file)
     """
 
     base_p_tcp: np.ndarray
     q: np.ndarray | None
     pose_id: list[str]
     columns: dict
+    lines: list[int] | None = None
 
 
 def load_targets(path, model) -> Targets:
@@ -275,4 +277,4 @@ def load_targets(path, model) -> Targets:
             raise DataError(f"{t.source}: line {t.lines[r]}, column dir{j + 1}: "
                             f"{dirs[r, j]:g} is not -1, 0 or +1")
         columns["dirs"] = dirs.astype(int)
-    return Targets(xyz, q, pose_id, columns)
+    return Targets(xyz, q, pose_id, columns, [int(v) for v in t.lines])

@@ -345,6 +345,26 @@ def workspace_ok(model, q: np.ndarray, *, floor_z_mm: float | None = 0.0,
     return ok
 
 
+def draw_facing(model, cell: CellSpec, m: int, rng: np.random.Generator, *, cone_rad: float,
+                floor_z_mm: float | None = 0.0, max_reach_mm: float | None = None,
+                max_abs_deg: float = 180.0) -> np.ndarray:
+    """Joint poses (rad, (k, N), k <= m) drawn to face the tracker, before the line of sight
+    is checked: ``m`` uniform poses within the limits and the workspace; for an arm that
+    orients its tool (6+ joints) each turned by pose IK so that the SMR axis lies in the
+    cone of ``cone_rad`` about the direction to the tracker (a uniform roll about it)."""
+    lim = np.clip(model.limits_rad(), -np.radians(max_abs_deg), np.radians(max_abs_deg))
+    kw = {"floor_z_mm": floor_z_mm, "max_reach_mm": max_reach_mm}
+    axis = cell.smr.axis_unit()
+    q = rng.uniform(lim[:, 0], lim[:, 1], size=(m, model.n_joints))
+    q = q[workspace_ok(model, q, **kw)]
+    if model.n_joints >= 6 and len(q):
+        p, _ = smr_pose(model, q, axis)
+        d = sample_cone(cell.tracker_mm - p, cone_rad, rng)
+        q, ok = solve_facing(model, p, d, rng.uniform(-np.pi, np.pi, len(q)), q, axis)
+        q = q[ok & np.all(np.abs(q) <= np.radians(max_abs_deg) + 1e-9, axis=1)]
+    return q[workspace_ok(model, q, **kw)] if len(q) else q
+
+
 def sample_visible(model, cell: CellSpec, n: int, rng: np.random.Generator, *,
                    floor_z_mm: float | None = 0.0, max_reach_mm: float | None = None,
                    max_abs_deg: float = 180.0, rounds: int = 40) -> np.ndarray:
@@ -353,26 +373,17 @@ def sample_visible(model, cell: CellSpec, n: int, rng: np.random.Generator, *,
     For an arm that orients its tool (6+ joints): SMR positions of uniformly drawn poses
     within the workspace, the SMR axis drawn uniformly in the acceptance cone (less the
     margin) about the direction to the tracker, a uniform roll about it, solved by pose IK
-    from the drawn pose; kept when within the workspace and the beam clears every link
-    and fixture. Smaller arms: uniformly drawn poses that happen to be visible. Fewer
-    than ``n`` come back when ``rounds`` batches do not find them.
+    from the drawn pose (:func:`draw_facing`); kept when within the workspace and the beam
+    clears every link and fixture. Smaller arms: uniformly drawn poses that happen to be
+    visible. Fewer than ``n`` come back when ``rounds`` batches do not find them.
     """
-    lim = np.clip(model.limits_rad(), -np.radians(max_abs_deg), np.radians(max_abs_deg))
-    T = cell.tracker_mm
     cone = np.radians(max(cell.smr.half_angle_deg - cell.margins.facing_deg, 0.0))
-    axis = cell.smr.axis_unit()
     out, have = [], 0
     for _ in range(rounds):
-        m = max(2 * (n - have), 64)
-        q = rng.uniform(lim[:, 0], lim[:, 1], size=(m, model.n_joints))
-        q = q[workspace_ok(model, q, floor_z_mm=floor_z_mm, max_reach_mm=max_reach_mm)]
-        if model.n_joints >= 6 and len(q):
-            p, _ = smr_pose(model, q, axis)
-            d = sample_cone(T - p, cone, rng)
-            q, ok = solve_facing(model, p, d, rng.uniform(-np.pi, np.pi, len(q)), q, axis)
-            q = q[ok & np.all(np.abs(q) <= np.radians(max_abs_deg) + 1e-9, axis=1)]
+        q = draw_facing(model, cell, max(2 * (n - have), 64), rng, cone_rad=cone,
+                        floor_z_mm=floor_z_mm, max_reach_mm=max_reach_mm,
+                        max_abs_deg=max_abs_deg)
         if len(q):
-            q = q[workspace_ok(model, q, floor_z_mm=floor_z_mm, max_reach_mm=max_reach_mm)]
             q = q[assess(model, q, cell).visible]
         out.append(q)
         have += len(q)

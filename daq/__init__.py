@@ -10,6 +10,8 @@ Modules
     ``check``           the dry run of a plan against the model (limits, reach, floor)
     ``routines/``       the capture routines: each makes a plan (see its package)
     ``executor``        runs a plan point by point: move, measure, commit, fault handling
+    ``completeness``    whether a run that went through its plan measured enough of it
+                        (``completed`` or ``incomplete``)
     ``errors``          the capture's own errors and the service's refusals
     ``run_context``     ``RunContext``, ``ExecutorOptions``, ``TrackerSetup``: what a run was
                         started with (and ``TrackerCheck``: what the tracker's checks found)

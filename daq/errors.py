@@ -9,7 +9,8 @@ interruptions table (:attr:`CaptureError.kind`).
 
 The service (:mod:`daq.service`) raises :class:`RequestError` for input it refuses (a
 model, parameters, a plan that fails the dry run, an unknown run, a tracker that fails
-its checks: :class:`TrackerRefused`; exit code 2, but 3 for :class:`NotEnoughVisible`, a
+its checks: :class:`TrackerRefused`, a plan made blind: :class:`TrackerUnknown`; exit
+code 2, but 3 for :class:`NotEnoughVisible`, a
 plan the tracker would not see) and :class:`ConnectFailed` when the devices cannot be
 reached (exit code 1). The run store's errors are its own (:mod:`daq.store.errors`).
 """
@@ -75,6 +76,12 @@ class NotEnoughVisible(RequestError):
     data would be too poor), not 2."""
 
     exit_code = 3
+
+
+class TrackerUnknown(RequestError):
+    """A plan would be made blind: the tracker's position is unknown, the reflector does not
+    accept every direction and the line of sight was not waived (``visibility=False``); the
+    message names the ways to give the position. Exit code 2; nothing is opened or moved."""
 
 
 class PlanRefused(RequestError):

@@ -108,6 +108,7 @@ from drivers.errors import (
 )
 from drivers.protocols import CommandedPosition, JointReading, JointTemperatures, Measurement
 
+from .completeness import end_status
 from .errors import CaptureError, QualityError
 from .motion_guard import MotionGuard, MotionMismatch, MotionRefused
 from .plans import Plan, Target
@@ -358,7 +359,8 @@ class Executor:
     def run(self) -> str:
         """Run every point not yet stored; returns the final status.
 
-        ``completed``, ``paused`` (protective stop, rejected command or retries
+        ``completed`` (``incomplete`` with too many points skipped:
+        :mod:`daq.completeness`), ``paused`` (protective stop, rejected command or retries
         exhausted), ``stopped`` (Ctrl-C / :meth:`request_stop`) or ``failed``
         (the finalize step failed).
         """
@@ -422,8 +424,9 @@ class Executor:
                 store.set_status(rid, "failed", f"finalize: {e}")
                 return "failed"
         self._summarise()
-        store.set_status(rid, "completed")
-        return "completed"
+        status, reason = end_status(self.plan, store.done_indices(rid))
+        store.set_status(rid, status, reason)
+        return str(status)
 
     # ------------------------------------------------------- skips and spares
     def _skipped(self) -> set[int]:

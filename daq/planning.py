@@ -16,7 +16,7 @@ from .drift_checks import with_drift_checks
 from .errors import PlanRefused, RequestError, one_line
 from .routines import get as get_routine
 from .run_request import CaptureRequest, PlannedRun
-from .sight import estimate_time, frame_from_store, predict, resolve_cell
+from .sight import estimate_time, frame_from_store, predict, require_tracker, resolve_cell
 from .store import RunStore, StoreError
 
 
@@ -43,16 +43,19 @@ def plan_run(request: CaptureRequest, *, model=None, db: str | Path | None = Non
         routine's parameters refer to an earlier run (zero20 ``--replay``).
 
     The plan is made for the tracker's line of sight (unless ``request.visibility`` is
-    False) when the tracker position is known: ``request.tracker_at``, else the frame run
+    False): the tracker position is ``request.tracker_at``, else the frame run
     (``request.frame_run`` or the latest in ``db``), else ``request.cell``
-    (:func:`daq.sight.resolve_cell`); the planned run's ``sight`` says what the tracker
-    will see of it either way. ``request.drift_check`` inserts its drift checks
-    (:func:`daq.drift_checks.with_drift_checks`) before the dry run.
+    (:func:`daq.sight.resolve_cell`); none of them is refused unless the reflector accepts
+    every direction (:func:`daq.sight.require_tracker`). The planned run's ``sight`` says
+    what the tracker will see of it either way. ``request.drift_check`` inserts its drift
+    checks (:func:`daq.drift_checks.with_drift_checks`) before the dry run.
 
     Raises
     ------
     RequestError
         Unknown routine or model, bad parameters or acquisition options.
+    TrackerUnknown
+        The tracker's position is unknown and the line of sight not waived (exit code 2).
     NotEnoughVisible
         The tracker would not see enough of the plan (a RequestError, exit code 3).
     PlanRefused
@@ -76,6 +79,8 @@ def plan_run(request: CaptureRequest, *, model=None, db: str | Path | None = Non
                                      estimate_time(plan, request.executor)[
                                          "estimated_capture_s"] / max(len(plan), 1))
         acquire = acquire_options(mod, request.acquire)
+        if request.visibility:  # after the parameters' own refusals
+            require_tracker(cell)
     except RequestError:  # NotEnoughVisible keeps its exit code
         raise
     except (ValueError, StoreError) as e:  # ModelError, CellError, pydantic's ValidationError

@@ -12,14 +12,17 @@ from calibration import ModelError, load_model
 
 from .errors import RequestError
 from .plans import Plan
-from .store import InterruptionKind, Run, RunStore, StoreError
+from .store import InterruptionKind, Run, RunStatus, RunStore, StoreError
 from .store.leases import Leases, held_leases, run_key
+
+#: the statuses of a run with nothing left to resume
+FINISHED = (RunStatus.COMPLETED, RunStatus.INCOMPLETE)
 
 
 @dataclass(frozen=True)
 class Resumable:
     """A stored run found by :func:`prepare_resume`: its plan, and (unless it is already
-    completed) its model and the devices' URLs."""
+    finished: completed or incomplete) its model and the devices' URLs."""
 
     run: Run
     plan: Plan
@@ -30,7 +33,13 @@ class Resumable:
 
     @property
     def completed(self) -> bool:
-        return self.run.status == "completed"
+        return self.run.status == RunStatus.COMPLETED
+
+    @property
+    def finished(self) -> bool:
+        """Nothing left to resume: completed, or incomplete (its skipped points are not
+        retried: :mod:`daq.completeness`)."""
+        return self.run.status in FINISHED
 
 
 def prepare_resume(store: RunStore, run_id: int | None = None, *,
@@ -45,8 +54,8 @@ def prepare_resume(store: RunStore, run_id: int | None = None, *,
     a live owner (its process was killed) then gets a ``killed`` interruption.
     ``robot_url``/``tracker_url`` replace the stored ones for this resume (stored only
     once the devices prove to be the run's cell). ``robot_id`` must be the run's robot
-    (it is recorded when the run had none). A completed run comes back as it is
-    (:attr:`Resumable.completed`).
+    (it is recorded when the run had none). A finished run (completed or incomplete) comes
+    back as it is (:attr:`Resumable.finished`).
     """
     try:
         r = store.run(run_id)
@@ -58,7 +67,7 @@ def prepare_resume(store: RunStore, run_id: int | None = None, *,
     if robot_id and r.robot_id and robot_id != r.robot_id:
         raise RequestError(f"run {r.id} is a run of robot {r.robot_id}, not {robot_id}")
     done = store.n_samples(r.id)
-    if r.status == "completed":
+    if r.status in FINISHED:
         return Resumable(r, plan, done)
     with held_leases(store, leases) as held:
         taken = held.acquire(run_key(r.id), f"run {r.id}")

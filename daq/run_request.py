@@ -102,7 +102,8 @@ class PlannedRun:
 class RunOutcome:
     """How a (resumed) run ended.
 
-    ``status``: ``completed``, ``paused`` (protective stop, rejected command, retries
+    ``status``: ``completed``, ``incomplete`` (too many points skipped:
+    :mod:`daq.completeness`), ``paused`` (protective stop, rejected command, retries
     exhausted, a move refused or not done, stopped at once by a signal), ``stopped``
     (Ctrl-C) or ``failed`` (finalize failed); ``reason`` why it did not complete;
     ``points`` in the plan, ``samples`` stored, ``faults`` met in this session,

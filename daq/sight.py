@@ -3,8 +3,9 @@ will see of it, and how long it will take.
 
 :func:`resolve_cell` puts the tracker where the best source says: ``--tracker-at`` (the
 user's rough position) first, then the measurement frame of a frame run in the store
-(``tracker_T_base``, measured), then the cell file; no source leaves the tracker unknown
-(the plan is then made without the line of sight). :func:`predict` checks every target
+(``tracker_T_base``, measured), then the cell file; no source leaves the tracker unknown,
+and :func:`require_tracker` refuses to plan blind (unless the reflector accepts every
+direction; the caller may waive the line of sight). :func:`predict` checks every target
 of a plan against it (:func:`calibration.visibility.assess`, with the cell's margins)
 and :func:`estimate_time` estimates the capture time from the executor's speed.
 
@@ -20,6 +21,7 @@ import numpy as np
 
 from calibration.cell import CellSpec, tracker_in_base
 
+from .errors import TrackerUnknown
 from .plans import Plan, estimate_capture_s
 from .store import open_if_exists
 from .store.queries import frame_run
@@ -36,6 +38,26 @@ def resolve_cell(cell: CellSpec | None, tracker_at, frame_T=None,
     if frame_T is not None:
         return cell.with_tracker(tracker_in_base(frame_T), f"frame run {frame_run}")
     return cell
+
+
+#: what ``require_tracker`` says: the three ways to give the tracker's position, and the waiver
+GIVE_TRACKER = ("give it one of three ways: --tracker-at X,Y,Z (robot base frame, mm; rough "
+                "is fine), a frame run in --db (`cellcal capture frame --tracker-at ...` "
+                "first; --frame-run RUN picks one), or --cell FILE with the tracker's "
+                "position; or plan without the line of sight: --no-visibility")
+
+
+def require_tracker(cell: CellSpec) -> None:
+    """Refuse (:class:`~daq.errors.TrackerUnknown`) a plan made blind: the tracker's position
+    unknown while the reflector has a facing limit. A plan that does not know where the
+    tracker stands draws poses whose SMR faces away or whose beam a link breaks: at a real
+    cell most of its points are skipped after an hour of motion."""
+    if cell.tracker is not None or cell.smr.half_angle_deg >= 180.0:
+        return
+    raise TrackerUnknown(
+        "the tracker's position is unknown, so the plan cannot keep to the tracker's line of "
+        f"sight (the {cell.smr.reflector} SMR accepts the beam within "
+        f"{cell.smr.half_angle_deg:g} deg only, and links break it); {GIVE_TRACKER}")
 
 
 def frame_from_store(db: str | Path | None, run_id: int | None) -> tuple[np.ndarray | None,

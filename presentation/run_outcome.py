@@ -49,11 +49,12 @@ def outcome_lines(out: dict) -> list[str]:
 
 
 def outcome_exit_code(out: dict) -> int:
-    """0 completed, 130 stopped (Ctrl-C), 128 + N stopped at once by signal N, else 1."""
+    """0 completed, 3 incomplete (too many points skipped), 130 stopped (Ctrl-C), 128 + N
+    stopped at once by signal N, else 1."""
     signum = out.get("signal")
     if signum:
         return 128 + int(getattr(signal, signum, 0) or 1)
-    return {"completed": 0, "stopped": 130}.get(out["status"], 1)
+    return {"completed": 0, "incomplete": 3, "stopped": 130}.get(out["status"], 1)
 
 
 def check_line(c: dict) -> str:

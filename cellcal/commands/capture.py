@@ -14,7 +14,9 @@ rejected command, retries exhausted, a move refused or not done, the run store
 unreachable) or failed, or the devices cannot be reached; 2 bad input, a plan refused by
 the dry run (the offending points are named), a busy robot or run, the wrong robot, the
 motion not confirmed, a tracker that fails its checks (the check and what to do are
-named; nothing is stored); 3 a plan the tracker would not see enough of; 130 stopped
+named; nothing is stored), a tracker position unknown (unless ``--no-visibility``); 3 a
+plan the tracker would not see enough of, or a run that ended ``incomplete`` (more than
+a tenth of its points skipped: :mod:`daq.completeness`); 130 stopped
 with Ctrl-C (the run is resumable with ``cellcal resume``); 128 + N stopped at once by
 signal N (a second Ctrl-C 130, SIGTERM 143, SIGHUP 129: the controller's stop was sent
 and the run is ``paused``).
@@ -52,9 +54,10 @@ def register(sub) -> None:
         "Exit codes: 0 completed; 1 paused (protective stop, rejected command, retries "
         "exhausted, run store unreachable) or failed, or the devices cannot be reached; 2 "
         "bad input, a plan refused by the dry run (the offending points are named) or "
-        "anything else refused before the run is stored; 3 a plan the tracker would not "
-        "see enough of; 130 stopped with Ctrl-C (resumable); 128 + N stopped at once by "
-        "signal N (docs/formats.md §6).",
+        "anything else refused before the run is stored (a tracker position unknown among "
+        "them); 3 a plan the tracker would not see enough of, or a run that ended "
+        "incomplete (more than a tenth of its points skipped); 130 stopped with Ctrl-C "
+        "(resumable); 128 + N stopped at once by signal N (docs/formats.md §6).",
     )
     rsub = add_subcommands(p, "routine", "ROUTINE")
     for name, spec in ROUTINE_ARGS.items():

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import sys
 
+from ..flags.choices import JOINTS_TOLERANCE_MM
 from .common import print_json
 from .compensate_program import add_flags as add_program_flags
 from .compensate_program import run_program, uses_program
@@ -39,6 +40,10 @@ def register(sub) -> None:
                    help="write the compensated targets (default: print them)")
     p.add_argument("--start", metavar="Q1,..,QN",
                    help="start configuration (deg) for targets without nominal joints")
+    p.add_argument("--joints-tolerance-mm", type=float, default=JOINTS_TOLERANCE_MM,
+                   metavar="MM", help="refuse targets whose joints q1..qN put the tool "
+                   f"farther than this from their x, y, z on the nominal model (default "
+                   f"{JOINTS_TOLERANCE_MM:g} mm)")
     p.add_argument("--position-only", action="store_true",
                    help="minimum-norm position correction; do not hold the nominal "
                    "orientation")

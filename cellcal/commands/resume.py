@@ -9,7 +9,8 @@ NEW run of the same plan there instead of mixing the two cells' samples. A run
 still executed by a live process is refused at once (exit 2, naming it); a run
 found ``running`` whose process is gone (killed) gets a ``killed`` interruption
 first. The tracker is checked again with the run's setup (``--meteo`` replaces its
-air), not its two faces. Exit codes as ``cellcal capture`` (docs/formats.md §6).
+air), not its two faces. A run that ended ``incomplete`` is not resumed: its skipped
+points are named (exit 3). Exit codes as ``cellcal capture`` (docs/formats.md §6).
 """
 
 from __future__ import annotations
@@ -66,6 +67,10 @@ def run(args) -> int:
         return failed
     if result.outcome is None:
         r = result.resumable.run
+        if not result.resumable.completed:  # incomplete: nothing to resume, say what is missing
+            print(f"run {r.id} is {r.status} ({result.resumable.done}/{r.n_points} points), "
+                  f"nothing to resume: {r.reason}", file=sys.stderr)
+            return 3
         print(f"run {r.id} is already completed ({result.resumable.done}/{r.n_points} points)",
               file=sys.stderr)
         return 0

@@ -141,5 +141,6 @@ def add_sight_flags(p) -> None:
                    help="the cell: tracker position, SMR axis and reflector, margins, "
                    "fixtures (docs/formats.md section 7)")
     p.add_argument("--no-visibility", action="store_true",
-                   help="plan without the tracker's line of sight (the dry run still "
-                   "lists the points it would not see)")
+                   help="plan without the tracker's line of sight, also when its "
+                   "position is unknown (refused otherwise); the dry run still lists "
+                   "the points it would not see when the position is known")

@@ -36,3 +36,9 @@ DB_HELP = ("run store: a SQLite file or a PostgreSQL URL postgresql://user@host[
 
 #: :data:`sim_drivers.thermal.STARTS`: the thermal starts of a simulated robot
 THERMAL_STARTS = ("cold", "warm")
+
+#: ``compensate --joints-tolerance-mm``: how far (mm) the nominal point of a target's joints
+#: may lie from its x, y, z (:mod:`cellcal.usecases.target_checks`): far above joints
+#: written to 0.01 deg (a 1.3 m arm: ~0.2 mm per joint) and a calibration's corrections (a
+#: few mm), far below joints of another target or configuration (hundreds of mm)
+JOINTS_TOLERANCE_MM = 10.0

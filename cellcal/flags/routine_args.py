@@ -47,7 +47,8 @@ def _frame_add(p) -> None:
     p.add_argument("--start-deg", metavar="Q1,..,QN",
                    help="start posture, deg (default: a comfortable posture of the model)")
     p.add_argument("--circle-span-deg", type=float, default=90.0, metavar="DEG",
-                   help="joint-1 turn, deg (default 90)")
+                   help="joint-1 turn, deg (default 90, at least 30: a narrower arc gives "
+                   "the frame fit a poor circle)")
     p.add_argument("--circle-points", type=int, default=12, metavar="N",
                    help="points on the circle (default 12)")
     p.add_argument("--line-length-mm", type=float, default=300.0, metavar="MM",
@@ -57,6 +58,12 @@ def _frame_add(p) -> None:
 
 
 def _frame_params(args) -> dict:
+    from daq.routines.frame import MIN_CIRCLE_SPAN_DEG  # numpy: not at the parser's start-up
+
+    if not args.circle_span_deg >= MIN_CIRCLE_SPAN_DEG:  # NaN too
+        raise ValueError(f"--circle-span-deg: {args.circle_span_deg:g} is below the minimum "
+                         f"{MIN_CIRCLE_SPAN_DEG:g} deg (a narrower arc gives the frame fit a "
+                         "poor circle)")
     return {"start_deg": floats(args.start_deg, None, "--start-deg"),
             "circle_span_deg": args.circle_span_deg, "circle_points": args.circle_points,
             "line_length_mm": args.line_length_mm, "line_points": args.line_points}

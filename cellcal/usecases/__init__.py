@@ -22,6 +22,7 @@ calibration_record  calibrate --db: record a calibration in a run store
 diagnose            DiagnoseRequest, diagnose: rank the missing effects, or add them (--auto)
 report              ReportRequest, write_report: the HTML report
 compensate          CompensateRequest, compensate_targets: joints and corrected targets
+target_checks       check_joints_reach: targets whose joints contradict their point
 model_exports       write_exports: the calibrated model as YAML, URDF, UR files, DH table,
                     each checked by its parity
 simulate            SimulateRequest, simulate_dataset: a measurement CSV of a simulated robot

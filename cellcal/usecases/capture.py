@@ -8,7 +8,6 @@ stores and executes the run (:func:`daq.service.start_run`).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Annotated, Any, Self
@@ -33,10 +32,7 @@ def comma_numbers(n: int):
 def _tool(v):
     if v is None or isinstance(v, tuple):
         return v
-    tool = parse_floats(v, 3)
-    if not all(math.isfinite(x) for x in tool):
-        raise ValueError(f"expected 3 finite numbers, got {v!r}")
-    return tuple(tool)
+    return tuple(parse_floats(v, 3))
 
 
 def _radius(v: float | None) -> float | None:

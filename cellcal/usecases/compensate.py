@@ -27,6 +27,7 @@ from ..errors import UsageError
 from ..request import Request
 from .model_exports import Exports, write_exports
 from .outputs import check_outputs, existing_paths
+from .target_checks import JOINTS_TOLERANCE_MM, check_joints_reach
 
 
 class CompensateRequest(Request):
@@ -38,6 +39,8 @@ class CompensateRequest(Request):
     out: str | None = Field(None, alias="--out")
     start: str | None = Field(None, alias="--start")
     position_only: bool = Field(False, alias="--position-only")
+    joints_tolerance_mm: float = Field(JOINTS_TOLERANCE_MM, gt=0, allow_inf_nan=False,
+                                       alias="--joints-tolerance-mm")
     export_model: str | None = Field(None, alias="--export-model")
     export_ur: str | None = Field(None, alias="--export-ur")
     export_urdf: str | None = Field(None, alias="--export-urdf")
@@ -101,6 +104,7 @@ def compensate_targets(request: CompensateRequest) -> Compensated:
     if not request.targets:
         return done
     t = load_targets(request.targets, em.model)
+    check_joints_reach(t, em.model, request.joints_tolerance_mm, request.targets)
     if "dirs" not in t.columns and any(e.family == "backlash" for e in em.effects):
         done.notes.append(
             "the calibration has backlash: give dir1..dirN in the targets (the direction "

@@ -9,16 +9,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Self
+from typing import Annotated, Any, Self
 
 from pydantic import Field
 
-from ..errors import UsageError
 from ..flags.capture_flags import EXEC_FLAGS, flag_values
 from ..flags.routine_args import ACQUIRE_FLAGS, ROUTINE_ARGS
-from ..flags.values import floats
 from ..request import Request
-from .capture import check_urls, executor_options, tracker_setup
+from .capture import check_urls, comma_numbers, executor_options, tracker_setup
 
 
 class ResumeArgs(Request):
@@ -33,7 +31,8 @@ class ResumeArgs(Request):
     robot_id: str | None = Field(None, alias="--robot-id")
     synchronous: str = Field("FULL", alias="--synchronous")
     other_cell: bool = Field(False, alias="--other-cell")
-    meteo: str | None = Field(None, alias="--meteo")
+    meteo: Annotated[tuple[float, float, float] | None, comma_numbers(3)] = Field(
+        None, alias="--meteo")
     executor: dict = {}
     acquire: dict = {}
 
@@ -57,7 +56,8 @@ class ResumeArgs(Request):
 @dataclass(frozen=True)
 class ResumeResult:
     """The run found (a :class:`~daq.service.Resumable`) and how the session ended (a
-    :class:`~daq.service.RunOutcome`; None when the run was already completed)."""
+    :class:`~daq.service.RunOutcome`; None when the run was already finished: completed,
+    or incomplete)."""
 
     resumable: Any
     outcome: Any = None
@@ -85,13 +85,9 @@ def resume(req: ResumeArgs, *, progress=None,
                                  tracker_url=req.tracker, leases=leases,
                                  robot_id=req.robot_id)
             r = res.run
-            if res.completed:
+            if res.finished:
                 return ResumeResult(res)
-            try:  # a completed run is left as it is, whatever the flags
-                meteo = floats(req.meteo, 3, "--meteo")
-            except ValueError as e:
-                raise UsageError(str(e)) from None
-            given = {} if meteo is None else {"meteo": tuple(meteo)}
+            given = {} if req.meteo is None else {"meteo": req.meteo}
             tracker_setup(given, r.context.tracker.model_dump())  # checked over the stored
             return ResumeResult(res, resume_run(
                 store, res, executor=req.executor, acquire=req.acquire_of(r.routine),

@@ -90,6 +90,40 @@ def require_visible(routine: str, model, q: np.ndarray, labels, cell, change: st
     raise NotEnoughVisible("\n".join(lines))
 
 
+def what_hides(model, cell, *, floor_z_mm: float | None = 0.0,
+               max_reach_mm: float | None = None) -> str:
+    """Why the tracker sees no pose at all, as advice naming the flag that fixes it: the SMR
+    inside the wrist (the tool offset), else the one constraint that hides the most of the
+    poses drawn facing it (:mod:`calibration.sight_cause`); "" when nothing stands out."""
+    from calibration.sight_cause import smr_inside_link
+    from calibration.sight_cause import what_hides as hiding
+
+    inside = smr_inside_link(model, cell.margins.clearance_mm)
+    if inside is not None:
+        link, radius = inside
+        tool = np.linalg.norm(model.tool_mm())
+        return (f"the SMR is inside the wrist: the tool offset puts it {tool:.0f} mm from the "
+                f"flange centre, within link {link} ({radius:g} mm radius + "
+                f"{cell.margins.clearance_mm:g} mm clearance), so the wrist is in every beam; "
+                "give the SMR's position on the flange with --tool-mm X,Y,Z (e.g. 0,0,60 for "
+                "a 60 mm holder)")
+    h = hiding(model, cell, np.random.default_rng(0), floor_z_mm=floor_z_mm,
+               max_reach_mm=max_reach_mm)
+    if h.n == 0:
+        return ("no pose is within the workspace: a lower --floor-z-mm or no --max-reach-mm")
+    if h.hidden == 0:
+        return ""
+    share = f"{h.hidden} of {h.n} poses drawn facing the tracker"
+    if h.what == "facing":
+        return (f"the SMR faces away from the tracker at {share}: check the SMR axis and "
+                "reflector in the cell file (smr.axis, smr.reflector)")
+    if h.what.startswith("fixture"):
+        return (f"{h.what} is in the beam at {share}: move the tracker, or check the "
+                "fixture in the cell file")
+    return (f"{h.what} is in the beam at {share}: move the tracker (--tracker-at) where "
+            "the arm does not stand between it and the SMR")
+
+
 def facing_starts(model, cell, *, radii=(700.0, 900.0, 1100.0), heights=(250.0, 550.0, 850.0),
                   azimuths_deg=tuple(range(-120, 121, 15)), seed: int = 0,
                   min_sv: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
@@ -140,9 +174,11 @@ def facing_start(model, cell, routine: str, change: str, points) -> np.ndarray:
 
     q, clear = facing_starts(model, cell)
     if len(q) == 0:
+        cause = what_hides(model, cell)
         raise NotEnoughVisible(f"{routine}: no start posture found whose SMR faces the tracker "
                                f"at {np.round(cell.tracker_mm).tolist()} mm "
-                               f"({cell.tracker_source}); change: {change}")
+                               f"({cell.tracker_source}); "
+                               f"{f'the cause: {cause}; ' if cause else ''}change: {change}")
     p, _ = smr_pose(model, q, cell.smr.axis_unit())
     reach = float(np.sum(np.abs(model.dh_table()[:, 1:3])))
     miss = np.abs(np.hypot(p[:, 0], p[:, 1]) - 0.55 * reach) + np.abs(p[:, 2] - 500.0)

@@ -34,10 +34,13 @@ from ._common import (
     nominal_point,
     require_visible,
     visibility_params,
+    what_hides,
 )
 
 #: the narrowest joint-1 arc the frame fit is given (deg): below it the circle's normal is poor
 MIN_CIRCLE_SPAN_DEG = 30.0
+#: rounding allowed when an arc capped at the minimum span is compared with it (deg)
+_SPAN_TOL_DEG = 1e-6
 #: the shortest x line, mm
 MIN_LINE_MM = 100.0
 
@@ -108,6 +111,9 @@ def make_plan(model, *, start_deg=None, circle_span_deg: float = 90.0, circle_po
     """
     if circle_points < 3 or line_points < 2:
         raise ValueError("frame: needs at least 3 circle points and 2 line points")
+    if not circle_span_deg >= MIN_CIRCLE_SPAN_DEG:
+        raise ValueError(f"frame: circle_span_deg {circle_span_deg:g} is below the minimum "
+                         f"{MIN_CIRCLE_SPAN_DEG:g} deg")
     span = np.radians(circle_span_deg)
     if start_deg is not None and len(start_deg) != model.n_joints:
         raise ValueError(f"frame: start has {len(start_deg)} joints, model has {model.n_joints}")
@@ -122,12 +128,14 @@ def make_plan(model, *, start_deg=None, circle_span_deg: float = 90.0, circle_po
         starts = (np.radians(np.atleast_2d(start_deg)) if start_deg is not None
                   else facing_starts(model, cell)[0])
         if len(starts) == 0:
+            cause = what_hides(model, cell)
             raise NotEnoughVisible(f"frame: no posture found whose SMR faces the tracker at "
-                                   f"{np.round(cell.tracker_mm).tolist()} mm; change: {change}")
+                                   f"{np.round(cell.tracker_mm).tolist()} mm; "
+                                   f"{f'the cause: {cause}; ' if cause else ''}change: {change}")
         lo, hi = visible_arcs(model, starts, cell, span)
         found = None
         for k in np.argsort(-(hi - lo), kind="stable")[:20]:  # the widest arcs first
-            if np.degrees(hi[k] - lo[k]) < MIN_CIRCLE_SPAN_DEG:
+            if np.degrees(hi[k] - lo[k]) < MIN_CIRCLE_SPAN_DEG - _SPAN_TOL_DEG:
                 break
             line = _line(model, starts[k], line_length_mm, line_points, cell)
             if line is not None:

@@ -36,7 +36,7 @@ from calibration.visibility import sample_visible, workspace_ok
 
 from ..errors import NotEnoughVisible
 from ..plans import Plan, Target, path_time, shortest_order
-from ._common import knows_tracker, visibility_params
+from ._common import knows_tracker, visibility_params, what_hides
 
 
 def candidates(model, n: int, rng: np.random.Generator, *, floor_z_mm: float | None = 0.0,
@@ -49,12 +49,14 @@ def candidates(model, n: int, rng: np.random.Generator, *, floor_z_mm: float | N
     if knows_tracker(cell):
         q = sample_visible(model, cell, n, rng, max_abs_deg=max_abs_deg, **kw)
         if len(q) < n:
+            cause = what_hides(model, cell, **kw) if len(q) == 0 else ""
             raise NotEnoughVisible(
                 f"poses: only {len(q)} of {n} poses found that the tracker at "
                 f"{np.round(cell.tracker_mm).tolist()} mm ({cell.tracker_source}) sees with "
                 f"the margins (facing within {cell.smr.half_angle_deg:g} - "
                 f"{cell.margins.facing_deg:g} deg, beam {cell.margins.clearance_mm:g} mm clear "
-                "of links and fixtures); change: fewer poses (--count), a lower --floor-z-mm "
+                f"of links and fixtures); {f'the cause: {cause}; ' if cause else ''}"
+                "change: fewer poses (--count), a lower --floor-z-mm "
                 "or no --max-reach-mm, smaller margins or fixtures in the cell file, or move "
                 "the tracker nearer the robot's working space")
         return q

@@ -164,7 +164,17 @@ class PostgresDatabase:
         self.execute("INSERT INTO schema_version (version) VALUES (?)", (int(version),))
 
     def has_table(self, name: str) -> bool:
-        return self.execute("SELECT to_regclass(?) IS NOT NULL", (name,)).fetchone()[0]
+        """Whether the store's schema has table ``name``: a query of the catalog read with
+        the statement's snapshot, so it sees a table another session committed while this
+        one waited for the write lock (``to_regclass`` may answer from the backend's cache
+        of an earlier "no such table": two processes creating one new store then saw "a runs
+        table but no schema version"). Its lock on ``pg_class`` also makes the backend take
+        in the other sessions' catalog changes, so the statements that follow find the
+        tables by name."""
+        return self.execute(
+            "SELECT EXISTS (SELECT 1 FROM pg_catalog.pg_class c JOIN pg_catalog.pg_namespace "
+            "n ON n.oid = c.relnamespace WHERE c.relname = ? AND n.nspname = current_schema())",
+            (name,)).fetchone()[0]
 
     def columns(self, table: str) -> list[str]:
         rows = self.execute(

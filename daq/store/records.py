@@ -31,6 +31,9 @@ class RunStatus(StrEnum):
     COMPLETED = "completed"
     #: refused or broken: resumable once the cause is fixed
     FAILED = "failed"
+    #: went through its plan with more than a small share of its points missing (skipped,
+    #: their beam broken: :mod:`daq.completeness`); not resumable, the reason names them
+    INCOMPLETE = "incomplete"
 
 
 #: the run statuses as stored (:class:`RunStatus`)

@@ -52,6 +52,8 @@ class Case:
     slow: bool = False
     unprivileged: bool = False          # subprocess that may not override file permissions
     stdout_closed: bool = False         # subprocess whose stdout pipe has no reader
+    stores: bool = False                # a non-zero exit that still writes ``creates`` (a
+                                        # capture stored that ended incomplete)
 
     @property
     def id(self) -> str:
@@ -520,7 +522,8 @@ def build_cases() -> list[Case]:
 
     # ---- capture: run store, model, URLs, register maps (refused before any motion)
     cap = ["capture", "poses", "--model", "ur5", "--count", "5", "--db", "{DB}",
-           "--robot", "socket://127.0.0.1:9", "--tracker", "tracker+tcp://127.0.0.1:9"]
+           "--robot", "socket://127.0.0.1:9", "--tracker", "tracker+tcp://127.0.0.1:9",
+           "--tool-mm", "0,0,60", "--tracker-at", "2500,0,500"]
     cases += _store_cases("capture", cap, ok=False, skip=("empty", "missing", "missing_folder"))
     cmodel = [a if a != "ur5" else "{MODEL}" for a in cap]
     cmodel = [a if a != "{DB}" else "new.db" for a in cmodel]
@@ -622,6 +625,8 @@ def build_cases() -> list[Case]:
         if (c.command == "sim" and c.name.startswith("num:")) or "100000000" in c.argv:
             c.mode, c.slow = "subprocess", True
 
+    cases += _seam_cases(good_cap)
+
     # ---- process-level: stdout without a reader, a store only readable
     cases.append(Case("runs", "broken_pipe", ["runs", "--db", "cell.db", "--json"], 0, "",
                       mode="subprocess", slow=True, stdout_closed=True))
@@ -639,6 +644,59 @@ def build_cases() -> list[Case]:
     from .program_cases import program_cases  # it imports this module's helpers
 
     return cases + program_cases()
+
+
+def _contradicting_joints(ws: Path) -> str:
+    """targets.csv with its second target's x moved 500 mm (its joints left as they were)."""
+    head, first, second, *rest = (ws / "targets.csv").read_text().splitlines()
+    f = second.split(",")
+    f[1] = repr(float(f[1]) + 500.0)
+    return "\n".join([head, first, ",".join(f), *rest]) + "\n"
+
+
+def _seam_cases(good_cap: list[str]) -> list[Case]:
+    """Issue 29's seams: a plan made blind, an SMR inside the wrist, the documented minimum
+    of a range, a NaN in a list option, a run that ends with most points missing, targets
+    whose joints contradict their point."""
+    sim = ["--robot", "sim://robot?model=ur10e", "--tracker", "sim://tracker", "--db", "new.db"]
+    ur10e = ["--model", "ur10e", "--tool-mm", "0,0,60", "--tracker-at", "2500,0,500", *sim]
+    blind = [a for a in ur10e if a not in ("--tracker-at", "2500,0,500")]
+    out = [
+        Case("capture", "seam:blind_plan", good_cap[:-2], 2,
+             r"tracker's position is unknown.*--tracker-at.*frame run.*--cell.*--no-visibility"),
+        Case("capture", "seam:smr_at_flange",
+             ["capture", "poses", "--count", "5", "--model", "ur10e", "--tracker-at",
+              "2500,0,500", *sim, "--dry-run"], 3, r"inside the wrist.*--tool-mm"),
+        Case("capture", "seam:circle_below_minimum",
+             ["capture", "frame", *ur10e, "--circle-span-deg", "29.9"], 2,
+             r"--circle-span-deg.*minimum 30"),
+        Case("capture", "seam:circle_minimum_ok",
+             ["capture", "frame", *ur10e, "--circle-span-deg", "30", "--dry-run"], 0, ""),
+        Case("capture", "seam:mostly_skipped",
+             ["capture", "poses", "--count", "4", "--seed", "3", *blind, "--no-visibility",
+              "--measure-s", "0.01"], 3, r"incomplete.*4 of 4 planned points missing",
+             creates=("new.db",), stores=True),
+        Case("resume", "seam:meteo_nan", ["resume", "--db", "cell.db", "--meteo", "20,nan,45"],
+             2, r"--meteo.*finite"),
+        Case("compensate", "seam:joints_contradict_target",
+             ["compensate", "bad_joints.csv", "--params", "params.json"], 2,
+             r"bad_joints\.csv.*line 3 \(pose_id t2\): \d+\.\d mm.*--joints-tolerance-mm",
+             [write("bad_joints.csv", _contradicting_joints)]),
+    ]
+    lists = [("frame", "--start-deg", "0,-60,{v},-120,-90,0"),
+             ("steps", "--start-xyz", "600,{v},500"), ("steps", "--start-deg", "0,-60,{v},0,0,0"),
+             ("zero20", "--target-xyz", "600,200,{v}"), ("zero20", "--seed-deg", "{v},0,0,0,0,0"),
+             ("iso9283", "--centre-xyz", "{v},0,500"), ("poses", "--keepout-mm", "0,0,0,1,1,{v}"),
+             ("poses", "--meteo", "20,{v},45"), ("poses", "--tool-mm", "0,{v},60")]
+    for routine, flag, value in lists:
+        for v in ("nan", "inf"):
+            argv = ["capture", routine, "--model", "ur10e", "--tracker-at", "2500,0,500", *sim,
+                    flag, value.format(v=v)]
+            out.append(Case("capture", f"seam:{routine}{flag}={v}", argv, 2,
+                            f"{re.escape(flag)}.*finite"))
+    out += _number_cases("compensate", ["compensate", "targets.csv", "--params", "params.json"],
+                         [("--joints-tolerance-mm", ["0", "-1", "nan", "inf", "x"])])
+    return out
 
 
 def _store_cases(command, argv, *, ok: bool, skip=(), creates=()) -> list[Case]:
@@ -824,7 +882,7 @@ def judge(case: Case, outcome: Outcome, before: dict[str, str], ws: Path) -> lis
         problems.append(f"loss: changed or removed {changed[:4]}")
     new = [k for k in after if k not in before and k not in case.creates
            and not k.startswith(".mpl")]
-    refused = case.rc != 0
+    refused = case.rc != 0 and not case.stores
     if refused and (new or any(k in after for k in case.creates if k not in before)):
         problems.append(f"loss: files left by a refused command {(new or list(case.creates))[:4]}")
     elif new and not refused:

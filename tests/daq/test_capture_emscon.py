@@ -131,8 +131,8 @@ def test_sim_serve_switches_make_the_checks_refuse(tmp_path):
                    "--tracker-collimation-urad", "40") as serve:
         urls = read_lines(serve, 4, timeout=30)
         base = [*CLI, "capture", "poses", "--count", "5", "--model", "ur10e", "--tool-mm",
-                "0,0,60", "--no-floor", "--robot", urls[1], "--tracker", urls[3], "--db",
-                str(db)]
+                "0,0,60", "--no-floor", "--tracker-at", "2500,0,500", "--robot", urls[1],
+                "--tracker", urls[3], "--db", str(db)]
         for extra, words in (([], "no weather station reports the air"),
                              (["--meteo", "20.5,1008,40"], "the tracker needs compensation")):
             out = subprocess.run([*base, *extra], cwd=ROOT, capture_output=True, timeout=120)

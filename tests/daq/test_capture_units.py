@@ -225,7 +225,8 @@ def test_cli_refuses_a_bad_plan_and_an_unidentified_robot_without_tty(tmp_path, 
                                                                       monkeypatch):
     db = str(tmp_path / "c.db")
     rc = main(["capture", "steps", "--model", TOY, "--start-deg", "0,20,-60", "--step-mm", "50",
-               "--robot", "sim://robot", "--tracker", "sim://tracker", "--db", db])
+               "--robot", "sim://robot", "--tracker", "sim://tracker", "--db", db,
+               "--no-visibility"])
     assert rc == 2 and "unreachable" in capsys.readouterr().err
     inproc.reset_cells()
     monkeypatch.setattr("sys.stdin", io.StringIO(""))
@@ -233,7 +234,7 @@ def test_cli_refuses_a_bad_plan_and_an_unidentified_robot_without_tty(tmp_path, 
         "robot", "ACME-7", "A1", n_joints=3))
     rc = main(["capture", "poses", "--count", "3", "--model", TOY, "--robot",
                toy_sim("robot", 3, "real"), "--tracker", toy_sim("tracker", 3, "real"),
-               "--db", db])
+               "--db", db, "--no-visibility"])
     assert rc == 2 and "--yes" in capsys.readouterr().err
     with RunStore(db) as st:
         assert st.runs() == []  # nothing stored, nothing moved
@@ -246,7 +247,8 @@ def test_cli_capture_runs_export_in_process(tmp_path, capsys):
     db, csv = str(tmp_path / "c.db"), str(tmp_path / "d.csv")
     rc = main(["capture", "poses", "--count", "8", "--seed", "1", "--model", TOY,
                "--robot", toy_sim("robot", 21, "cli"), "--tracker",
-               toy_sim("tracker", 21, "cli"), "--db", db, "--json", "--measure-s", "0.01"])
+               toy_sim("tracker", 21, "cli"), "--db", db, "--json", "--measure-s", "0.01",
+               "--no-visibility"])
     out = json.loads(capsys.readouterr().out)
     assert rc == 0 and out["samples"] == 8 and out["status"] == "completed"
     assert main(["runs", "--db", db, "--json"]) == 0

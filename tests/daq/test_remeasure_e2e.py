@@ -201,7 +201,7 @@ def test_linear_targets_are_re_measured_through_their_own_approach(routine, para
     from .capture_helpers import connected
 
     planned = plan_run(CaptureRequest(routine=routine, model="ur10e", params=params,
-                                      tool_mm=(0.0, 0.0, 60.0), floor_z_mm=None))
+                                      tool_mm=(0.0, 0.0, 60.0), floor_z_mm=None, cell=SEE_ALL))
     arm_at = RunningModel(planned.model, planned.plan).min_points + 3
     assert arm_at < len(planned.plan)
     # these fixed paths do not turn the SMR to the tracker: a 360-degree reflector

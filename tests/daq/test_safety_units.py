@@ -393,15 +393,16 @@ def test_resume_options_are_checked_first(tmp_path, capsys):
 def test_the_robot_must_be_the_models_before_a_run_exists(tmp_path, capsys):
     db = tmp_path / "c.db"
     rc = main(["capture", "poses", "--count", "3", "--model", "ur10e", "--robot",
-               "sim://robot?seed=1", "--tracker", "sim://tracker?seed=1", "--db", str(db)])
+               "sim://robot?seed=1", "--tracker", "sim://tracker?seed=1", "--db", str(db),
+               "--no-visibility"])
     assert rc == 2 and "needs model=NAME|PATH" in capsys.readouterr().err
     rc = main(["capture", "poses", "--count", "3", "--model", "ur10e", "--no-floor", "--robot",
                toy_sim("robot", 1, "toy"), "--tracker", toy_sim("tracker", 1, "toy"),
-               "--db", str(db), "--json"])
+               "--db", str(db), "--json", "--no-visibility"])
     assert rc == 2 and "has 3 joints, the model ur10e has 6" in capsys.readouterr().err
     rc = main(["capture", "poses", "--count", "3", "--model", "ur5e", "--no-floor", "--robot",
                "sim://robot?model=ur10e&seed=1&name=ur", "--tracker",
-               "sim://tracker?seed=1&name=ur", "--db", str(db)])
+               "sim://tracker?seed=1&name=ur", "--db", str(db), "--no-visibility"])
     assert rc == 2 and "simulates a ur10e, the run's model is ur5e" in capsys.readouterr().err
     with RunStore(db) as st:
         assert st.runs() == []

@@ -42,7 +42,7 @@ def test_an_upgrade_needs_a_one_line_description():
 
 
 def test_statuses_are_stored_as_before():
-    assert STATUSES == ("running", "paused", "stopped", "completed", "failed")
+    assert STATUSES == ("running", "paused", "stopped", "completed", "failed", "incomplete")
     assert tuple(RunStatus) == STATUSES
 
 

@@ -121,9 +121,13 @@ def test_dry_run_lists_hidden_points_and_estimates_time(tmp_path, capsys):
     bad.write_text("smr: {reflector: RRR 9in}\n")
     assert main(["capture", "poses", "--cell", str(bad), *common]) == 2
     assert f"{bad}: smr: unknown reflector" in capsys.readouterr().err
-    # unknown tracker: planned as before, and said so
+    # unknown tracker: refused, naming the three ways to give it (issue 29) ...
     common_no_tracker = [c for c in common if c not in ("--tracker-at", "2500,0,500")]
-    assert main(["capture", "poses", "--count", "5", *common_no_tracker]) == 0
+    assert main(["capture", "poses", "--count", "5", *common_no_tracker]) == 2
+    err = capsys.readouterr().err
+    assert all(w in err for w in ("--tracker-at", "frame run", "--cell", "--no-visibility"))
+    # ... or planned as before when the line of sight is waived, and said so
+    assert main(["capture", "poses", "--count", "5", "--no-visibility", *common_no_tracker]) == 0
     assert "tracker position is unknown" in capsys.readouterr().out
     assert not (tmp_path / "c.db").exists()
 
