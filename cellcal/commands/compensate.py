@@ -16,11 +16,12 @@ def register(sub) -> None:
         help="compensate target points with a calibrated model",
         description="For target points of the tool in the robot base frame (CSV: x, y, z "
         "in mm required; optional pose_id, q1..qN nominal joints in deg, dir1..dirN "
-        "approach directions, temp_c, payload_kg) compute the joints that reach them on "
-        "the real robot and the corrected Cartesian targets (nominal FK of those joints) "
-        "for a controller that only knows its nominal model. The nominal model is the "
-        "calibration's, with the capture's tool (the controller's TCP). Optionally export "
-        "the calibrated model (YAML) or UR deltas.\n\n"
+        "approach directions, temp_c, payload_kg, joint_temp1..N and t_s: the thermal "
+        "state a calibration with drift effects compensates for, else its warm state) "
+        "compute the joints that reach them on the real robot and the corrected Cartesian "
+        "targets (nominal FK of those joints) for a controller that only knows its nominal "
+        "model. The nominal model is the calibration's, with the capture's tool (the "
+        "controller's TCP). Optionally export the calibrated model (YAML) or UR deltas.\n\n"
         "Targets without nominal joints get them by inverse kinematics on the nominal "
         "model, from --start (default: a few standard postures, the first that reaches "
         "wins). Exit 0 when every target is reached, 1 otherwise, 2 for bad input "
@@ -62,6 +63,7 @@ def run(args) -> int:
         compensation_text,
         export_lines,
     )
+    from presentation.thermal_text import state_line
 
     from ..usecases.compensate import CompensateRequest, compensate_targets
 
@@ -70,15 +72,20 @@ def run(args) -> int:
     exports = done.exports
     rc = 0 if done.result is None or done.result.success.all() else 1
     if args.json:
-        print_json(compensation_summary(
+        summary = compensation_summary(
             params_file=request.params, model=done.model, capture=done.capture,
             notes=done.notes, exports=exports.files if exports else None,
             not_exported=exports.not_exported if exports else None, t=done.targets,
-            c=done.result, out_file=request.out))
+            c=done.result, out_file=request.out)
+        if done.thermal is not None:
+            summary["thermal_state"] = done.thermal
+        print_json(summary)
         return rc
     if done.targets is not None:
         print(compensation_text(done.model, done.capture, request.targets, done.targets,
                                 done.result, done.notes))
+        if done.thermal is not None:
+            print(f"thermal   {state_line(done.thermal)}")
         if request.out:
             print(f"written   {request.out}")
         else:
