@@ -16,16 +16,18 @@ def register(sub) -> None:
         help="compensate target points with a calibrated model",
         description="For target points of the tool in the robot base frame (CSV: x, y, z "
         "in mm required; optional pose_id, q1..qN nominal joints in deg, dir1..dirN "
-        "approach directions, temp_c, payload_kg, joint_temp1..N and t_s: the thermal "
-        "state a calibration with drift effects compensates for, else its warm state) "
-        "compute the joints that reach them on the real robot and the corrected Cartesian "
-        "targets (nominal FK of those joints) for a controller that only knows its nominal "
-        "model. The nominal model is the calibration's, with the capture's tool (the "
-        "controller's TCP). Optionally export the calibrated model (YAML) or UR deltas.\n\n"
+        "approach directions, temp_c, payload_kg) compute the joints that reach them on "
+        "the real robot and the corrected Cartesian targets (nominal FK of those joints) "
+        "for a controller that only knows its nominal model. The nominal model is the "
+        "calibration's, with the capture's tool (the controller's TCP). Optionally export "
+        "the calibrated model (YAML) or UR deltas.\n\n"
         "Targets without nominal joints get them by inverse kinematics on the nominal "
         "model, from --start (default: a few standard postures, the first that reaches "
         "wins). Exit 0 when every target is reached, 1 otherwise, 2 for bad input "
-        "(docs/formats.md §6).",
+        "(docs/formats.md §6).\n\n"
+        "A calibration with drift effects compensates for the thermal state each target "
+        "gives (joint_temp1..N, t_s, temp_c columns), else for its warm state (the end of its "
+        "capture); the output says which.",
     )
     p.add_argument("targets", metavar="TARGETS.csv", nargs="?",
                    help="target points (omit to only export)")
