@@ -236,8 +236,8 @@ class Targets:
     base_p_tcp : (n, 3) desired tool points in the robot base frame, mm
     q : (n, N) nominal joints, rad, or None
     pose_id : n labels
-    columns : optional per-target data: ``temp_c``, ``payload_kg`` (n,), ``dirs`` (n, N)
-        approach directions (for backlash)
+    columns : optional per-target data: ``temp_c``, ``payload_kg``, ``t_s`` (n,),
+        ``dirs`` (n, N) approach directions (for backlash), ``joint_temp`` (n, N) °C
     lines : n line numbers in the file (None: not read from a file)
     """
 
@@ -252,9 +252,17 @@ def load_targets(path, model) -> Targets:
     """Read a targets CSV: ``x, y, z`` (mm, robot base frame) required; optional
     ``pose_id``, ``q1..qN`` (deg, nominal/seed joints, all or none), ``dir1..dirN`` (the
     direction each joint will approach the target from, -1/0/+1, all or none: for a model
-    with backlash), ``temp_c``, ``payload_kg``. Strict like the measurement CSV: errors
-    name file, line and column."""
-    from .dataset import MAX_LENGTH_MM, OPTIONAL_RANGES, PLAUSIBLE_LENGTH, CsvTable, DataError
+    with backlash), ``temp_c``, ``payload_kg``, and the thermal state a target will be
+    reached at: ``joint_temp1..N`` (°C, all or none) and ``t_s`` (s, the measurement
+    CSV's clock). Strict like the measurement CSV: errors name file, line and column."""
+    from .dataset import (
+        MAX_LENGTH_MM,
+        OPTIONAL_RANGES,
+        PLAUSIBLE_LENGTH,
+        CsvTable,
+        DataError,
+        _joint_temperatures,
+    )
 
     t = CsvTable(path)
     N = model.n_joints
@@ -277,4 +285,9 @@ def load_targets(path, model) -> Targets:
             raise DataError(f"{t.source}: line {t.lines[r]}, column dir{j + 1}: "
                             f"{dirs[r, j]:g} is not -1, 0 or +1")
         columns["dirs"] = dirs.astype(int)
+    joint_temp = _joint_temperatures(t, N)
+    if joint_temp is not None:
+        columns["joint_temp"] = joint_temp
+    if "t_s" in t:
+        columns["t_s"] = t.numeric("t_s")
     return Targets(xyz, q, pose_id, columns, [int(v) for v in t.lines])

@@ -43,7 +43,10 @@ Version 2 added ``model_hash`` (:meth:`RobotModel.definition_hash`), the paramet
 ``weak`` (why an identifiable parameter is only weakly determined, else null) and
 effect files recorded by name and sha256 (version 1 recorded their paths). Version-1
 files still load. Keys a reader does not know are ignored (the format is extended,
-never broken).
+never broken). ``thermal`` (a model with a drift effect only) is the time window,
+reference temperature and warm state its parameters were fitted against, given back to
+the reloaded effects; it carries a version of its own (:mod:`calibration.thermal_state`):
+a file without it measures time against the data it meets, as before.
 
 Reading is strict (:class:`ParamsFile`, pydantic): every value a finite number of a
 plausible size, std null or >= 0, units as the effect declares them, every parameter of
@@ -90,6 +93,7 @@ from .robot_model import (
     model_from_dict,
     number_only,
 )
+from .thermal_state import apply_thermal_record, check_thermal_record, thermal_record
 from .uncertainty import correlations
 
 FORMAT = "cellcal-params"
@@ -194,6 +198,7 @@ def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto=None,
     ``effect_files`` (the files the user loaded) is accepted for compatibility: the
     records come from the fit's own effects."""
     em = fit.error_model
+    thermal = thermal_record(fit)
     out = {
         "format": FORMAT,
         "version": VERSION,
@@ -230,6 +235,8 @@ def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto=None,
         out["auto_steps"] = auto_steps_json(auto)
     if capture is not None and capture.known:
         out["capture"] = capture.to_json()
+    if thermal is not None:
+        out["thermal"] = thermal
     return out
 
 
@@ -322,6 +329,8 @@ class LoadedParams:
     std: np.ndarray
     source: str
     notes: list[str] = field(default_factory=list)
+    #: the ``thermal`` record (:mod:`calibration.thermal_state`), None when none
+    thermal: dict | None = None
 
 
 def _check_effect_files(doc: ParamsFile, source: str) -> None:
@@ -399,6 +408,8 @@ def params_from_doc(data, source: str = "<params>", *, model: RobotModel | None 
     for e in effects:
         if e.label in doc.smoothing:
             e.smoothing = doc.smoothing[e.label]
+    thermal = check_thermal_record(data.get("thermal"), pmodel.n_joints, source)
+    apply_thermal_record(effects, thermal)
     em = ErrorModel(pmodel, effects)
     x = np.zeros(em.n_params)
     std = np.zeros(em.n_params)
@@ -424,7 +435,7 @@ def params_from_doc(data, source: str = "<params>", *, model: RobotModel | None 
         shown = ", ".join(missing[:5]) + (f" and {len(missing) - 5} more" if len(missing) > 5
                                           else "")
         raise ParamsError(f"{source}: parameters missing: {shown}")
-    return LoadedParams(em, x, std, source, notes)
+    return LoadedParams(em, x, std, source, notes, thermal)
 
 
 def params_from_dict(data: dict, source: str = "<params>", *, model: RobotModel | None = None

@@ -40,6 +40,7 @@ from .plot_base import (
     subsample,
 )
 from .residual_points import Points
+from .thermal_figures import varies
 
 __all__ = ["MAX_POINTS", "STAGE_COLOURS", "Stage", "fig_hist", "fig_periodogram", "fig_steps",
            "fig_story", "fig_time", "fig_workspace", "png_bytes", "style"]
@@ -175,7 +176,7 @@ def fig_workspace(fit: Fit, blunders: Points | None = None) -> tuple[Figure, flo
 
 def time_axes(cloud: Points):
     """The panels of :func:`fig_time`: (name, x of a Points, label) for capture order or
-    time, and temperature when it varies."""
+    time, the (air) temperature and the joints' mean temperature when they vary."""
     def order(p):
         return p.position
 
@@ -186,6 +187,9 @@ def time_axes(cloud: Points):
         panels = [("time", lambda p: (p.t_s - t0) / f, f"time since the first pose, {unit}")]
     if cloud.temp_c is not None and np.ptp(cloud.temp_c) > 0:
         panels.append(("temperature", lambda p: p.temp_c, "temperature, °C"))
+    if varies(cloud.joint_temp):
+        panels.append(("joint temperature", lambda p: None if p.joint_temp is None else
+                       p.joint_temp.mean(axis=1), "joints' mean temperature, °C"))
     return panels
 
 

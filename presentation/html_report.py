@@ -53,6 +53,7 @@ from .html_tables import (
     steps_table,
 )
 from .joint_figures import (
+    fig_joint_temps,
     fig_joints,
     fig_step,
     fig_torque,
@@ -63,6 +64,7 @@ from .joint_figures import (
 from .plot_base import STAGE_COLOURS, Stage, png_bytes, style
 from .provenance import Provenance
 from .residual_points import blunder_rows, points_of
+from .thermal_figures import joint_temps_caption, varies
 
 #: resolution of the embedded PNGs (dots per inch)
 DPI = 100
@@ -445,9 +447,15 @@ def _where_it_fails(page: _Page, diag: Diagnosis, stages: list[Stage],
         "Each calibration pose's 3-D error in capture order"
         + (" (time since the first pose)" if cloud.t_s is not None else "")
         + (" and against the temperature" if cloud.temp_c is not None else "")
+        + (" and the joints' mean temperature" if varies(cloud.joint_temp) else "")
         + "; black: running median (broken over stretches with too few poses), red: noise "
         "floor. A drift or a trend with temperature is thermal growth or a moving tracker, "
         "not the robot's geometry." + marked + correlations_text(diag)))
+    if varies(cloud.joint_temp):
+        parts.append(page.figure(
+            "fig-joint-temps", fig_joint_temps(cloud, blunders),
+            "Residual seen from each joint vs its temperature",
+            joint_temps_caption(cloud) + masked_note(cloud) + marked))
     if diag.where.periodogram:
         parts.append(page.figure(
             "fig-periodogram", fig_periodogram(diag), "Harmonic periodogram per joint",

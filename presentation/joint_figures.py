@@ -38,6 +38,7 @@ from .plot_base import (
     subsample,
 )
 from .residual_points import LEVER_ARM_MIN_MM, Points
+from .thermal_figures import drift_what, drift_x
 
 _DIR_COLOURS = {1: "#1f6fb4", -1: "#8e44ad", 0: "#9a9a9a"}
 _DIR_MEDIAN = {1: "#0b3d66", -1: "#4a1f5c"}
@@ -120,7 +121,7 @@ def _empty(ax, title: str) -> None:
     ax.set_yticks([])
 
 
-def _residual_grid(cloud: Points, joints: list[int], xs: np.ndarray, xs_blunders, xlabel: str,
+def residual_grid(cloud: Points, joints: list[int], xs: np.ndarray, xs_blunders, xlabel: str,
                    overlay, blunders: Points | None, by_direction: int | None = None) -> Figure:
     fig, axes = grid(len(joints))
     for ax, j in zip(axes, joints, strict=False):
@@ -152,16 +153,24 @@ def fig_joints(cloud: Points, overlay=None, blunders: Points | None = None,
                by_direction: int | None = None) -> Figure:
     """Each joint's equivalent residual against its angle; on joint ``by_direction``
     (0-based) coloured by approach direction, with a median for each (backlash)."""
-    return _residual_grid(cloud, list(range(cloud.q.shape[1])), np.degrees(cloud.q),
+    return residual_grid(cloud, list(range(cloud.q.shape[1])), np.degrees(cloud.q),
                           None if blunders is None else np.degrees(blunders.q),
                           "q{j}, deg", overlay, blunders, by_direction)
+
+
+def fig_joint_temps(cloud: Points, blunders: Points | None = None) -> Figure:
+    """Each joint's equivalent residual against its own temperature (``joint_tempJ``): a
+    joint zero drifting as its drive warms is a slope (:mod:`presentation.thermal_figures`)."""
+    return residual_grid(cloud, list(range(cloud.q.shape[1])), cloud.joint_temp,
+                         None if blunders is None else blunders.joint_temp,
+                         "joint {j} temperature, °C", None, blunders)
 
 
 def fig_torque(cloud: Points, overlay=None, blunders: Points | None = None,
                by_direction: int | None = None) -> Figure:
     """Each joint's equivalent residual against its gravity torque (``by_direction`` as
     in :func:`fig_joints`)."""
-    return _residual_grid(cloud, torque_joints(cloud), cloud.torque_nm,
+    return residual_grid(cloud, torque_joints(cloud), cloud.torque_nm,
                           None if blunders is None else blunders.torque_nm,
                           "gravity torque on joint {j}, N·m", overlay, blunders, by_direction)
 
@@ -273,6 +282,9 @@ def _directions(eff, rows, fit: Fit) -> np.ndarray:
 def _step_x(eff, rows, fit: Fit) -> tuple[np.ndarray, str]:
     """What the effect is a function of: the x axis of its step figure."""
     fam = eff.family
+    drift = drift_x(eff, rows)
+    if drift is not None:
+        return drift
     if fam == "compliance":
         em = fit.error_model
         tau = gravity_torques(em.model, em.bind(rows).nominal, rows.payload_kg)
@@ -291,6 +303,9 @@ def _step_x(eff, rows, fit: Fit) -> tuple[np.ndarray, str]:
 def _what(eff, p: np.ndarray, rows, fit: Fit) -> str:
     """What the effect looks like in its step figure, with the fitted size (HTML)."""
     fam, j = eff.family, eff.joint
+    drift = drift_what(eff, p)
+    if drift is not None:
+        return drift
     if fam == "compliance":
         c = float(p[0]) * 1e6
         return (f"Compliance shows as a straight line through zero against the gravity torque "

@@ -38,6 +38,7 @@ class Points:
     torque_nm : (n, N) gravity torques, None without a mass model
     position : (n,) place among the data's calibration rows in capture order (0-based)
     t_s, temp_c : (n,) or None
+    joint_temp : (n, N) each joint's temperature (°C), or None
     dirs : (n, N) approach direction of every joint (-1, 0, +1): the data's, else derived
         from consecutive rows
     """
@@ -54,6 +55,7 @@ class Points:
     t_s: np.ndarray | None
     temp_c: np.ndarray | None
     dirs: np.ndarray | None = None
+    joint_temp: np.ndarray | None = None
 
     @property
     def n(self) -> int:
@@ -84,7 +86,7 @@ def points_of(fit: Fit, rows: Dataset, order: Dataset | None = None) -> Points:
     dirs = rows.dirs if rows.dirs is not None else derive_directions(rows.q)
     return Points(list(rows.pose_id), np.asarray(rows.lines), rows.q, rows.tracker_p_smr,
                   view.residuals, view.joint_residual_rad, view.lever_arm_mm, torque,
-                  position, rows.t_s, rows.temp_c, np.asarray(dirs))
+                  position, rows.t_s, rows.temp_c, np.asarray(dirs), rows.joint_temp)
 
 
 def blunder_rows(data: Dataset | None, ids: list[str]) -> Dataset | None:

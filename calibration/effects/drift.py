@@ -35,19 +35,26 @@ MAX_DRIFT_ORDER = 4
 DRIFT_WINDOW_KEY = "drift_window_s"
 
 
-def joint_temperature_rise(data: Dataset, family: str) -> np.ndarray:
-    """Each joint's temperature over the reference, (n, N) K; EffectError without
+def joint_temperature_rise(data: Dataset, family: str, temp_ref_c: float | None = None
+                           ) -> np.ndarray:
+    """Each joint's temperature over the reference (``temp_ref_c``: the calibration's,
+    else the data's ``temp_ref_c`` metadata, else 20 °C), (n, N) K; EffectError without
     joint temperatures."""
     if data.joint_temp is None:
         raise EffectError(f"{data.source}: effect {family} needs the joint temperatures "
                           "(joint_temp1..N columns)")
-    return data.joint_temp - float(data.meta.get("temp_ref_c", DEFAULT_TEMP_REF_C))
+    if temp_ref_c is None:
+        temp_ref_c = float(data.meta.get("temp_ref_c", DEFAULT_TEMP_REF_C))
+    return data.joint_temp - temp_ref_c
 
 
 class _OneParameter(Effect):
     """An effect with one parameter, named in ``parameter``: (name, internal unit, scale)."""
 
     parameter: tuple[str, str, float] = ("", "", 1.0)
+    #: the reference temperature (°C) of a model read from a params.json (its ``thermal``
+    #: record), which the data's own ``temp_ref_c`` does not override; None: the data's
+    temp_ref_c: float | None = None
 
     def __init__(self, model, joint=None, order=None):
         super().__init__(model, joint, order)
@@ -70,7 +77,7 @@ class ThermalGrowth(_OneParameter):
     parameter = ("k", "1/K", 1e-5)
 
     def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
-        return joint_temperature_rise(data, self.family).mean(axis=1)
+        return joint_temperature_rise(data, self.family, self.temp_ref_c).mean(axis=1)
 
     def length_scale(self, p, data, dT):
         return p[0] * dT, dT[:, None]
@@ -91,7 +98,7 @@ class ThermalZero(_OneParameter, JointEffect):
     parameter = ("z", "rad/K", 1e-6)
 
     def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
-        return joint_temperature_rise(data, self.label)[:, self.joint - 1]
+        return joint_temperature_rise(data, self.label, self.temp_ref_c)[:, self.joint - 1]
 
     def delta(self, p, data, dT):
         return p[0] * dT, dT[:, None]
@@ -136,21 +143,28 @@ class _OverTime(Effect):
         #: the window of the last data bound with one: rows bound later without one (a
         #: held-out subset) use it, so every subset of one capture shares its time scale
         self._window: tuple[float, float] | None = None
+        #: the calibration's window of a model read from a params.json (its ``thermal``
+        #: record): new data are measured against it, not against their own span
+        self.calibrated_window: tuple[float, float] | None = None
 
     def prepare(self, data: Dataset) -> Dataset:
-        """Record the calibration rows' time window in the metadata (before any split)."""
+        """Record the time window in the metadata (before any split): the calibration's
+        of a reloaded model, else the calibration rows' first and last time."""
         if data.t_s is None or data.n == 0 or _window(data) is not None:
             return data
-        calib = data.t_s[~data.is_valid] if (~data.is_valid).any() else data.t_s
-        window = f"{float(calib.min())!r},{float(calib.max())!r}"
-        return replace(data, meta={**data.meta, DRIFT_WINDOW_KEY: window})
+        if self.calibrated_window is not None:
+            t0, t1 = self.calibrated_window
+        else:
+            calib = data.t_s[~data.is_valid] if (~data.is_valid).any() else data.t_s
+            t0, t1 = float(calib.min()), float(calib.max())
+        return replace(data, meta={**data.meta, DRIFT_WINDOW_KEY: f"{t0!r},{t1!r}"})
 
     def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
         """The basis, (n, K)."""
         if data.t_s is None:
             raise EffectError(f"{data.source}: effect {self.label} needs the time of each "
                               "measurement (t_s column)")
-        window = _window(data) or self._window
+        window = self.calibrated_window or _window(data) or self._window
         if window is None and data.n:
             window = (float(data.t_s.min()), float(data.t_s.max()))
         self._window = window

@@ -27,7 +27,10 @@ def register(sub) -> None:
         "Targets without nominal joints get them by inverse kinematics on the nominal "
         "model, from --start (default: a few standard postures, the first that reaches "
         "wins). Exit 0 when every target is reached, 1 otherwise, 2 for bad input "
-        "(docs/formats.md §6).",
+        "(docs/formats.md §6).\n\n"
+        "A calibration with drift effects compensates for the thermal state each target "
+        "gives (joint_temp1..N, t_s, temp_c columns), else for its warm state (the end of its "
+        "capture); the output says which.",
     )
     p.add_argument("targets", metavar="TARGETS.csv", nargs="?",
                    help="target points (omit to only export)")
@@ -72,6 +75,7 @@ def run(args) -> int:
         compensation_text,
         export_lines,
     )
+    from presentation.thermal_text import state_line
 
     from ..usecases.compensate import CompensateRequest, compensate_targets
 
@@ -80,15 +84,20 @@ def run(args) -> int:
     exports = done.exports
     rc = 0 if done.result is None or done.result.success.all() else 1
     if args.json:
-        print_json(compensation_summary(
+        summary = compensation_summary(
             params_file=request.params, model=done.model, capture=done.capture,
             notes=done.notes, exports=exports.files if exports else None,
             not_exported=exports.not_exported if exports else None, t=done.targets,
-            c=done.result, out_file=request.out))
+            c=done.result, out_file=request.out)
+        if done.thermal is not None:
+            summary["thermal_state"] = done.thermal
+        print_json(summary)
         return rc
     if done.targets is not None:
         print(compensation_text(done.model, done.capture, request.targets, done.targets,
                                 done.result, done.notes))
+        if done.thermal is not None:
+            print(f"thermal   {state_line(done.thermal)}")
         if request.out:
             print(f"written   {request.out}")
         else:

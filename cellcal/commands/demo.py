@@ -29,6 +29,10 @@ def register(sub) -> None:
                    help="calibration poses (default 300, at least 50)")
     p.add_argument("--valid", type=bounded_int(20, 100_000), default=150, metavar="N",
                    help="validation poses (default 150, at least 20)")
+    p.add_argument("--cold-start", action="store_true",
+                   help="the robot starts cold and warms up while it is captured (drift "
+                   "checks every 25 points); no physical effect hidden unless --hidden; exit "
+                   "0 when the diagnosis adds a drift effect")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--force", action="store_true",
                    help="write into a folder that holds other files (the demo's own file "

@@ -20,7 +20,8 @@ from calibration.capture_meta import CaptureMeta
 from calibration.compensation import Compensation, Targets, compensate, load_targets
 from calibration.effects import load_effect_file
 from calibration.files import write_atomic
-from calibration.params_io import capture_of, load_params
+from calibration.params_io import capture_of, read_params
+from calibration.thermal_state import target_state
 from presentation.compensation_text import compensated_csv
 
 from ..errors import UsageError
@@ -66,6 +67,8 @@ class Compensated:
     exports : the files exported (None: none asked)
     targets, result : the targets read and their compensation (None without targets)
     csv_text : the compensated CSV (written to ``--out`` when given)
+    thermal : the thermal state compensated for (a model with drift effects:
+        :func:`calibration.thermal_state.target_state`), else None
     """
 
     model: RobotModel
@@ -75,6 +78,7 @@ class Compensated:
     targets: Targets | None = None
     result: Compensation | None = None
     csv_text: str | None = None
+    thermal: dict | None = None
 
 
 def compensate_targets(request: CompensateRequest) -> Compensated:
@@ -93,7 +97,8 @@ def compensate_targets(request: CompensateRequest) -> Compensated:
                   existing_paths(request.params, request.targets, request.effect_file))
     for f in request.effect_file:
         load_effect_file(f)
-    em, x, _ = load_params(request.params)
+    loaded = read_params(request.params)
+    em, x = loaded.error_model, loaded.values
     done = Compensated(em.model, capture_of(request.params), notes=_tool_notes(em, x))
     done.exports = write_exports(em, x, model_yaml=request.export_model,
                                  ur_conf=request.export_ur, urdf=request.export_urdf,
@@ -111,8 +116,9 @@ def compensate_targets(request: CompensateRequest) -> Compensated:
             "each joint will approach from); without them they are derived from the "
             "targets' order")
     start = _parse_start(request.start, em.model.n_joints) if request.start else None
+    columns, done.thermal = target_state(em, loaded.thermal, t.columns, len(t.base_p_tcp))
     c = compensate(em, x, t.base_p_tcp, t.q, q_start=start,
-                   keep_orientation=not request.position_only, columns=t.columns)
+                   keep_orientation=not request.position_only, columns=columns)
     done.targets, done.result, done.csv_text = t, c, compensated_csv(t, c)
     if request.out:
         write_atomic(request.out, done.csv_text)

@@ -6,8 +6,9 @@ hidden physical effect) behind its wire protocols on loopback, connects the real
 captures calibration and validation poses into a SQLite run store, exports the
 measurement CSV, calibrates the default model, diagnoses, lets the automatic diagnosis
 add the missing effects one at a time, and writes the HTML report, which tells that story
-step by step. :func:`demo` is the use case of ``cellcal demo``: its :class:`DemoRequest`
-checked, then :func:`run_demo`.
+step by step. With ``cold_start`` the robot warms up while it is captured, with drift
+checks, and the story is its drift (:mod:`.demo_cold_start`). :func:`demo` is the use case
+of ``cellcal demo``: its :class:`DemoRequest` checked, then :func:`run_demo`.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from sim_drivers.model_truth import ModelTruth
 from sim_drivers.serve import ServeConfig, SimStack
 
 from ..request import Request
+from . import demo_cold_start as cold_start_demo
 from .demo_folder import MANIFEST_KEY, DemoFolderError, check_demo_folder
 
 #: hidden effects the demo draws from (by seed): each 0.05-0.5 mm at the tool
@@ -80,9 +82,11 @@ def pick_hidden(seed: int) -> str:
 
 def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | None = None,
              poses: int = 300, valid: int = 150, progress: ProgressFactory | None = None,
-             say: Callable[[str], None] | None = None, force: bool = False) -> DemoResult:
+             say: Callable[[str], None] | None = None, force: bool = False,
+             cold_start: bool = False) -> DemoResult:
     """Run the demo; returns what it measured. ``say`` receives the step-by-step text, line
-    by line; ``progress()`` makes each capture's progress reporter (None: none).
+    by line; ``progress()`` makes each capture's progress reporter (None: none);
+    ``cold_start``: the robot starts cold (no physical effect hidden unless ``hidden``).
 
     :class:`DemoFolderError` for a folder holding other files (see
     :func:`check_demo_folder`; ``force`` writes there anyway, never over a foreign store).
@@ -91,7 +95,7 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     out = Path(out)
     check_demo_folder(out, force)
     out.mkdir(parents=True, exist_ok=True)
-    hidden = hidden or pick_hidden(seed)
+    hidden = hidden or (None if cold_start else pick_hidden(seed))
     db_path, csv_path = out / "cell.db", out / "capture.csv"
     params_path, report_path = out / "params.json", out / "report.html"
     # the manifest first: the store about to be made is the demo's, whatever happens next
@@ -106,11 +110,14 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
 
     truth = ModelTruth.from_spec("ur10e", hidden, seed)
     model = truth.model  # what the controller knows: nominal UR10e, SMR on a 60 mm holder
-    say(f"cellcal demo (seed {seed}): a simulated UR10e with realistic hidden errors and one "
-        "hidden physical effect, measured by a simulated laser tracker")
+    say(f"cellcal demo (seed {seed}): a simulated UR10e with realistic hidden errors and "
+        + ("a cold start (it warms up while it is captured)" if cold_start else
+           "one hidden physical effect") + ", measured by a simulated laser tracker")
     config = ServeConfig(seed=seed, hidden=hidden, pty=False,
-                         ports={"modbus": 0, "line_robot": 0, "tracker": 0})
-    result = DemoResult(out, hidden, None, float("nan"))
+                         ports={"modbus": 0, "line_robot": 0, "tracker": 0},
+                         thermal="cold" if cold_start else None)
+    result = DemoResult(out, cold_start_demo.HIDDEN if cold_start else hidden, None,
+                        float("nan"))
     with SimStack(config, truth_factory=lambda s, h: truth) as stack:
         robot_url = next(u for u in stack.urls if u.startswith("modbus+tcp://"))
         tracker_url = next(u for u in stack.urls if u.startswith("tracker+tcp://"))
@@ -132,12 +139,15 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
                     f"{frame['orthogonality_deg']:.3f} deg off perpendicular to joint 1")
                 count = poses + valid
                 say(f"[3/7] capturing {poses} calibration + {valid} validation poses "
-                    f"into {db_path}")
+                    f"into {db_path}" + (cold_start_demo.CAPTURE_NOTE if cold_start else ""))
                 run_id = _capture(store, "poses", {"count": count, "seed": seed,
                                                    "valid_fraction": valid / count,
                                                    "floor_z_mm": 0.0},
                                   model, robot, tracker, (robot_url, tracker_url), progress,
-                                  seed)
+                                  seed, **(cold_start_demo.capture_options() if cold_start
+                                           else {}))
+                if cold_start:
+                    say(cold_start_demo.drift_story(store, run_id))
                 dataset_from_run(store, run_id).to_csv(csv_path)
                 n_int = len(store.interruptions(run_id))
                 n_samples = store.n_samples(run_id)
@@ -169,7 +179,8 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     final = story.final.fit
     added = [s.effect for s in story.added]
     if added:
-        result.found = hidden if hidden in added else added[0]
+        result.found = (cold_start_demo.drift_found(added) if cold_start else
+                        hidden if hidden in added else added[0])
         say(f"[6/7] calibrated --effects {','.join(final.error_model.labels)}: RMS "
             f"{final.calib['rms_mm']:.4f} mm calibration, {final.valid['rms_mm']:.4f} mm "
             "validation")
@@ -194,12 +205,12 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
 
 
 def _capture(store, routine, params, model, robot, tracker, urls, progress, seed,
-             tracker_at=None) -> int:
+             tracker_at=None, **options) -> int:
     """Plan (for the tracker at ``tracker_at``, else where the store's frame run measured
-    it), dry-run and execute one routine (:mod:`daq.service`); returns the run id (raises
-    on failure)."""
+    it), dry-run and execute one routine (:mod:`daq.service`) with further ``options`` of
+    the request; returns the run id (raises on failure)."""
     request = CaptureRequest(routine=routine, model=model.name, params=params, seed=seed,
-                             tracker_at=tracker_at)
+                             tracker_at=tracker_at, **options)
     planned = plan_run(request, model=model, db=store.path)
     prog = progress() if progress else None
     try:
@@ -223,6 +234,7 @@ class DemoRequest(Request):
     poses: int = Field(300, ge=50, alias="--poses")
     valid: int = Field(150, ge=20, alias="--valid")
     force: bool = Field(False, alias="--force")
+    cold_start: bool = Field(False, alias="--cold-start")
 
 
 def demo(req: DemoRequest, *, say: Callable[[str], None] | None = None,
@@ -244,4 +256,5 @@ def demo(req: DemoRequest, *, say: Callable[[str], None] | None = None,
     except DemoFolderError as e:
         raise UsageError(str(e)) from None
     return run_demo(req.out, seed=req.seed, hidden=req.hidden, poses=req.poses,
-                    valid=req.valid, progress=progress, say=say, force=req.force)
+                    valid=req.valid, progress=progress, say=say, force=req.force,
+                    cold_start=req.cold_start)

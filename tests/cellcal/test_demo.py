@@ -81,3 +81,25 @@ def test_the_demo_writes_only_into_a_folder_it_owns(tmp_path):
         check_demo_folder(user, force=True)
     with pytest.raises(DemoFolderError, match="not a folder"):
         check_demo_folder(user / "capture.csv")
+
+
+@pytest.mark.slow
+def test_cold_start_demo_shows_the_drift_and_the_diagnosis_names_it(tmp_path, capsys):
+    out = tmp_path / "cold"
+    rc = main(["demo", "--cold-start", "--seed", "2", "--out", str(out), "--poses", "150",
+               "--valid", "60", "--quiet"])
+    text = capsys.readouterr().out
+    assert rc == 0, text
+    assert "from cold, measuring a reference pose again every 25 points" in text
+    assert "drift checks:" in text and "the robot drifted during the capture" in text
+    assert "hidden effect: the warm-up (thermal drift) -> found it" in text
+    doc = json.loads((out / "demo.json").read_text())
+    assert doc["hidden"] == doc["found"] == "the warm-up (thermal drift)"
+    stages = list(doc["valid_rms_mm"])
+    assert stages[2].startswith("+ thermal_")
+    assert doc["valid_rms_mm"][stages[-1]] < 1.15 * doc["noise_floor_mm"]
+    assert doc["valid_rms_mm"][stages[1]] > 1.2 * doc["noise_floor_mm"]
+    html = (out / "report.html").read_text()
+    assert 'id="fig-joint-temps"' in html
+    params = json.loads((out / "params.json").read_text())
+    assert params["thermal"]["warm_state"]["joint_temp_c"][1] > 24.0

@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import io
+import json
 import os
 import re
 import stat
@@ -362,6 +363,7 @@ def build_cases() -> list[Case]:
     cases += _path_cases("compensate", pcomp, "{PARAMS}", "params.json",
                          creates=("comp.csv",))[:3]
     gcomp = ["compensate", "targets.csv", "--params", "params.json"]
+    cases += _thermal_compensate_cases()
     cases += _number_cases("compensate", gcomp, [
         ("--start", ["nan,0,0,0,0,0", "1,2,3", "a,b,c,d,e,f", "1e400,0,0,0,0,0"])])
     cases += _out_cases("compensate", gcomp, [
@@ -515,6 +517,10 @@ def build_cases() -> list[Case]:
     cases += _number_cases("demo", ["demo", "--out", "newdemo", "--quiet"], [
         ("--seed", ["-1"]), ("--poses", ["10", "-5"]), ("--valid", ["5"]),
         ("--hidden", ["bogus", "compliance:9"])])
+    cases += _number_cases("demo", ["demo", "--out", "newdemo", "--quiet", "--cold-start"], [
+        ("--poses", ["10"]), ("--hidden", ["bogus"])])
+    cases.append(Case("demo", "cold_start:value", ["demo", "--out", "newdemo", "--quiet",
+                                                   "--cold-start=yes"], 2, r"cold-start"))
 
     # ---- models
     cases.append(Case("models", "ok", ["models"], 0, ""))
@@ -697,6 +703,55 @@ def _seam_cases(good_cap: list[str]) -> list[Case]:
     out += _number_cases("compensate", ["compensate", "targets.csv", "--params", "params.json"],
                          [("--joints-tolerance-mm", ["0", "-1", "nan", "inf", "x"])])
     return out
+
+
+def _thermal_compensate_cases() -> list[Case]:
+    """compensate and the thermal state: bad joint_temp1..N / t_s columns of the targets, a
+    bad ``thermal`` record of params.json, a drift model without a recorded warm state."""
+    def targets(extra_head, extra):
+        def make(ws):
+            lines = (ws / "targets.csv").read_text().splitlines()
+            return "\n".join([lines[0] + extra_head] + [r + extra for r in lines[1:]]) + "\n"
+        return make
+
+    def params(change):
+        def make(ws):
+            d = json.loads((ws / "params.json").read_text())
+            change(d)
+            return json.dumps(d)
+        return make
+
+    def drift_model(d):  # thermal growth calibrated before the thermal record existed
+        d["effects"].append("thermal_growth")
+        d["parameters"].append({"name": "thermal_growth.k", "value": 1e-5, "std": None,
+                                "unit": "1/K", "identifiable": True, "weak": None})
+
+    temps = ",".join(f"joint_temp{j}" for j in range(1, 7))
+    argv = ["compensate", "t.csv", "--params", "p.json", "--out", "comp.csv"]
+    bad_targets = {
+        "joint_temp_partial": (",joint_temp1", ",30", r"joint temp"),
+        "joint_temp_implausible": ("," + temps, ",30,30,30,30,30,900", r"joint_temp6"),
+        "joint_temp_nan": ("," + temps, ",30,30,nan,30,30,30", r"joint_temp3"),
+        "joint_temp7": ("," + temps + ",joint_temp7", ",30,30,30,30,30,30,30",
+                        r"joint_temp7"),
+        "t_s_text": (",t_s", ",soon", r"t_s"),
+    }
+    cases = [Case("compensate", f"thermal:{name}", argv, 2, msg,
+                  [write("t.csv", targets(head, row)), copy("params.json", "p.json")])
+             for name, (head, row, msg) in bad_targets.items()]
+    bad_records = {
+        "record_not_object": (lambda d: d.update(thermal="warm"), r"thermal"),
+        "record_window_reversed": (lambda d: d.update(thermal={"time_window_s": [9, 1]}),
+                                   r"thermal.time_window_s"),
+        "record_newer": (lambda d: d.update(thermal={"version": 99}), r"thermal.version"),
+        "record_temps_short": (lambda d: d.update(thermal={"warm_state": {
+            "joint_temp_c": [30]}}), r"joint_temp_c"),
+        "record_missing": (drift_model, r"needs joint_temp1..N"),
+    }
+    cases += [Case("compensate", f"thermal:{name}", argv, 2, msg,
+                   [copy("targets.csv", "t.csv"), write("p.json", params(change))])
+              for name, (change, msg) in bad_records.items()]
+    return cases
 
 
 def _store_cases(command, argv, *, ok: bool, skip=(), creates=()) -> list[Case]:
