@@ -23,10 +23,14 @@ from .store import RunStatus
 MISSING_SHARE = 0.10
 
 
-def end_status(plan: Plan, done: set[int]) -> tuple[RunStatus, str | None]:
+def end_status(plan: Plan, done: set[int], skipped: set[int]) -> tuple[RunStatus, str | None]:
     """The status (and reason) of a run that went through ``plan`` with the point indices
-    ``done`` stored: ``completed``, or ``incomplete`` with the missing points named."""
-    skipped = [t.index for t in plan.targets if not t.spare and t.index not in done]
+    ``done`` stored and ``skipped`` given up (their beam stayed broken): ``completed``, or
+    ``incomplete`` with the missing points named. Points neither stored nor skipped were
+    not needed (a routine that reached its goal early: a settled warm-up) and are not
+    missing."""
+    skipped = [t.index for t in plan.targets
+               if not t.spare and t.index not in done and t.index in skipped]
     spares = sum(plan.targets[i].spare for i in done if i < len(plan.targets))
     missing = len(skipped) - spares
     if missing <= MISSING_SHARE * plan.n_planned:

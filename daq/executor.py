@@ -424,7 +424,7 @@ class Executor:
                 store.set_status(rid, "failed", f"finalize: {e}")
                 return "failed"
         self._summarise()
-        status, reason = end_status(self.plan, store.done_indices(rid))
+        status, reason = end_status(self.plan, store.done_indices(rid), self._skipped())
         store.set_status(rid, status, reason)
         return str(status)
 

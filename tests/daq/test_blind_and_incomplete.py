@@ -50,11 +50,17 @@ def _plan(n: int, spares: int = 0) -> Plan:
 def test_a_run_missing_more_than_a_tenth_of_its_points_ends_incomplete():
     plan = _plan(20, spares=2)
     assert plan.n_planned == 20 and MISSING_SHARE == 0.10
-    assert end_status(plan, set(range(20))) == (RunStatus.COMPLETED, None)
-    assert end_status(plan, set(range(18)))[0] == RunStatus.COMPLETED  # 2 of 20: a tenth
+    def skipped_after(n):
+        return set(range(n, 20))
+
+    assert end_status(plan, set(range(20)), set()) == (RunStatus.COMPLETED, None)
+    assert end_status(plan, set(range(18)), skipped_after(18))[0] == RunStatus.COMPLETED
     # 4 skipped, 2 spares measured in their place: 2 missing, completed
-    assert end_status(plan, set(range(16)) | {20, 21})[0] == RunStatus.COMPLETED
-    status, reason = end_status(plan, set(range(17)))
+    assert end_status(plan, set(range(16)) | {20, 21},
+                      skipped_after(16))[0] == RunStatus.COMPLETED
+    # a routine that reached its goal early (a settled warm-up) skipped nothing
+    assert end_status(plan, set(range(5)), set()) == (RunStatus.COMPLETED, None)
+    status, reason = end_status(plan, set(range(17)), skipped_after(17))
     assert status == RunStatus.INCOMPLETE
     assert "3 of 20 planned points missing" in reason and "[17, 18, 19]" in reason
     assert "without the tracker's line of sight" in reason  # the plan recorded no cell
