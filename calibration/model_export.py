@@ -16,9 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .dh_conversion import urdf_rpy
 from .error_model import ErrorModel
 from .files import write_atomic
 from .robot_model import RobotModel
+from .transforms import rotvec_to_matrix
 from .ur_conf import deltas_from_table, format_calibration_conf, model_from_table
 
 
@@ -37,19 +39,34 @@ def calibrated_table(error_model: ErrorModel, x: np.ndarray):
         if e.stage == "base":
             notes.append("base: the robot's pose in the tracker frame is not part of the model")
         elif e.stage == "target":
-            notes.append(f"{e.label}: the 6-DoF target's orientation in the flange is not "
-                         "part of the model files (params.json keeps it)")
+            notes.append(f"{e.label}: the tool frame's orientation in the flange is written "
+                         "as the model YAML's tool_rpy_deg and the URDF's tcp_joint rpy; a UR "
+                         "controller takes its TCP (position and orientation) from the "
+                         "installation, not from calibration.conf or the kinematics YAML")
         elif e.stage not in ("table", "tool"):
             notes.append(f"{e.label}: not a fixed kinematic parameter, not exported")
     table, tool = c.table, np.asarray(c.tool, float)
     return table, tool, notes
 
 
+def calibrated_tool_rpy_deg(error_model: ErrorModel, x: np.ndarray):
+    """The identified tool frame's orientation in the flange frame as URDF roll, pitch,
+    yaw (deg; ``tool_rotation``'s ``flange_R_target``), None without that effect."""
+    for e, sl in zip(error_model.effects, error_model.slices, strict=True):
+        if e.stage == "target":
+            return tuple(float(v) for v in np.degrees(urdf_rpy(rotvec_to_matrix(x[sl]))))
+    return None
+
+
 def calibrated_model(error_model: ErrorModel, x: np.ndarray, name: str | None = None):
-    """(RobotModel, notes): the nominal model with the calibrated table and tool."""
+    """(RobotModel, notes): the nominal model with the calibrated table and tool (its
+    point, and its orientation when ``tool_rotation`` was identified)."""
     table, tool, notes = calibrated_table(error_model, x)
     m = model_from_table(error_model.model, table, tool=tool,
                          name=name or f"{error_model.model.name}_calibrated")
+    rpy = calibrated_tool_rpy_deg(error_model, x)
+    if rpy is not None:
+        m = m.with_changes(tool_rpy_deg=rpy)
     return m, notes
 
 

@@ -48,25 +48,28 @@ def parity_joints(model: RobotModel, n: int = N_JOINT_SETS, seed: int = SEED) ->
     return random_joints(model, n, np.random.default_rng(seed))
 
 
-def model_poses(model: RobotModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(tool points (n, 3) mm, flange orientations (n, 3, 3)) of the model, base frame."""
+def model_poses(model: RobotModel, q: np.ndarray,
+                tcp: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(tool points (n, 3) mm, orientations (n, 3, 3)) of the model, base frame: of the
+    flange, or with ``tcp`` of the tool frame (the flange turned by ``tool_rpy_deg``)."""
     r = run_chain(model.convention, model.dh_table(), q, model.tool_mm(), jacobian=False,
                   prismatic=model.prismatic_mask())
-    return r.base_p_tcp, r.base_R_flange
+    return r.base_p_tcp, r.base_R_flange @ model.tool_R() if tcp else r.base_R_flange
 
 
 def model_file_parity(path, model: RobotModel) -> Parity:
     """A written model YAML read back by :func:`calibration.model_loading.load_model`."""
     q = parity_joints(model)
-    max_mm, max_rad = compare(model, q, *model_poses(load_model(path), q))
+    max_mm, max_rad = compare(model, q, *model_poses(load_model(path), q, tcp=True), tcp=True)
     return Parity(str(path), "cellcal model YAML", len(q), max_mm, max_rad)
 
 
 def compare(model: RobotModel, q: np.ndarray, points: np.ndarray,
-            rotations: np.ndarray | None = None) -> tuple[float, float | None]:
+            rotations: np.ndarray | None = None, tcp: bool = False) -> tuple[float, float | None]:
     """Largest point distance (mm) and orientation angle (rad) between the model and a
-    reader's forward kinematics at joints q."""
-    P, R = model_poses(model, q)
+    reader's forward kinematics at joints q; ``tcp``: the rotations are the tool frame's
+    (a file that carries the tool's orientation), else the flange's."""
+    P, R = model_poses(model, q, tcp)
     max_mm = float(np.linalg.norm(points - P, axis=1).max())
     if rotations is None:
         return max_mm, None

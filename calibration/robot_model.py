@@ -152,6 +152,9 @@ class RobotModel(BaseModel):
     convention: Literal["dh", "mdh"]
     joints: list[JointRow] = Field(min_length=1, max_length=20)
     tool: tuple[Offset, Offset, Offset] = (0.0, 0.0, 0.0)
+    #: the tool frame's orientation in the flange frame, URDF roll, pitch, yaw (deg,
+    #: R = Rz(yaw) Ry(pitch) Rx(roll)); absent: the tool frame is the flange's, turned not
+    tool_rpy_deg: tuple[Angle, Angle, Angle] | None = None
     payload: MassPoint | None = None
     links: list[MassPoint] | None = None
     gravity: tuple[Acceleration, Acceleration, Acceleration] = (0.0, 0.0, -9.81)
@@ -191,6 +194,18 @@ class RobotModel(BaseModel):
     def tool_mm(self) -> np.ndarray:
         return np.array(self.tool, dtype=float)
 
+    def tool_R(self) -> np.ndarray:
+        """(3, 3) the tool frame's orientation in the flange frame (identity without
+        ``tool_rpy_deg``)."""
+        if self.tool_rpy_deg is None:
+            return np.eye(3)
+        r, p, y = np.radians(self.tool_rpy_deg)
+        cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+        Rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+        Ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+        Rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+        return Rz @ Ry @ Rx
+
     def prismatic_mask(self) -> np.ndarray | None:
         """(n_joints,) bool, the prismatic joints; None when every joint is revolute."""
         mask = np.array([j.type == "prismatic" for j in self.joints])
@@ -229,6 +244,8 @@ class RobotModel(BaseModel):
     def to_yaml(self) -> str:
         data = self.model_dump(exclude_none=True)
         data["tool"] = list(data["tool"])
+        if "tool_rpy_deg" in data:
+            data["tool_rpy_deg"] = list(data["tool_rpy_deg"])
         data["gravity"] = list(data["gravity"])
         for key in ("payload",):
             if key in data:

@@ -114,7 +114,8 @@ def urdf_text(model: RobotModel, notes: list[str] = ()) -> str:
         parent = child
     links += [FLANGE_LINK, TCP_LINK]
     joints.append(_fixed("flange_joint", parent, FLANGE_LINK, flange))
-    joints.append(_fixed("tcp_joint", FLANGE_LINK, TCP_LINK, _T(p=model.tool_mm())))
+    joints.append(_fixed("tcp_joint", FLANGE_LINK, TCP_LINK,
+                         _T(R=model.tool_R(), p=model.tool_mm())))
     head = "\n".join(f"  <!-- {_comment(n)} -->" for n in notes)
     body = "\n".join(f"  <link name={quoteattr(n)}/>" for n in links) + "\n" + "\n".join(joints)
     return (f'<?xml version="1.0"?>\n<robot name={quoteattr(model.name)}>\n'
@@ -155,14 +156,14 @@ def yourdfpy_poses(path: str | Path, root: str, link: str, q_urdf: np.ndarray) -
 
 def urdf_parity(path: str | Path, model: RobotModel, n: int | None = None) -> Parity:
     """Load the written URDF with yourdfpy and compare its ``tcp`` with the model's tool
-    point and flange orientation at random joint sets (root frame)."""
+    point and tool frame's orientation at random joint sets (root frame)."""
     q = parity_joints(model) if n is None else parity_joints(model, n)
     T = yourdfpy_poses(path, root_link(model), TCP_LINK, urdf_joint_values(model, q))
     # the file's root is the model's base turned by the mount: compare in the base frame
     M = np.linalg.inv(mount_transform(model))
     P = T[:, :3, 3] @ M[:3, :3].T + M[:3, 3]
     R = M[:3, :3] @ T[:, :3, :3]
-    max_mm, max_rad = compare(model, q, P, R)
+    max_mm, max_rad = compare(model, q, P, R, tcp=True)
     return Parity(str(path), "yourdfpy", len(q), max_mm, max_rad)
 
 

@@ -15,7 +15,9 @@ plot_base    what the figures share: style, Stage, deterministic PNGs, binned me
 residual_points  the poses as a fit sees them (joint-equivalent residual, lever arm, torque)
 provenance   Provenance: software, date, data file and SHA-256, run id, model
 ridge_plot   plot_ridge: L-curve, GCV and ridge trace of a ridge fit
-summaries    fit_summary, calibration_summary (calibrate --json), zero_summary (zero --json)
+summaries    fit_summary, calibration_summary (calibrate --json), diagnosis_summary
+             (diagnose --json), zero_summary (zero --json)
+orientation_figures  the report's orientation section: residual per pose and per joint
 plan_figure  plan_figure: a capture plan with the robot, the tracker and the beams
 text_table   table, fmt: plain-text tables and numbers for the command line
 calibration_text   calibrate's text; tool_text, blunder_lines (shared with diagnose)

@@ -13,6 +13,7 @@ from calibration.diagnosis import Diagnosis
 from calibration.identify import Fit
 
 from .calibration_text import blunder_lines
+from .orientation_text import orientation_lines
 from .text_table import fmt, table
 
 
@@ -50,6 +51,7 @@ def diagnosis_text(diag: Diagnosis, top: int = 12, tool: str | None = None) -> s
     if strong:
         lines.append("error correlates with: "
                      + ", ".join(f"{k} ({v:+.2f})" for k, v in strong.items()))
+    lines += orientation_lines(fit)
     lines += [f"note: {note}" for note in diag.notes + fit.notes]
     return "\n".join(lines)
 

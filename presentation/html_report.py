@@ -61,6 +61,7 @@ from .joint_figures import (
     same_basis_overlay,
     torque_joints,
 )
+from .orientation_figures import orientation_section
 from .plot_base import STAGE_COLOURS, Stage, png_bytes, style
 from .provenance import Provenance
 from .residual_points import blunder_rows, points_of
@@ -456,6 +457,7 @@ def _where_it_fails(page: _Page, diag: Diagnosis, stages: list[Stage],
             "fig-joint-temps", fig_joint_temps(cloud, blunders),
             "Residual seen from each joint vs its temperature",
             joint_temps_caption(cloud) + masked_note(cloud) + marked))
+    parts.append(orientation_section(page.figure, fit))
     if diag.where.periodogram:
         parts.append(page.figure(
             "fig-periodogram", fig_periodogram(diag), "Harmonic periodogram per joint",

@@ -1,8 +1,8 @@
 """The JSON objects the command line prints for a result of the calibration core
 (docs/formats.md §4): :func:`fit_summary` (a fit), :func:`calibration_summary`
-(``calibrate --json``: the fit, its parameters, the baseline, a Monte-Carlo check) and
-:func:`zero_summary` (``zero --json``). Numbers rounded and units in degrees where a
-person reads them."""
+(``calibrate --json``: the fit, its parameters, the baseline, a Monte-Carlo check),
+:func:`diagnosis_summary` (``diagnose --json``) and :func:`zero_summary`
+(``zero --json``). Numbers rounded and units in degrees where a person reads them."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from calibration.diagnosis import Diagnosis
 from calibration.identify import Fit
 from calibration.orientation_blindness import Blindness
 from calibration.orientation_view import orientation_view
@@ -38,9 +39,9 @@ def fit_summary(fit: Fit) -> dict:
             k: fit.valid[k] for k in ("n", "rms_mm", "mean_mm", "max_mm", "p95_mm")
             + ORIENTATION_KEYS if k in fit.valid
         }
-    view = orientation_view(fit)
-    if view is not None:
-        out["orientation"] = {**view.to_json(), "noise_floor_deg": orientation_floor_deg(fit)}
+    orientation = orientation_summary(fit)
+    if orientation is not None:
+        out["orientation"] = orientation
     out.update(
         {
             "noise_floor_mm": fit.noise_floor_mm,
@@ -80,6 +81,34 @@ def calibration_summary(fit: Fit, baseline: Fit, *, params_file: str | None,
         out["ridge_plot"] = ridge_plot
     if blindness is not None and blindness.blind:
         out["orientation_blindness"] = blindness.to_json()
+    return out
+
+
+def orientation_summary(fit: Fit) -> dict | None:
+    """The ``orientation`` object of ``calibrate --json``: the residual per flange axis
+    and per joint (:func:`calibration.orientation_view.orientation_view`) and the noise
+    floor; None when the data have no orientations."""
+    view = orientation_view(fit)
+    if view is None:
+        return None
+    return {**view.to_json(), "noise_floor_deg": orientation_floor_deg(fit)}
+
+
+def diagnosis_summary(diag: Diagnosis) -> dict:
+    """The ``diagnose --json`` object: :meth:`Diagnosis.to_json` and, when the data have
+    orientations, an ``orientation`` object beside it: :func:`orientation_summary` with
+    the flange axes ranked (largest RMS first) and the error rows of the calibration and
+    validation poses (rms, mean, max, deg)."""
+    out = diag.to_json()
+    orientation = orientation_summary(diag.fit)
+    if orientation is not None:
+        axes = sorted(orientation["axis_rms_deg"].items(), key=lambda kv: -kv[1])
+        orientation["axes"] = [{"axis": a, "rms_deg": v} for a, v in axes]
+        for part in ("calib", "valid"):
+            s = getattr(diag.fit, part)
+            if s and s.get("orientation_rms_deg") is not None:
+                orientation[part] = {"n": s["n"], **{k: s[k] for k in ORIENTATION_KEYS}}
+        out["orientation"] = orientation
     return out
 
 

@@ -71,7 +71,9 @@ def run(args) -> int:
             print()
             print(auto_text(result.auto, request.out))
     elif args.json:
-        print_json(result.diagnosis.to_json())
+        from presentation.summaries import diagnosis_summary
+
+        print_json(diagnosis_summary(result.diagnosis))
     else:
         print(diagnosis_text(result.diagnosis, request.top,
                              tool_text(result.fit.error_model.model, result.data,
