@@ -19,9 +19,13 @@ from calibration.cell import CellSpec
 from daq.run_context import ExecutorOptions, RunContext
 from daq.service import execute
 from daq.store import RunStore
+from drivers.ur_rtde import UrRtdeRobot
 from drivers.urls import open_robot, open_tracker
+from sim_drivers.fake_rtde_control import FakeRTDEControl
 from sim_drivers.model_truth import DEFAULT_TRACKER_AT_MM, ModelTruth
+from sim_drivers.rtde_server import RtdeSimServer
 from sim_drivers.serve import ServeConfig, SimStack
+from tests.sim_drivers.rtde_helpers import loopback_host
 
 DATA = Path(__file__).parent / "data"
 TOY = str(DATA / "toyarm.yaml")
@@ -77,14 +81,48 @@ def served_cell(truth_factory, *, faults=None, seed=0, time_scale=0.0, cell=None
 
 @contextlib.contextmanager
 def connected(robot_url: str, tracker_url: str):
-    robot, tracker = open_robot(robot_url), open_tracker(tracker_url)
+    robot = open_robot(robot_url)
     try:
         robot.connect(2.0)
-        tracker.connect(2.0)
-        yield robot, tracker
+        with connected_tracker(tracker_url) as tracker:
+            yield robot, tracker
     finally:
         robot.close()
+
+
+@contextlib.contextmanager
+def connected_tracker(tracker_url: str):
+    """The tracker at ``tracker_url``, connected; closed on exit."""
+    tracker = open_tracker(tracker_url)
+    try:
+        tracker.connect(2.0)
+        yield tracker
+    finally:
         tracker.close()
+
+
+@contextlib.contextmanager
+def stack_robot(stack, protocol: str):
+    """A connected robot driver of ``stack``'s cell over ``protocol``: "modbus" or "line"
+    (the stack's servers), or "rtde": the cell served over RTDE too (a fresh loopback
+    address on port 30004), read by the real ur-rtde receive client and moved through
+    :class:`~sim_drivers.fake_rtde_control.FakeRTDEControl` on the same cell (the
+    simulator has no UR script server)."""
+    cell, server = stack.cell, None
+    if protocol == "rtde":
+        server = RtdeSimServer(cell, host=loopback_host()).start()
+        robot = UrRtdeRobot.from_url(
+            server.url, control_factory=lambda h: FakeRTDEControl(cell, h, server=server))
+    else:
+        scheme = {"modbus": "modbus", "line": "socket"}[protocol]
+        robot = open_robot(next(u for u in stack.urls if u.startswith(scheme)))
+    try:
+        robot.connect(5.0)
+        yield robot
+    finally:
+        robot.close()
+        if server is not None:
+            server.stop()
 
 
 def run_plan(store: RunStore, plan, robot, tracker, model=None, options=None, run_id=None,

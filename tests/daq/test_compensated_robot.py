@@ -1,10 +1,11 @@
 """Compensated motion on the simulated cell, over a real socket: a UR10e with hidden
 compliance and a gear harmonic is calibrated; a program of taught waypoints (joint targets
 and TCP points) runs uncompensated and through :class:`CompensatedRobot` on the served
-Modbus and line-protocol robots, and the simulated tracker measures where the tool went.
-The compensated error must be within 1.3x the calibration's validation RMS (the issue's
-bar) while the uncompensated program misses by the uncalibrated error; a geometric-only calibration
-(what calibration.conf can carry) is measured beside it."""
+Modbus and line-protocol robots and over RTDE (the real ur-rtde receive client, the moves
+through FakeRTDEControl on the same cell), and the simulated tracker measures where the
+tool went. The compensated error must be within 1.3x the calibration's validation RMS (the
+issue's bar) while the uncompensated program misses by the uncalibrated error; a
+geometric-only calibration (what calibration.conf can carry) is measured beside it."""
 
 import numpy as np
 import pytest
@@ -17,7 +18,7 @@ from daq.compensated_robot import CompensatedRobot
 from daq.motion_guard import MotionLimits, MotionRefused
 from sim_drivers.model_truth import ModelTruth
 
-from .capture_helpers import connected, served_cell
+from .capture_helpers import connected_tracker, served_cell, stack_robot
 
 HIDDEN = "compliance:2,compliance:3,harmonic:1"
 SEED = 6
@@ -66,8 +67,8 @@ def _rms(v):
     return float(np.sqrt(np.mean(np.sum(np.square(v), axis=1))))
 
 
-@pytest.mark.parametrize("scheme", ["modbus", "socket"])
-def test_compensated_waypoints_on_the_served_cell(scheme):
+@pytest.mark.parametrize("protocol", ["modbus", "line", "rtde"])
+def test_compensated_waypoints_on_the_served_cell(protocol):
     with served_cell(_truth, seed=SEED) as stack:
         truth = stack.cell.truth
         q = _waypoints(truth)
@@ -79,10 +80,9 @@ def test_compensated_waypoints_on_the_served_cell(scheme):
         full, fit = _calibrate(truth, "geometric,base,tool," + HIDDEN)
         geo, fit_geo = _calibrate(truth, "geometric,base,tool")
         valid = fit.valid["rms_mm"]
-        robot_url = next(u for u in stack.urls if u.startswith(scheme))
         tracker_url = next(u for u in stack.urls if u.startswith("tracker"))
         limits = MotionLimits(floor_z_mm=None)
-        with connected(robot_url, tracker_url) as (robot, tracker):
+        with stack_robot(stack, protocol) as robot, connected_tracker(tracker_url) as tracker:
             B = _base(full, fit.values)
             cal = CompensatedRobot(robot, full, fit.values, limits=limits)
             plain = cal.send  # the joints as taught, through the same checks

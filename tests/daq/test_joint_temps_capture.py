@@ -6,8 +6,6 @@ them gives a capture without the columns (asked once, not at every point)."""
 
 from __future__ import annotations
 
-import contextlib
-
 import numpy as np
 import pytest
 
@@ -15,35 +13,17 @@ from calibration.dataset import load_csv
 from cellcal.cli import main
 from daq.routines import make_plan
 from daq.store import RunStore
-from drivers.ur_rtde import UrRtdeRobot
-from drivers.urls import open_robot, open_tracker
-from sim_drivers.fake_rtde_control import FakeRTDEControl
+from drivers.urls import open_tracker
 from sim_drivers.model_truth import model_truth_factory
-from sim_drivers.rtde_server import RtdeSimServer
 from sim_drivers.serve import ServeConfig, SimStack
-from tests.sim_drivers.rtde_helpers import loopback_host
 
-from .capture_helpers import FREE_PORTS, rough_cell, run_plan, ur10e_controller_model
-
-
-@contextlib.contextmanager
-def _robot(stack, protocol: str):
-    """A connected robot driver of ``stack``'s cell over ``protocol``."""
-    cell = stack.cell
-    if protocol == "rtde":
-        server = RtdeSimServer(cell, host=loopback_host()).start()
-        robot = UrRtdeRobot.from_url(
-            server.url, control_factory=lambda h: FakeRTDEControl(cell, h, server=server))
-    else:
-        server = None
-        robot = open_robot(stack.urls[0 if protocol == "modbus" else 1])
-    robot.connect(5.0)
-    try:
-        yield robot
-    finally:
-        robot.close()
-        if server is not None:
-            server.stop()
+from .capture_helpers import (
+    FREE_PORTS,
+    rough_cell,
+    run_plan,
+    stack_robot,
+    ur10e_controller_model,
+)
 
 
 def _capture(tmp_path, protocol: str, thermal: str | None):
@@ -55,7 +35,7 @@ def _capture(tmp_path, protocol: str, thermal: str | None):
         tracker = open_tracker(stack.urls[2])
         tracker.connect(2.0)
         try:
-            with _robot(stack, protocol) as robot:
+            with stack_robot(stack, protocol) as robot:
                 _, status = run_plan(store, plan, robot, tracker)
         finally:
             tracker.close()
