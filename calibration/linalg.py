@@ -32,8 +32,8 @@ def triangular_inverse(U: np.ndarray) -> np.ndarray:
 
 def qr_pivoted(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """QR with column pivoting, ``A[:, piv] = Q R``: R (min(m, n), n) upper triangular with
-    non-increasing ``|diag(R)|``, and piv (n,) the column order (as
-    ``scipy.linalg.qr(A, mode="r", pivoting=True)``; Q is not formed).
+    non-increasing ``|diag(R)|``, and piv (n,) the column order (R and P of
+    ``scipy.linalg.qr(A, mode="economic", pivoting=True)``; Q is not formed).
 
     At each step the column of the remaining block with the largest norm comes first
     (the first of equal ones), then one Householder reflection zeroes it below the
