@@ -147,6 +147,9 @@ def main(quick: bool, only: set[str]) -> None:
           f"{os.cpu_count()} cores; reference: a textbook numpy LM on the same problem\n")
     print(f"| {'':<46} | {'time':>12} | {'reference':>12} | {'ratio':>6} |")
     print(f"|{'-' * 48}|{'-' * 14}|{'-' * 14}|{'-' * 8}|")
+    if "auto" in only:  # the diagnosis loads scipy, and with it a BLAS of its own: load it
+        import scipy.linalg  # noqa: F401 - before the limit below, which pins only the
+        import scipy.special  # noqa: F401 - libraries loaded when it is entered
     with threadpool_limits(limits=1, user_api="blas"):
         if "identify" in only:
             identification(60 if quick else 1000, 1 if quick else 15)
