@@ -79,8 +79,8 @@ def timed(fn) -> tuple[object, float]:
 
 
 def row(what: str, value_s: float, ref_s: float, unit: str = "ms") -> None:
-    f = 1000.0 if unit == "ms" else 1.0
-    print(f"| {what:<46} | {value_s * f:>9.1f} {unit:<2} | {ref_s * f:>9.1f} {unit:<2} "
+    f, d = (1000.0, 1) if unit == "ms" else (1.0, 2)
+    print(f"| {what:<46} | {value_s * f:>9.{d}f} {unit:<2} | {ref_s * f:>9.{d}f} {unit:<2} "
           f"| {value_s / ref_s:>6.2f} |")
 
 
@@ -108,12 +108,13 @@ def auto(n: int, max_steps: int) -> None:
 
 
 def process_s(args: list[str], runs: int) -> float:
-    """Median wall time of a fresh ``python args...`` process (start included)."""
+    """Median wall time of a fresh ``python args...`` process (start included), run in the
+    checkout measured (``python -m`` puts the working directory before PYTHONPATH)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     times = []
     for _ in range(runs):
         t = time.perf_counter()
-        subprocess.run([sys.executable, *args], env=env, check=True,
+        subprocess.run([sys.executable, *args], env=env, check=True, cwd=ROOT,
                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         times.append(time.perf_counter() - t)
     return statistics.median(times)
@@ -124,7 +125,8 @@ def command(n: int, runs: int) -> None:
         csv = str(Path(tmp) / "poses.csv")
         subprocess.run([sys.executable, "-m", "cellcal", "simulate", "--model", "ur10e",
                         "--poses", str(n), "--valid", "0", "--out", csv], check=True,
-                       env={**os.environ, "PYTHONPATH": str(ROOT)}, stdout=subprocess.DEVNULL)
+                       env={**os.environ, "PYTHONPATH": str(ROOT)}, cwd=ROOT,
+                       stdout=subprocess.DEVNULL)
         calib = process_s(["-m", "cellcal", "calibrate", "--model", "ur10e", csv], runs)
         from calibration import load_csv
 
@@ -147,6 +149,9 @@ def main(quick: bool, only: set[str]) -> None:
           f"{os.cpu_count()} cores; reference: a textbook numpy LM on the same problem\n")
     print(f"| {'':<46} | {'time':>12} | {'reference':>12} | {'ratio':>6} |")
     print(f"|{'-' * 48}|{'-' * 14}|{'-' * 14}|{'-' * 8}|")
+    if "auto" in only:  # the diagnosis loads scipy, and with it a BLAS of its own: load it
+        import scipy.linalg  # noqa: F401 - before the limit below, which pins only the
+        import scipy.special  # noqa: F401 - libraries loaded when it is entered
     with threadpool_limits(limits=1, user_api="blas"):
         if "identify" in only:
             identification(60 if quick else 1000, 1 if quick else 15)

@@ -20,6 +20,8 @@ error_model     ErrorModel: a model plus effects; perturb (the one apply chain),
 identifiability which parameters a data set determines (QR with column pivoting)
 solvers/        lm, ridge, besa, sa: the least-squares solvers identify uses
 blas            one BLAS thread for small problems (timings independent of the neighbours)
+linalg          Cholesky solves and pivoted QR on numpy alone (no scipy on calibrate's path)
+chi3            the chi distribution with 3 degrees of freedom: tail and quantile
 identify        identify -> Fit (values, uncertainties, residuals, statistics), fit_at
 uncertainty     correlations, Monte-Carlo re-identification, position uncertainty
 diagnosis       diagnose: where a fit fails and which missing effect explains it

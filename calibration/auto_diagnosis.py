@@ -31,7 +31,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-import scipy.special
 
 from .dataset import Dataset
 from .diagnosis import ALPHA, MIN_HELDOUT, candidate_names
@@ -289,6 +288,8 @@ def _significant(s: Screened, n_screened: int, alpha: float) -> bool:
 
 def at_noise_floor(lin, sigma: float | None, alpha: float = ALPHA) -> tuple[bool, float | None]:
     """(at the floor, p-value): the residual is consistent with the instrument's noise."""
+    import scipy.special  # here: scipy's import is half of `cellcal calibrate`'s start-up
+
     if sigma is None:
         return False, None
     p = float(scipy.special.chdtrc(max(lin.dof0, 1.0), lin.rss0 / sigma**2))  # chi2.sf

@@ -11,21 +11,30 @@ problem is small (threadpoolctl), so timings do not depend on the neighbours.
 from __future__ import annotations
 
 import contextlib
+import sys
 from collections.abc import Iterator
 
 #: problems up to this many Jacobian elements (rows x parameters) run on one BLAS thread
 SMALL_ELEMENTS = 4_000_000
 
+#: modules whose import loads scipy's own BLAS (beside numpy's): the default calibrate
+#: does not import scipy, a diagnosis does later, after the first identification
+_SCIPY_BLAS = ("scipy.linalg", "scipy.special")
+
 _controller = None
+_controller_key: tuple[bool, ...] = ()
 
 
 def _blas_controller():
-    """The process's :class:`threadpoolctl.ThreadpoolController` (made once: ~20 ms)."""
-    global _controller
-    if _controller is None:
+    """The process's :class:`threadpoolctl.ThreadpoolController` (made once, ~20 ms, and
+    again when scipy's BLAS has been loaded since: a controller knows only the libraries
+    loaded when it was made)."""
+    global _controller, _controller_key
+    key = tuple(m in sys.modules for m in _SCIPY_BLAS)
+    if _controller is None or key != _controller_key:
         from threadpoolctl import ThreadpoolController
 
-        _controller = ThreadpoolController()
+        _controller, _controller_key = ThreadpoolController(), key
     return _controller
 
 

@@ -37,7 +37,6 @@ import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-import scipy.special
 
 from .candidate_columns import effect_columns
 from .dataset import Dataset
@@ -294,6 +293,8 @@ def diagnose(
     folds : k for cross-validation when there are no validation rows
     alpha : significance level after the multiple-comparison correction
     """
+    import scipy.special  # here: scipy's import is half of `cellcal calibrate`'s start-up
+
     t0 = time.perf_counter()
     if data is None:
         data = fit.data if fit.valid_data is None else fit.data.concat(fit.valid_data)

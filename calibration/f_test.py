@@ -6,13 +6,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.special
 
 
 def log10_f_sf(d_rss, rss1, k, dof):
     """log10 of the F-test's p-value (explained ``d_rss`` with ``k`` degrees of freedom
     against the remaining ``rss1`` with ``dof``), with an asymptotic tail where scipy
     underflows; scalars or arrays."""
+    import scipy.special  # here: scipy's import is half of `cellcal calibrate`'s start-up
+
     d_rss, rss1, k, dof = np.broadcast_arrays(*(np.asarray(v, float)
                                                 for v in (d_rss, rss1, k, dof)))
     F = (d_rss / k) / (rss1 / dof)
@@ -30,6 +31,8 @@ def _f_logsf(F: np.ndarray, k: np.ndarray, dof: np.ndarray) -> np.ndarray:
     """``scipy.stats.f.logsf(F, k, dof)`` as scipy computes it (log of the upper tail above
     the median, log1p of minus the lower one below), from ``scipy.special``: scipy.stats
     takes a third of a second to import."""
+    import scipy.special  # here: scipy's import is half of `cellcal calibrate`'s start-up
+
     above = scipy.special.fdtri(k, dof, 0.5) < F
     with np.errstate(divide="ignore"):
         return np.where(above, np.log(scipy.special.fdtrc(k, dof, F)),

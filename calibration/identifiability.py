@@ -25,7 +25,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg
+
+from .linalg import qr_pivoted
 
 #: tiers for breaking exact redundancies: a parameter is only fixed in favour of
 #: parameters of the same or an earlier tier
@@ -120,7 +121,7 @@ def analyse(
         # exact ties go to the parameter declared first (joint order; theta, d, a, alpha)
         order_weight = 1.0 - 0.01 * np.arange(idx.size) / max(idx.size, 1)
         cols = (Jn[:, idx] - basis @ (basis.T @ Jn[:, idx])) * order_weight
-        _, R, piv = scipy.linalg.qr(cols, mode="economic", pivoting=True)
+        R, piv = qr_pivoted(cols)
         diag = np.abs(np.diag(R))
         keep = idx[piv[: diag.size][diag > rtol]]
         free[keep] = True
@@ -184,7 +185,7 @@ def _penalised_group(Jn, norms, idx, null, basis, rtol) -> dict[int, str]:
     cn = np.linalg.norm(cols, axis=0)
     cols = cols / np.where(cn > 0, cn, 1.0)
     cols = cols - basis @ (basis.T @ cols)
-    diag = np.abs(np.diag(scipy.linalg.qr(cols, mode="r", pivoting=True)[0]))
+    diag = np.abs(np.diag(qr_pivoted(cols)[0]))
     n_redundant = null.shape[1] - int(np.count_nonzero(diag > rtol))
     if n_redundant <= 0:
         return {}

@@ -8,7 +8,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg
 
 from . import full_pose
 from .blas import blas_threads
@@ -17,6 +16,7 @@ from .effects import display_unit
 from .error_model import Bound, ErrorModel
 from .heap import keep_freed_memory
 from .identifiability import Identifiability, analyse, penalised_groups
+from .linalg import cho_solve, cholesky_upper, triangular_inverse
 from .outliers import MODES as OUTLIER_MODES
 from .outliers import BlunderScreen, screen_fit
 from .solvers import SOLVERS, Problem
@@ -208,10 +208,10 @@ def covariance_and_factor(J: np.ndarray, r: np.ndarray, free: np.ndarray,
         d[d == 0] = 1.0
         A = (Jf / d).T @ (Jf / d)
         try:
-            U, lower = scipy.linalg.cho_factor(A)
-            inv = scipy.linalg.cho_solve((U, lower), np.eye(m))
+            U = cholesky_upper(A)
+            inv = cho_solve(U, np.eye(m))
             # A = Uᵀ U, so A⁻¹ = U⁻¹ U⁻ᵀ
-            M = scipy.linalg.solve_triangular(np.triu(U), np.eye(m)) / d[:, None]
+            M = triangular_inverse(U) / d[:, None]
         except np.linalg.LinAlgError:
             inv = np.linalg.pinv(A)
             w, V = np.linalg.eigh(0.5 * (inv + inv.T))

@@ -28,7 +28,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg
 
 from .dataset import Dataset
 from .effects import Effect
@@ -87,6 +86,8 @@ class Linearised:
 
 def linearise(fit: Fit, calib: Dataset, valid: Dataset | None = None) -> Linearised:
     """Linearise ``fit`` on its calibration poses ``calib`` (and validation poses)."""
+    import scipy.linalg  # here: scipy's import is half of `cellcal calibrate`'s start-up
+
     em, x, free = fit.error_model, fit.values, fit.free
     bound = em.bind(calib)
     P, J, G = em.evaluate(x, bound, jacobian=True, joints=True)

@@ -56,13 +56,13 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.special
 
+from .chi3 import chi3_isf
 from .leverage import residual_factors, residuals_on, studentised_norms
 from .leverage import studentise as studentise
 
 #: median and MAD of the chi distribution with 3 degrees of freedom
-CHI3_MEDIAN = float(np.sqrt(2 * scipy.special.gammaincinv(1.5, 0.5)))  # chi(3).median()
+CHI3_MEDIAN = chi3_isf(0.5)  # chi(3).median()
 CHI3_MAD = 0.46024377
 #: significance of one false alarm in a clean Gaussian cloud (Bonferroni over the points)
 ALPHA = 0.01
@@ -194,7 +194,7 @@ def _robust_scale(u: np.ndarray) -> float:
 
 def threshold(n: int, alpha: float = ALPHA) -> float:
     """k: the chi(3) quantile at 1 - alpha / n."""
-    return float(math.sqrt(scipy.special.chdtri(3, alpha / max(n, 1))))  # chi2(3).isf
+    return chi3_isf(alpha / max(n, 1))  # chi(3).isf
 
 
 def line_of_sight_known(xyz: np.ndarray) -> bool:

@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.linalg
 
 from .candidate_columns import effect_columns, harmonic_columns
 from .effects import Effect, EffectError
@@ -109,6 +108,8 @@ def kfold_errors(fit: Fit, folds: int = 10, seed: int = 0) -> np.ndarray:
     """Squared 3-D error (mm²) of every calibration pose when predicted by the fit refitted
     without its fold (``folds`` folds, poses assigned at random with ``seed``), on the
     problem linearised at the fit (penalties included), shape (n,)."""
+    import scipy.linalg  # here: scipy's import is half of `cellcal calibrate`'s start-up
+
     em, x, free = fit.error_model, fit.values, fit.free
     calib = fit.data
     n, m = calib.n, int(free.sum())

@@ -1,8 +1,9 @@
 """Adapters for real hardware: robot controllers and laser trackers.
 
 Open drivers by URL (:func:`open_robot`, :func:`open_tracker`); every driver
-raises the errors of :mod:`drivers.errors`. Driver classes are imported
-lazily (``drivers.ModbusRobot`` loads pymodbus only when first used).
+raises the errors of :mod:`drivers.errors`. The protocols and the driver classes are
+imported lazily (``drivers.ModbusRobot`` loads pymodbus only when first used; a command
+that opens no device never loads :mod:`drivers.protocols`).
 
 Modules
     ``protocols``     what capture needs from a robot and a tracker (small protocols)
@@ -33,27 +34,28 @@ from drivers.errors import (
     ProtectiveStop,
     ProtocolError,
 )
-from drivers.protocols import (
-    CommandedPosition,
-    DeviceIdentity,
-    Environment,
-    EnvironmentSensor,
-    Identified,
-    JointReading,
-    Measurement,
-    Readiness,
-    ReadyGate,
-    Reflector,
-    ReflectorSelect,
-    RobotDriver,
-    RobotStatus,
-    TrackerDriver,
-    TrackerStatus,
-    TwoFace,
-)
 from drivers.urls import open_robot, open_tracker, register_scheme, unregister_scheme
 
+#: names loaded at their first use: the protocols (a command that opens no device, such
+#: as ``calibrate``, registers ``sim://`` in drivers.urls without loading them) and the
+#: driver classes (a vendor library only when its driver is used)
 _LAZY = {
+    "CommandedPosition": "drivers.protocols",
+    "DeviceIdentity": "drivers.protocols",
+    "Environment": "drivers.protocols",
+    "EnvironmentSensor": "drivers.protocols",
+    "Identified": "drivers.protocols",
+    "JointReading": "drivers.protocols",
+    "Measurement": "drivers.protocols",
+    "Readiness": "drivers.protocols",
+    "ReadyGate": "drivers.protocols",
+    "Reflector": "drivers.protocols",
+    "ReflectorSelect": "drivers.protocols",
+    "RobotDriver": "drivers.protocols",
+    "RobotStatus": "drivers.protocols",
+    "TrackerDriver": "drivers.protocols",
+    "TrackerStatus": "drivers.protocols",
+    "TwoFace": "drivers.protocols",
     "ModbusRobot": "drivers.modbus_robot",
     "RegisterMap": "drivers.modbus_robot",
     "SerialRobot": "drivers.line_robot",
@@ -66,28 +68,12 @@ __all__ = [
     "BeamBroken",
     "CommandRejected",
     "CommandTimeout",
-    "CommandedPosition",
     "ConnectionLost",
-    "DeviceIdentity",
     "DriverError",
-    "Environment",
-    "EnvironmentSensor",
-    "Identified",
-    "JointReading",
     "LimitError",
-    "Measurement",
     "NotReady",
     "ProtectiveStop",
     "ProtocolError",
-    "Readiness",
-    "ReadyGate",
-    "Reflector",
-    "ReflectorSelect",
-    "RobotDriver",
-    "RobotStatus",
-    "TrackerDriver",
-    "TrackerStatus",
-    "TwoFace",
     "open_robot",
     "open_tracker",
     "register_scheme",

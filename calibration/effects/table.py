@@ -23,7 +23,6 @@ import re
 from typing import Any
 
 import numpy as np
-import scipy.linalg
 
 from ..dataset import Dataset
 from .base import EffectError, JointEffect
@@ -171,6 +170,8 @@ def penalised_path(N0: np.ndarray, b: np.ndarray, h: np.ndarray, Q: np.ndarray, 
     estimate of the mean squared residual per observation, ``n_obs rss / (n_obs - edf)²``),
     ``best`` (index of the smallest GCV) and ``solve(s)`` giving c at any weight.
     """
+    import scipy.linalg  # here: scipy's import is half of `cellcal calibrate`'s start-up
+
     k = N0.shape[0]
     grid = np.asarray(grid, float)
     d = np.sqrt(np.maximum(np.diag(N0) + np.diag(omega), 1e-300))

@@ -8,8 +8,8 @@ factorisation only raises the damping.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 
+from ..linalg import cho_solve, cholesky_upper
 from .common import Problem, SolverResult
 
 
@@ -59,8 +59,8 @@ def solve_lm(
             mu = lambda0 * float(np.max(np.diag(A)))
         while True:
             try:
-                c = scipy.linalg.cho_factor(A + mu * np.eye(A.shape[0]), check_finite=False)
-                step_s = -scipy.linalg.cho_solve(c, g, check_finite=False)
+                U = cholesky_upper(A + mu * np.eye(A.shape[0]))
+                step_s = -cho_solve(U, g)
             except np.linalg.LinAlgError:
                 mu *= nu
                 nu *= 2

@@ -55,7 +55,6 @@ are rejected.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
 
 from .common import Problem, SolverResult
 
@@ -194,6 +193,8 @@ def solve_ridge(
         equilibrated A^T P A), ``refixed`` (parameter names held after weighting)
         and ``ridge_curve`` (for :func:`presentation.ridge_plot.plot_ridge`).
     """
+    import scipy.linalg  # here: scipy's import is half of `cellcal calibrate`'s start-up
+
     centre = problem.xf0.copy()
     x = centre.copy() if xf0 is None else np.asarray(xf0, float).copy()
     n, m = problem.n_poses, centre.size

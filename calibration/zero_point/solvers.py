@@ -12,7 +12,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.special
 
 from ..identifiability import analyse
 from ..identify import covariance
@@ -265,6 +264,8 @@ def _worst_outlier(r, Jf, sigma_mm, p, n, measured):
 
     r : (m, 3) residual rows; Jf : (3 m, k) Jacobian of the free parameters; n postures.
     """
+    import scipy.special  # here: scipy's import is half of `cellcal calibrate`'s start-up
+
     # leverage of each posture's 3 rows (hat matrix diagonal, summed per posture)
     Q, _ = np.linalg.qr(Jf / np.maximum(np.linalg.norm(Jf, axis=0), 1e-300))
     h = np.sum(Q**2, axis=1).reshape(-1, 3).sum(axis=1)

@@ -44,3 +44,20 @@ def test_identify_runs_in_the_limit(monkeypatch):
     data = simulate(em, realistic_truth(em, rng), random_joints(m, 60, rng), 0.01, rng)
     fit = identify(em, data)
     assert fit.converged and seen == [3 * 60 * em.n_params]
+
+
+def test_scipy_blas_loaded_after_the_first_limit_is_pinned_too():
+    # the default calibrate never loads scipy; a diagnosis loads it (and its own BLAS)
+    # after the first identification made the controller
+    import subprocess
+
+    code = ("import numpy\nfrom threadpoolctl import threadpool_info\n"
+            "from calibration.blas import blas_threads\n"
+            "with blas_threads(10):\n    pass\n"
+            "import scipy.linalg\n"
+            "with blas_threads(10):\n"
+            "    print(sorted(i['num_threads'] for i in threadpool_info()"
+            " if i['user_api'] == 'blas'))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "[1, 1]"

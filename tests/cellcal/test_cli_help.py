@@ -108,3 +108,18 @@ def test_argument_errors_exit_2_before_any_heavy_import():
                          cwd=ROOT, check=True)
     assert out.stdout.split() == ["2", "False"]
     assert "required: DATA.csv" in out.stderr
+
+
+def test_calibrate_loads_no_scipy_and_no_device_protocols(tmp_path):
+    # scipy's import alone is half of a default `cellcal calibrate` (issue 30): the default
+    # fit (geometric,base,tool, lm, the blunder test) runs on numpy; it opens no device
+    csv = tmp_path / "p.csv"
+    assert main(["simulate", "--model", "ur10e", "--poses", "40", "--valid", "0",
+                 "--seed", "1", "--out", str(csv)]) == 0
+    code = ("import sys; from cellcal.cli import main\n"
+            f"rc = main(['calibrate', '--model', 'ur10e', {str(csv)!r}])\n"
+            "print(rc, sorted(m for m in ('scipy', 'matplotlib', 'drivers.protocols', "
+            "'sim_drivers', 'daq') if m in sys.modules), file=sys.stderr)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=ROOT, check=True)
+    assert out.stderr.split("\n")[-2] == "0 []", out.stderr
