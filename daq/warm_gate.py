@@ -1,7 +1,8 @@
 """``capture --require-warm N``: a capture starts only on a robot that is warm.
 
 Warm means: the robot's latest completed warm-up (``cellcal capture warmup``,
-:mod:`daq.routines.warmup`, of the same robot id in the same store) ended at most N
+:mod:`daq.routines.warmup`, of the same robot id in the same store) settled (its
+reference stopped drifting: one that ran out of time does not count), ended at most N
 minutes ago (by the store's clock: when the run was completed) and, where the robot
 reports its joint temperatures and the warm-up recorded them, no joint is more than
 :data:`COOLED_K` colder now than at the warm-up's last reference reading (it stood
@@ -45,7 +46,11 @@ def require_warm(store: RunStore, robot, robot_id: str | None, max_age_min: floa
         raise NotWarm(f"--require-warm {max_age_min:g}: the last warm-up of {who} (run "
                       f"{run.id}) ended {age_min:.1f} min ago; {again}")
     warm = run.summary.warmup if run.summary is not None else None
-    if warm is None or warm.joint_temp_c is None or not isinstance(robot, JointTemperatures):
+    if warm is None or not warm.settled:  # it ran its time, the robot still drifted
+        why = "" if warm is None or not warm.reason else f": {warm.reason}"
+        raise NotWarm(f"--require-warm: the last warm-up of {who} (run {run.id}) did not "
+                      f"settle{why}; {again}")
+    if warm.joint_temp_c is None or not isinstance(robot, JointTemperatures):
         return
     try:
         temps = np.asarray(robot.joint_temperatures(timeout=timeout), float)

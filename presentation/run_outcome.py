@@ -50,10 +50,14 @@ def outcome_lines(out: dict) -> list[str]:
 
 def outcome_exit_code(out: dict) -> int:
     """0 completed, 3 incomplete (too many points skipped), 130 stopped (Ctrl-C), 128 + N
-    stopped at once by signal N, else 1."""
+    stopped at once by signal N, else 1; a warm-up that completed its plan without
+    settling (the robot still drifted) is 1 too: its goal was not reached."""
     signum = out.get("signal")
     if signum:
         return 128 + int(getattr(signal, signum, 0) or 1)
+    warm = (out.get("summary") or {}).get("warmup")
+    if out["status"] == "completed" and warm is not None and not warm.get("settled"):
+        return 1
     return {"completed": 0, "incomplete": 3, "stopped": 130}.get(out["status"], 1)
 
 

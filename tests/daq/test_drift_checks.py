@@ -123,6 +123,22 @@ def test_the_warm_gate():
     with pytest.raises(NotWarm, match="no completed warm-up of robot R1"):
         require_warm(_Store(None), robot, "R1", 10.0)
     assert NotWarm.exit_code == 2
+    # a warm-up that ran out of time (the robot still drifted) is no warm-up
+    unsettled = RunSummary(warmup=WarmupSummary(settled=False, reason="not settled after "
+                                                "the time bound (60 min)"))
+    late = types.SimpleNamespace(id=8, stopped=1000.0, summary=unsettled)
+    with pytest.raises(NotWarm, match="run 8.* did not settle: not settled after the time"):
+        require_warm(_Store(late), robot, "R1", 10.0, now=1001.0)
+
+
+def test_an_unsettled_warm_up_does_not_exit_as_done():
+    from presentation.run_outcome import outcome_exit_code
+
+    def out(settled):
+        return {"status": "completed", "summary": {"warmup": {"settled": settled}}}
+
+    assert outcome_exit_code(out(True)) == 0 and outcome_exit_code(out(False)) == 1
+    assert outcome_exit_code({"status": "completed", "summary": {}}) == 0
 
 
 def test_the_parsers_thermal_starts_are_the_simulators():
