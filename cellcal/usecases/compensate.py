@@ -100,23 +100,26 @@ def compensate_targets(request: CompensateRequest) -> Compensated:
     loaded = read_params(request.params)
     em, x = loaded.error_model, loaded.values
     done = Compensated(em.model, capture_of(request.params), notes=_tool_notes(em, x))
+    t = start = columns = None
+    if request.targets:  # every input checked before anything is written
+        t = load_targets(request.targets, em.model)
+        check_joints_reach(t, em.model, request.joints_tolerance_mm, request.targets)
+        start = _parse_start(request.start, em.model.n_joints) if request.start else None
+        columns, done.thermal = target_state(em, loaded.thermal, t.columns,
+                                             len(t.base_p_tcp))
     done.exports = write_exports(em, x, model_yaml=request.export_model,
                                  ur_conf=request.export_ur, urdf=request.export_urdf,
                                  ur_yaml=request.export_ur_yaml, dh_table=request.export_dh,
                                  known_notes=done.notes)
     if done.exports is not None:
         done.notes += done.exports.notes
-    if not request.targets:
+    if t is None:
         return done
-    t = load_targets(request.targets, em.model)
-    check_joints_reach(t, em.model, request.joints_tolerance_mm, request.targets)
     if "dirs" not in t.columns and any(e.family == "backlash" for e in em.effects):
         done.notes.append(
             "the calibration has backlash: give dir1..dirN in the targets (the direction "
             "each joint will approach from); without them they are derived from the "
             "targets' order")
-    start = _parse_start(request.start, em.model.n_joints) if request.start else None
-    columns, done.thermal = target_state(em, loaded.thermal, t.columns, len(t.base_p_tcp))
     c = compensate(em, x, t.base_p_tcp, t.q, q_start=start,
                    keep_orientation=not request.position_only, columns=columns)
     done.targets, done.result, done.csv_text = t, c, compensated_csv(t, c)

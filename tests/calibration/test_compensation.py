@@ -130,3 +130,21 @@ def test_cli_compensate_and_exports(calibrated, tmp_path, capsys):
     assert main(["compensate", str(csv_in), "--params", str(params)]) == 2
     assert "line 2, column z: not a number" in capsys.readouterr().err
     assert main(["compensate", str(csv_in), "--params", str(params), "--out", str(params)]) == 2
+
+
+def test_refused_targets_leave_no_export_behind(calibrated, tmp_path, capsys):
+    """Every input is checked before anything is written: targets whose joints contradict
+    their point (exit 2) leave neither the compensated CSV nor the model exports."""
+    from calibration.params_io import save_params
+    from cellcal.cli import main
+
+    m, em, _, fit, _ = calibrated
+    params = tmp_path / "params.json"
+    save_params(fit, params)
+    csv_in = tmp_path / "targets.csv"
+    csv_in.write_text("pose_id,x,y,z,q1,q2,q3,q4,q5,q6\np1,600,200,500,10,-80,90,-100,-90,0\n")
+    outputs = [tmp_path / n for n in ("out.csv", "cal.yaml", "calibration.conf")]
+    rc = main(["compensate", str(csv_in), "--params", str(params), "--out", str(outputs[0]),
+               "--export-model", str(outputs[1]), "--export-ur", str(outputs[2])])
+    assert rc == 2 and "--joints-tolerance-mm" in capsys.readouterr().err
+    assert not any(p.exists() for p in outputs)
