@@ -164,10 +164,19 @@ def main(quick: bool, only: set[str]) -> None:
 
 
 if __name__ == "__main__":
-    argv = sys.argv[1:]
-    if "--cpu" in argv:
+    import argparse
+
+    ROWS = ("identify", "auto", "command")
+    ap = argparse.ArgumentParser(description="The speed table of docs/speed.md.")
+    ap.add_argument("--quick", action="store_true", help="tiny sizes (the tests' smoke run)")
+    ap.add_argument("--cpu", action="store_true",
+                    help="CPU time of the in-process rows instead of wall time")
+    ap.add_argument("--only", default=",".join(ROWS), metavar="ROWS",
+                    help=f"comma-separated rows of {', '.join(ROWS)} (default all)")
+    a = ap.parse_args()
+    rows = set(a.only.split(","))
+    if rows - set(ROWS):
+        ap.error(f"--only: unknown rows {', '.join(sorted(rows - set(ROWS)))}")
+    if a.cpu:
         CLOCK = time.process_time
-    rows = {"identify", "auto", "command"}
-    if "--only" in argv:
-        rows = set(argv[argv.index("--only") + 1].split(","))
-    main("--quick" in argv, rows)
+    main(a.quick, rows)
