@@ -27,16 +27,17 @@ its behaviour against the simulator):
   :class:`~drivers.errors.ConnectionLost` the link is gone, or the driver is not
   connected (before ``connect``, after ``close``: a driver never reconnects by itself
   for a move); :class:`~drivers.errors.LimitError` a target outside the joint limits
-  (the controller's, or those the driver was given), nothing moved;
+  the controller names or the driver was given (ur-rtde's ``limits=``), nothing moved;
   :class:`~drivers.errors.CommandRejected` any other refused command (bad shape, an
-  unreachable target, a controller fault); :class:`~drivers.errors.ProtectiveStop` a
-  protective or emergency stop, before or during the motion;
+  unreachable target, a controller fault, a refusal that does not say why);
+  :class:`~drivers.errors.ProtectiveStop` a protective or emergency stop, before or
+  during the motion;
   :class:`~drivers.errors.BeamBroken` the tracker lost its beam (or never had it);
   :class:`~drivers.errors.NotReady` the device cannot do this yet (tracker not
   initialised or warming up, robot not in its running mode, opened read-only);
   :class:`~drivers.errors.ProtocolError` an answer the protocol does not allow.
-* ``connect`` may be called again to reconnect; ``close`` is idempotent and never
-  raises.
+* ``connect`` opens the link, again after ``close`` (``close()`` then ``connect()`` is how
+  a caller reconnects); ``close`` is idempotent and never raises.
 """
 
 from __future__ import annotations
@@ -221,8 +222,8 @@ class RobotDriver(Protocol):
     url: str
 
     def connect(self, timeout: float = 5.0) -> None:
-        """Open the link (again, when it is open); ConnectionLost when the controller
-        cannot be reached, CommandTimeout when it does not answer in time."""
+        """Open the link; ConnectionLost when the controller cannot be reached,
+        CommandTimeout when it does not answer in time."""
         ...
 
     def close(self) -> None:
@@ -269,8 +270,8 @@ class TrackerDriver(Protocol):
     url: str
 
     def connect(self, timeout: float = 5.0) -> None:
-        """Open the link (again, when it is open) and initialise the tracker when it is not
-        (unless the driver was told not to)."""
+        """Open the link and initialise the tracker when it is not (unless the driver was
+        told not to)."""
         ...
 
     def close(self) -> None:
