@@ -17,6 +17,8 @@ Modules
     ``line_tracker``  a laser tracker over TCP or serial, line protocol
     ``modbus_robot``  a PLC-style robot controller over Modbus TCP
     ``ur_rtde``       Universal Robots over ur-rtde
+    ``abb``           ABB IRC5 over Robot Web Services 1.0 and a RAPID server module
+    ``leica``         Leica laser trackers over emScon
 """
 
 from __future__ import annotations
@@ -62,6 +64,7 @@ _LAZY = {
     "LineTracker": "drivers.line_tracker",
     "EmsconTracker": "drivers.leica.driver",
     "UrRtdeRobot": "drivers.ur_rtde",
+    "AbbRwsRobot": "drivers.abb.driver",
 }
 
 __all__ = [
