@@ -298,6 +298,13 @@ class SimIrc5:
 
     # -- the operator -----------------------------------------------------------------------
 
+    def pendant_stop(self) -> None:
+        """The operator stops RAPID at the pendant."""
+        with self.lock:
+            if self.running:
+                self.cell.command_stop()
+            self.running = False
+
     def motors(self, on: bool) -> None:
         """The operator switches the motors on or off (off stops RAPID)."""
         with self.lock:

@@ -159,6 +159,16 @@ def _jointtarget_items(q_rad: np.ndarray) -> dict:
     return item
 
 
+def _symbol_name(rest: str) -> str:
+    """The symbol of ``MODULE/name`` or ``name`` (a task-global PERS); RwsRefused for a
+    module the task does not have."""
+    module, _, name = rest.rpartition("/")
+    if module not in ("", C.MODULE):
+        raise RwsRefused(400, "not_found", f"symbol RAPID/{C.TASK}/{rest} not found: no "
+                         f"module {module} in {C.TASK}")
+    return name
+
+
 class _Handler(http.server.BaseHTTPRequestHandler):
     protocol_version = "HTTP/1.1"
     disable_nagle_algorithm = True  # headers and body go in two writes
@@ -275,7 +285,7 @@ class _Handler(http.server.BaseHTTPRequestHandler):
                 "taskstate": "started", "excstate": "started" if ctl.running else "stopped",
                 "active": "On", "motiontask": "TRUE"})
         if path.startswith(prefix):
-            name = path[len(prefix):].split("/")[-1]
+            name = _symbol_name(path[len(prefix):])
             return self._items("rw/rapid/symbol/data", {
                 "_type": "rap-data", "_title": f"RAPID/{C.TASK}/{C.MODULE}/{name}",
                 "value": ctl.symbol(name)})
@@ -328,7 +338,7 @@ class _Handler(http.server.BaseHTTPRequestHandler):
         if path.startswith(prefix) and action == "set":
             if "value" not in form:
                 raise RwsRefused(400, "bad_request", "a set needs value=")
-            ctl.set_symbol(sid, path[len(prefix):].split("/")[-1], form["value"])
+            ctl.set_symbol(sid, _symbol_name(path[len(prefix):]), form["value"])
         elif path.startswith(C.MASTERSHIP) and action == "request":
             ctl.request_mastership(sid)
         elif path.startswith(C.MASTERSHIP) and action == "release":

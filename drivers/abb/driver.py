@@ -169,9 +169,6 @@ class AbbRwsRobot:
         if status in (403, 409, 503):
             raise NotReady(self.url, command, words)
         if status in (400, 401, 404):
-            if status == 404 and "/symbol/" in path:
-                words += (f" (is the RAPID module {self.module} loaded in task {self.task}? "
-                          "drivers/abb/rapid/CellcalServer.mod, docs/abb.md)")
             raise CommandRejected(self.url, command, words)
         raise ProtocolError(self.url, command, words)
 
@@ -225,7 +222,13 @@ class AbbRwsRobot:
             if not self.read_only:
                 self._post(C.MASTERSHIP_REQUEST, None, _left(deadline), "request mastership")
                 self._master = True
-                self._num(C.VAR_ACK, _left(deadline))  # the module is loaded
+                try:
+                    self._num(C.VAR_ACK, _left(deadline))  # the module is loaded
+                except CommandRejected as e:
+                    raise CommandRejected(self.url, "connect", f"{e.detail} (is the RAPID "
+                                          f"module {self.module} loaded in task {self.task}? "
+                                          "drivers/abb/rapid/CellcalServer.mod, docs/abb.md)"
+                                          ) from e
             self._identity = self._read_identity(_left(deadline))
         except DriverError:
             self.close()
