@@ -3,10 +3,10 @@
 :class:`SimStack` builds one :class:`~sim_drivers.cell.SimCell` and serves it as
 a Modbus TCP robot, a line-protocol robot over TCP, the line-protocol
 tracker over TCP and over a pty, and an emScon (Leica TPI) tracker over TCP (and, when
-asked, as an ABB IRC5 over Robot Web Services: ``abb``), all on loopback, on the configured ports (:data:`DEFAULT_PORTS`, or
-:func:`ports_from_base`): a port in use is an error (:class:`PortInUse`) unless the
-configuration allows any port (``any_port``: a free one instead); port 0 is any free
-port.
+asked, as an ABB IRC5 over Robot Web Services: ``abb``), all on loopback, on the
+configured ports (:data:`DEFAULT_PORTS`, or :func:`ports_from_base`): a port in use is an
+error (:class:`PortInUse`) unless the configuration allows any port (``any_port``: a free
+one instead); port 0 is any free port.
 
 The truth is one parameter: ``truth_factory(seed, hidden) -> TrueRobot``
 (default :func:`sim_drivers.inprocess.default_truth`, a ``ToyArm``).

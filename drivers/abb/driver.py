@@ -127,6 +127,7 @@ class AbbRwsRobot:
         self._connected = False
         self._master = False
         self._in_move = False  # a move's requests are never asked twice
+        self._refused = ""  # why the last connect failed, until one succeeds
 
     @classmethod
     def from_url(cls, url: str, **kw) -> AbbRwsRobot:
@@ -159,7 +160,8 @@ class AbbRwsRobot:
     def _request(self, method: str, path: str, form: dict | None, timeout: float,
                  command: str) -> dict | None:
         if not self._connected:
-            raise ConnectionLost(self.url, command, "not connected (call connect() first)")
+            why = f"; the last connect failed: {self._refused}" if self._refused else ""
+            raise ConnectionLost(self.url, command, f"not connected (call connect() first{why})")
         status, doc = self._link.request(method, path, form, timeout=max(timeout, 0.01),
                                          command=command)
         if status < 400:
@@ -230,9 +232,11 @@ class AbbRwsRobot:
                                           "drivers/abb/rapid/CellcalServer.mod, docs/abb.md)"
                                           ) from e
             self._identity = self._read_identity(_left(deadline))
-        except DriverError:
+        except DriverError as e:
             self.close()
+            self._refused = f"{e.command}: {e.detail}"
             raise
+        self._refused = ""
 
     def close(self) -> None:
         """Release the mastership, log out, close the link; idempotent, never raises."""
