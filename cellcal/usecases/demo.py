@@ -2,7 +2,8 @@
 
 :func:`run_demo` starts the simulated cell (a UR10e with realistic hidden errors and one
 hidden physical effect) behind its wire protocols on loopback, connects the real drivers
-(Modbus TCP robot, line-protocol tracker over TCP), sets up the measurement frame,
+(Modbus TCP robot, or an ABB controller over Robot Web Services; line-protocol tracker
+over TCP), sets up the measurement frame,
 captures calibration and validation poses into a SQLite run store, exports the
 measurement CSV, calibrates the default model, diagnoses, lets the automatic diagnosis
 add the missing effects one at a time, and writes the HTML report, which tells that story
@@ -47,6 +48,10 @@ DEMO_EFFECTS = ("compliance:3", "compliance:2", "harmonic:1", "backlash:2", "sca
                 "coupling:5")
 
 
+#: the demo's robot controllers: what serves the robot, and how its URL begins
+DEMO_ROBOTS = {"modbus": ("a PLC-style controller over Modbus TCP", "modbus+tcp://"),
+               "abb": ("an ABB IRC5 over Robot Web Services", "abb://")}
+
 #: where the demo's user says the tracker stands (mm, robot base frame): roughly where the
 #: simulated cell puts it (:data:`~sim_drivers.model_truth.DEFAULT_TRACKER_AT_MM`)
 TRACKER_AT_MM = (2500.0, 0.0, 500.0)
@@ -83,10 +88,12 @@ def pick_hidden(seed: int) -> str:
 def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | None = None,
              poses: int = 300, valid: int = 150, progress: ProgressFactory | None = None,
              say: Callable[[str], None] | None = None, force: bool = False,
-             cold_start: bool = False) -> DemoResult:
+             cold_start: bool = False, robot: str = "modbus") -> DemoResult:
     """Run the demo; returns what it measured. ``say`` receives the step-by-step text, line
     by line; ``progress()`` makes each capture's progress reporter (None: none);
-    ``cold_start``: the robot starts cold (no physical effect hidden unless ``hidden``).
+    ``cold_start``: the robot starts cold (no physical effect hidden unless ``hidden``);
+    ``robot``: the robot's controller, one of :data:`DEMO_ROBOTS` (``abb``: an ABB IRC5
+    moved over Robot Web Services through the RAPID server module).
 
     :class:`DemoFolderError` for a folder holding other files (see
     :func:`check_demo_folder`; ``force`` writes there anyway, never over a foreign store).
@@ -113,15 +120,17 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     say(f"cellcal demo (seed {seed}): a simulated UR10e with realistic hidden errors and "
         + ("a cold start (it warms up while it is captured)" if cold_start else
            "one hidden physical effect") + ", measured by a simulated laser tracker")
+    controller, scheme = DEMO_ROBOTS[robot]
     config = ServeConfig(seed=seed, hidden=hidden, pty=False,
-                         ports={"modbus": 0, "line_robot": 0, "tracker": 0},
-                         thermal="cold" if cold_start else None)
+                         ports={"modbus": 0, "line_robot": 0, "tracker": 0, "abb": 0},
+                         thermal="cold" if cold_start else None, abb=robot == "abb")
     result = DemoResult(out, cold_start_demo.HIDDEN if cold_start else hidden, None,
                         float("nan"))
     with SimStack(config, truth_factory=lambda s, h: truth) as stack:
-        robot_url = next(u for u in stack.urls if u.startswith("modbus+tcp://"))
+        robot_url = next(u for u in stack.urls if u.startswith(scheme))
         tracker_url = next(u for u in stack.urls if u.startswith("tracker+tcp://"))
-        say(f"[1/7] cell served on loopback: robot {robot_url}, tracker {tracker_url}")
+        say(f"[1/7] cell served on loopback: robot {robot_url} ({controller}), tracker "
+            f"{tracker_url}")
         robot, tracker = open_robot(robot_url), open_tracker(tracker_url)
         try:
             robot.connect(5.0)
@@ -235,6 +244,7 @@ class DemoRequest(Request):
     valid: int = Field(150, ge=20, alias="--valid")
     force: bool = Field(False, alias="--force")
     cold_start: bool = Field(False, alias="--cold-start")
+    robot: str = Field("modbus", alias="--robot")
 
 
 def demo(req: DemoRequest, *, say: Callable[[str], None] | None = None,
@@ -257,4 +267,4 @@ def demo(req: DemoRequest, *, say: Callable[[str], None] | None = None,
         raise UsageError(str(e)) from None
     return run_demo(req.out, seed=req.seed, hidden=req.hidden, poses=req.poses,
                     valid=req.valid, progress=progress, say=say, force=req.force,
-                    cold_start=req.cold_start)
+                    cold_start=req.cold_start, robot=req.robot)

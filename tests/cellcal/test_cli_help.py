@@ -74,6 +74,9 @@ def test_parser_constants_agree_with_the_core():
     assert history.DEFAULT_SIGMA == DEFAULT_SIGMA
     assert sim_serve.DEFAULT_PORTS == DEFAULT_PORTS
     assert sim_serve.ABB_PORT == ABB_PORT
+    from cellcal.usecases.demo import DEMO_ROBOTS
+
+    assert choices.DEMO_ROBOTS == tuple(DEMO_ROBOTS)
     assert list(ROUTINE_ARGS) == list(ROUTINES)
     for name, spec in ROUTINE_ARGS.items():  # the summary is the routine's docstring's
         first = get(name).__doc__.strip().splitlines()[0]
