@@ -4,9 +4,9 @@ A laser tracker's blunders (0.5-5 mm off: a wrong return, a re-seated SMR, someo
 the beam) leave nothing in the tracker's own statistics: the averaged reading's std is
 as small as any other's (that check, ``max_std_mm``, is the executor's). They show only
 against the robot: the reading is far from where the model fitted so far puts the
-point. :class:`Remeasure` is the capture service's policy (DESIGN.md: "the re-measure
-policy at the cell lives with the capture service, not inside a routine"); the
-executor hands it each new sample before the commit (:meth:`Remeasure.settle`).
+point. :class:`Remeasure` is the capture service's policy, not a routine's (the policy
+at the cell: docs/capture.md, "Blunders: re-measured at the cell"); the executor hands
+it each new sample before the commit (:meth:`Remeasure.settle`).
 
 The running model (:class:`RunningModel`)
     ``geometric,base,tool`` of the run's nominal model (its controller tool),

@@ -373,7 +373,7 @@ def _read_rows(path: Path, source: str):
         rows.append((line_no, [f.strip() for f in fields]))
     if header is None:
         raise DataError(f"{source}: empty: no header row (comma-separated values with a "
-                        "header, FORMATS.md §1)")
+                        "header, docs/formats.md §1)")
     return meta, header, header_line, rows
 
 
@@ -385,7 +385,7 @@ def _check_separator(header: list[str], source: str, line_no: int) -> None:
         if sep in header[0]:
             raise DataError(f"{source}: line {line_no}: the fields are separated by {name}; "
                             "cellcal reads comma-separated values with '.' as the decimal "
-                            "point (FORMATS.md §1)")
+                            "point (docs/formats.md §1)")
 
 
 def _float(source, line_no, col, text) -> float:

@@ -109,7 +109,7 @@ def test_upgraded_store_exports_as_schema_2_did(v2_db, tmp_path, capsys):
         text, old = out.read_text(), (V2 / f"run{run}.csv").read_text()
         cols, cols2 = _columns(text), _columns(old)
         # every column as schema 2 exported it, plus the air schema 2 stored but did not
-        # export (FORMATS.md §1 optional columns); no reflector or face: not recorded then
+        # export (docs/formats.md §1 optional columns); no reflector or face: not recorded then
         assert {k: cols[k] for k in cols2} == cols2, run
         assert set(cols) - set(cols2) == {"pressure_hpa", "humidity_pct"}
         assert set(cols["pressure_hpa"]) == {"1013.25"}
