@@ -9,8 +9,9 @@ there; and the field it fills in :class:`calibration.dataset.Dataset` and in the
 store's record of a point (``daq.store.Sample``, named like the column). The CSV reader
 and writer, the store's writer and readers (rows read by column name), the export and
 ``Dataset.subset``/``concat`` all go through this table, and
-``tests/calibration/test_columns.py`` checks that it covers every Dataset field, every
-store column and every CSV column: a new quantity is one entry here.
+``tests/calibration/test_columns.py`` and ``tests/daq/test_column_table.py`` check that
+it covers every Dataset field, every store column (with its SQL type and schema version)
+and every CSV column: a new quantity is one entry here.
 
 One name per quantity
     :attr:`Column.name` is the name in code: the Dataset's field and the store record's.

@@ -5,7 +5,8 @@ as named columns (:class:`Samples`). Plain data, no database (:mod:`daq.store`).
 Every field is a quantity of the column table (:mod:`calibration.columns`), named as
 there: the table says how each is stored, stacked into a run's column and taken back
 (:meth:`Samples.from_records`, :meth:`Samples.sample`), and
-``tests/calibration/test_columns.py`` checks that these classes and the table agree.
+``tests/daq/test_column_table.py`` checks that these classes, the schema and the table
+agree.
 
 Units: joints rad, lengths mm, covariances mm², times epoch s.
 """
