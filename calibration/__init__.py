@@ -13,6 +13,7 @@ inverse         batched damped-Newton inverse kinematics (ChainFK, solve_ik)
 gravity         gravity torques at every joint from the mass model
 files           reading inputs strictly and writing outputs atomically (one helper each)
 dataset         Dataset and the measurement CSV (docs/formats.md §1), CsvTable for every table
+columns         the column table: every per-point quantity once (CSV, store, Dataset)
 capture_meta    CaptureMeta: the capture context a measurement file carries (tool, frame, run)
 data_quality    data too poor to identify a model: refused (InsufficientData), not fitted
 effects/        the physical causes of error (geometric, base, tool, compliance, ...)
