@@ -457,7 +457,7 @@ class RunStore:
         rows = self.db.execute(
             f"SELECT {', '.join(store_columns(SAMPLE_COLUMNS))} FROM samples "
             "WHERE run_id=? ORDER BY point_index", (run_id,)).mappings()
-        return Samples.from_records([Sample(**decode_row(r)) for r in rows])
+        return Samples(**{c.name: c.kind.column(rows, c.store) for c in SAMPLE_COLUMNS})
 
     def readings(self, run_id: int) -> list[Reading]:
         """The readings of a run that were not accepted, by point index, in order taken

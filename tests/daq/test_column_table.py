@@ -107,7 +107,9 @@ def test_every_column_survives_capture_store_export_csv_dataset(store_address, t
     with open_store(store_address, create=False, read_only=True) as st:
         s = st.samples(rid)
         (reading,) = st.readings(rid)
+    stacked = Samples.from_records(points)  # the columns, stacked from the records
     for c in RECORD:  # the store keeps every field of the record
+        _equal(getattr(s, c.name), getattr(stacked, c.name), c.name)
         for i, p in enumerate(points):
             _equal(getattr(s.sample(i), c.name), getattr(p, c.name), f"{c.name} of {i}")
     for c in READING_COLUMNS:  # and every measured field of a rejected reading
