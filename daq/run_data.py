@@ -20,7 +20,7 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
     air), which averaging does not reduce as 1/sqrt(n).
 
     Every quantity the Dataset shares with the store's record (the column table,
-    :mod:`calibration.columns`) is carried over: ``cmd``, ``temp_c``, ``pressure_hpa``,
+    :mod:`calibration.data.columns`) is carried over: ``cmd``, ``temp_c``, ``pressure_hpa``,
     ``humidity_pct``, ``reflector``, ``face``, ``dirs``, ``joint_temp`` (the joints'
     temperatures), ``quat``, ``sigma_deg`` and ``tool_id`` are set only when every sample
     has them (a column is all or nothing).
@@ -34,7 +34,7 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
     ``rejected`` per row and ``reason`` why (the verdict's note for an accepted one).
     """
     from calibration import Dataset
-    from calibration.columns import RECORD
+    from calibration.data.columns import RECORD
 
     from .remeasure import VERDICTS
 
@@ -88,10 +88,10 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
 
 def run_meta(store: RunStore, run, sigma_mm: np.ndarray | None = None) -> dict[str, str]:
     """The run's capture context as measurement-file metadata
-    (:class:`calibration.capture_meta.CaptureMeta`): run id and store, model, the
+    (:class:`calibration.data.capture_meta.CaptureMeta`): run id and store, model, the
     controller's tool, the SMR, the measurement frame and the tracker's sigma (RMS of the
     points' ``sigma_mm``), for ``# key: value`` header lines."""
-    from calibration.capture_meta import CaptureMeta
+    from calibration.data.capture_meta import CaptureMeta
 
     ctx = run.context
     T = ctx.tracker_T_base_matrix

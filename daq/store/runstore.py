@@ -74,7 +74,7 @@ import json
 import time
 from pathlib import Path
 
-from calibration.columns import (
+from calibration.data.columns import (
     READING_COLUMNS,
     SAMPLE_COLUMNS,
     decode_row,
@@ -384,7 +384,7 @@ class RunStore:
         raise StoreError(f"{self.address}: no {status} {routine} run{of}")
 
     # --------------------------------------------------------------- samples
-    # Every per-point column is an entry of the column table (calibration.columns): its
+    # Every per-point column is an entry of the column table (calibration.data.columns): its
     # store columns, how a value is written there and read back. Rows are read by name.
 
     #: the columns a sample and a rejected reading share (besides ``point_index``)

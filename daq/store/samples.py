@@ -2,7 +2,7 @@
 (:class:`Sample`), a reading that was not accepted (:class:`Reading`) and a run's samples
 as named columns (:class:`Samples`). Plain data, no database (:mod:`daq.store`).
 
-Every field is a quantity of the column table (:mod:`calibration.columns`), named as
+Every field is a quantity of the column table (:mod:`calibration.data.columns`), named as
 there: the table says how each is stored, stacked into a run's column and taken back
 (:meth:`Samples.from_records`, :meth:`Samples.sample`), and
 ``tests/daq/test_column_table.py`` checks that these classes, the schema and the table
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calibration.columns import RECORD
+from calibration.data.columns import RECORD
 
 
 @dataclass

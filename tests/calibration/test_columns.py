@@ -1,4 +1,4 @@
-"""The column table (calibration.columns) covers every per-point field of the Dataset and
+"""The column table (calibration.data.columns) covers every per-point field of the Dataset and
 every column of the measurement CSV (docs/formats.md §1): a quantity added in one place
 only fails here. The store's side is checked in tests/daq/test_column_table.py."""
 
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from calibration import Dataset, load_csv, load_model
-from calibration.columns import BY_NAME, COLUMNS, CSV_READ, column
+from calibration.data.columns import BY_NAME, COLUMNS, CSV_READ, column
 
 ROOT = Path(__file__).resolve().parents[2]
 UR = load_model("ur10e")

@@ -1,4 +1,4 @@
-"""The column table (calibration.columns) on the store's side: it names every column of the
+"""The column table (calibration.data.columns) on the store's side: it names every column of the
 ``samples`` and ``readings`` tables with its SQL type and the schema version that added it,
 the store's records (Sample, Samples) have exactly its fields, and a point with every
 quantity set keeps each one from capture to store to export to CSV to Dataset, on both
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from calibration import load_csv, load_model
-from calibration.columns import (
+from calibration.data.columns import (
     COLUMNS,
     READING_COLUMNS,
     RECORD,
