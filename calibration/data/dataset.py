@@ -151,7 +151,7 @@ class Dataset:
         def pick(a):
             if a is None:
                 return None
-            return [a[i] for i in idx.tolist()] if isinstance(a, list) else a[idx]
+            return a[idx] if isinstance(a, np.ndarray) else [a[i] for i in idx.tolist()]
 
         return replace(self, **{f: pick(getattr(self, f)) for f in self.per_point_fields()})
 
@@ -212,7 +212,9 @@ class Dataset:
                     return None
                 a = np.full(self.n, f.metadata["absent"]) if a is None else a
                 b = np.full(other.n, f.metadata["absent"]) if b is None else b
-            return a + b if isinstance(a, list) else np.concatenate([a, b])
+            if isinstance(a, np.ndarray):
+                return np.concatenate([a, b])
+            return [*a, *b]
 
         return Dataset(**{f.name: cat(f, getattr(self, f.name), getattr(other, f.name))
                           for f in fields(self) if f.metadata.get("per_point")},
