@@ -522,12 +522,11 @@ class Column:
         v = getattr(data, self.dataset[0])
         if v is None:
             return {}
-        names = self.csv_names(data.n_joints)
+        if len(self.csv) == 1 and "{j}" not in self.csv[0]:  # one value per point
+            return {self.csv[0]: v}
         if isinstance(self.kind, JointList) and self.kind.dtype is int:
             v = np.asarray(v).astype(int)
-        if len(names) == 1 and len(self.csv) == 1 and "{j}" not in self.csv[0]:
-            return {names[0]: v}
-        return {c: v[:, k] for k, c in enumerate(names)}
+        return {c: v[:, k] for k, c in enumerate(self.csv_names(data.n_joints))}
 
     def read_csv(self, table, ctx: CsvContext, got: dict) -> dict:
         """This quantity's Dataset field(s) from a CSV table ({} when it has no reader)."""
@@ -541,8 +540,6 @@ class Column:
         return {self.dataset[0]: self.kind.gather(values)}
 
 
-_ROW_LABEL = "the store's row has none: the point's number, counted from 1"
-
 #: every per-point quantity; CSV columns are written in this order (docs/formats.md §1)
 COLUMNS: tuple[Column, ...] = (
     Column("point_index", "", "the point's index in the capture's plan", Int(),
@@ -551,7 +548,7 @@ COLUMNS: tuple[Column, ...] = (
     Column("pose_id", "", "a label, unique within a file", Text(
         default=lambda row: str(int(row["point_index"]) + 1)),
         csv=("pose_id",), store=("pose_id",), since=1, dataset=("pose_id",),
-        read=_read_pose_id, write=lambda d: {"pose_id": d.pose_id}),
+        read=_read_pose_id),
     Column("q", "rad", "the joints as the controller reported them",
            JointList(float, nullable=False), csv=("q{j}",), store=("q_json",), since=1,
            reading=True, dataset=("q",), required=True, read=_read_q, write=_write_q,
