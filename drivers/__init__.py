@@ -17,8 +17,9 @@ Modules
     ``line_tracker``  a laser tracker over TCP or serial, line protocol
     ``modbus_robot``  a PLC-style robot controller over Modbus TCP
     ``ur_rtde``       Universal Robots over ur-rtde
-    ``abb``           ABB IRC5 over Robot Web Services 1.0 and a RAPID server module
-    ``leica``         Leica laser trackers over emScon
+    ``abb/``          ABB IRC5 over Robot Web Services 1.0 and a RAPID server module (see
+                      its package)
+    ``leica/``        Leica laser trackers over the emScon TPI (see its package)
 """
 
 from __future__ import annotations
