@@ -76,7 +76,7 @@ def test_parser_constants_agree_with_the_core():
     assert sim_serve.ABB_PORT == ABB_PORT
     from cellcal.usecases.demo import DEMO_ROBOTS
 
-    assert choices.DEMO_ROBOTS == tuple(DEMO_ROBOTS)
+    assert tuple(DEMO_ROBOTS) == choices.DEMO_ROBOTS
     assert list(ROUTINE_ARGS) == list(ROUTINES)
     for name, spec in ROUTINE_ARGS.items():  # the summary is the routine's docstring's
         first = get(name).__doc__.strip().splitlines()[0]
