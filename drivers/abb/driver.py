@@ -239,13 +239,16 @@ class AbbRwsRobot:
         self._refused = ""
 
     def close(self) -> None:
-        """Release the mastership, log out, close the link; idempotent, never raises."""
-        if self._connected:
+        """Release the mastership, log out, close the link; idempotent, never raises. A
+        session whose link was lost during a move is ended too (its mastership would
+        otherwise bar the next session)."""
+        if self._link.has_session:
             with contextlib.suppress(DriverError):
                 if self._master:
-                    self._post(C.MASTERSHIP_RELEASE, None, 1.0, "release mastership")
+                    self._link.request("POST", C.MASTERSHIP_RELEASE, {}, timeout=0.5,
+                                       command="release mastership")
             with contextlib.suppress(DriverError):
-                self._get(C.LOGOUT, 1.0, "logout")
+                self._link.request("GET", C.LOGOUT, None, timeout=0.5, command="logout")
         self._connected = self._master = False
         self._link.drop()
         self._link.forget_session()

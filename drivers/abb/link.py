@@ -115,6 +115,11 @@ class RwsLink:
         self._nc = 0
 
     @property
+    def has_session(self) -> bool:
+        """Whether the server gave this link a session (its cookies)."""
+        return bool(self._cookies)
+
+    @property
     def is_open(self) -> bool:
         """Whether a TCP connection is open (none after a lost or timed-out request)."""
         return self._conn is not None

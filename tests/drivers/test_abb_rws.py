@@ -146,3 +146,18 @@ def test_a_closed_link_mid_move_leaves_the_session_and_its_mastership(abb):
     rob.connect(2.0)
     assert ctl.master == master
     rob.move_joints(TARGET, timeout=2.0)
+
+
+def test_close_after_a_link_lost_mid_move_ends_its_session(abb):
+    """The capture service's reconnection (close, then connect) after a dropped move: the
+    old session's mastership is released, the new session takes it."""
+    rob, ctl = abb.driver, abb.server.controller
+    old = ctl.master
+    abb.cell.faults.arm("drop")
+    with pytest.raises(ConnectionLost, match="MoveAbsJ"):
+        rob.move_joints(TARGET, timeout=2.0)
+    rob.close()
+    assert ctl.master is None and old not in abb.server.sessions
+    rob.connect(2.0)
+    assert ctl.master not in (None, old)
+    rob.move_joints(TARGET, timeout=2.0)
