@@ -168,6 +168,7 @@ class AbbRwsRobot:
             return doc
         code, msg = C.status_of(doc)
         words = f"HTTP {status}" + (f", RWS {code}" if code else "") + (f": {msg}" if msg else "")
+        log.info("robot %s: %s refused: %s", self.url, command, words)
         if status in (403, 409, 503):
             raise NotReady(self.url, command, words)
         if status in (400, 401, 404):
@@ -237,6 +238,11 @@ class AbbRwsRobot:
             self._refused = f"{e.command}: {e.detail}"
             raise
         self._refused = ""
+        ident = self._identity
+        log.info("robot %s: link open%s; controller %s, serial %s, RobotWare %s%s, %d joints",
+                 self.url, "" if self.read_only else ", mastership taken",
+                 ident.model or "?", ident.serial or "?", ident.firmware or "?",
+                 " (virtual)" if ident.simulator else "", self.n_joints)
 
     def close(self) -> None:
         """Release the mastership, log out, close the link; idempotent, never raises. A
@@ -249,6 +255,9 @@ class AbbRwsRobot:
                                        command="release mastership")
             with contextlib.suppress(DriverError):
                 self._link.request("GET", C.LOGOUT, None, timeout=0.5, command="logout")
+        if self._connected or self._master:
+            log.info("robot %s: link closed%s", self.url,
+                     ", mastership released" if self._master else "")
         self._connected = self._master = False
         self._link.drop()
         self._link.forget_session()

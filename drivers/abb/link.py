@@ -164,10 +164,13 @@ class RwsLink:
             data = resp.read()
         except TimeoutError as e:
             self.drop()  # its late reply must not answer the next request
+            log.info("robot %s: %s: no answer within %.3g s", self.device, command, timeout)
             raise CommandTimeout(self.device, command,
                                  f"no answer within {timeout:.3g} s") from e
         except (OSError, http.client.HTTPException) as e:
             self.drop()
+            log.info("robot %s: %s: link lost (%s: %s)", self.device, command,
+                     type(e).__name__, e)
             raise ConnectionLost(self.device, command,
                                  f"link lost ({type(e).__name__}: {e})") from e
         self._last_use = time.monotonic()
@@ -189,7 +192,9 @@ class RwsLink:
         deadline = time.monotonic() + timeout
         uri = "/" + codec.with_json(path)
         body = urlencode(form).encode() if form is not None else None
-        log.debug("rws %s > %s %s %s", self.device, method, uri, form or "")
+        if log.isEnabledFor(logging.DEBUG):
+            log.debug("robot %s: > %s %s%s", self.device, method, uri,
+                      "".join(f" {k}={v}" for k, v in (form or {}).items()))
         for attempt in (1, 2):
             left = deadline - time.monotonic()
             if left <= 0:
@@ -212,6 +217,19 @@ class RwsLink:
                     doc = json.loads(data)
                 except ValueError as e:
                     raise ProtocolError(self.device, command, f"bad JSON: {data[:80]!r}") from e
-        log.debug("rws %s < %d %s", self.device, resp.status,
-                  data[:300].decode("utf-8", "replace") if data else "")
+        if log.isEnabledFor(logging.DEBUG):
+            log.debug("robot %s: < %d %s", self.device, resp.status, _decoded(doc, data))
         return resp.status, doc
+
+
+def _decoded(doc: dict | None, data: bytes) -> str:
+    """An answer in a line: each item's fields (``_type: key=value ...``), an error's code
+    and message, else the raw text."""
+    if doc is None:
+        return data[:200].decode("utf-8", "replace") if data else "(no content)"
+    code, msg = codec.status_of(doc)
+    if code or msg:
+        return f"error {code}: {msg}"
+    return "; ".join(" ".join([str(i.get("_type", "?")) + ":"]
+                              + [f"{k}={v}" for k, v in i.items() if not k.startswith("_")])
+                     for i in codec.states(doc)) or "(no items)"

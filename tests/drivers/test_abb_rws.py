@@ -130,10 +130,16 @@ def test_the_move_writes_the_module_protocol_and_the_wire_is_logged(abb, caplog)
     np.testing.assert_allclose(robax, list(np.rad2deg(TARGET)) + [0, 0, 0], atol=1e-4)
     assert C.parse_num(ctl.pers[C.VAR_TIME]) == pytest.approx(0.3 / 0.25, rel=1e-4)
     assert ctl.pers[C.VAR_ZONE] == C.ZONE_FINE and ctl.pers[C.VAR_SEQ] == ctl.pers[C.VAR_ACK]
-    sent = [r.getMessage() for r in caplog.records if " > POST " in r.getMessage()]
-    names = [m.split("CellcalServer/")[1].split("?")[0] for m in sent if "CellcalServer/" in m]
+    wire = [r.getMessage() for r in caplog.records if r.levelno == logging.DEBUG]
+    dev = f"robot {rob.url}: "
+    sent = [m for m in wire if m.startswith(dev + "> POST /rw/rapid/symbol/")]
+    names = [m.split("CellcalServer/")[1].split("?")[0] for m in sent]
     assert names == [C.VAR_JOINTS, C.VAR_TIME, C.VAR_ZONE, C.VAR_KIND, C.VAR_SEQ]  # seq last
-    assert any(" < 204" in r.getMessage() for r in caplog.records)
+    assert sent[-1].endswith(f"?action=set&json=1 value={ctl.pers[C.VAR_SEQ]}")  # the form
+    assert sent[2].endswith(f"value={C.ZONE_FINE}")
+    assert dev + "< 204 (no content)" in wire
+    assert any(m.startswith(dev + "< 200 ms-jointtarget: rax_1=") for m in wire)
+    assert any(m.startswith(dev + "< 200 pnl-ctrlstate: ctrlstate=motoron") for m in wire)
 
 
 def test_a_closed_link_mid_move_leaves_the_session_and_its_mastership(abb):
