@@ -107,6 +107,7 @@ class SimIrc5:
         self.faults = faults if faults is not None else (cell.faults or FaultInjector())
         self.lock = threading.RLock()
         self.opmode = "AUTO"
+        self.speedratio = 100
         self.motors_on = True
         self.running = True
         self.master: str | None = None

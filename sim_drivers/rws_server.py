@@ -274,7 +274,7 @@ class _Handler(http.server.BaseHTTPRequestHandler):
                                             "opmode": ctl.opmode})
         if path == C.SPEEDRATIO:
             return self._items("rw/panel", {"_type": "pnl-speedratio", "_title": "speedratio",
-                                            "speedratio": "100"})
+                                            "speedratio": str(ctl.speedratio)})
         if path == C.EXECUTION:
             return self._items("rw/rapid", {"_type": "rap-execution", "_title": "execution",
                                             "ctrlexecstate": ctl.execstate(),

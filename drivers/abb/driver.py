@@ -100,7 +100,8 @@ class AbbRwsRobot:
         Joint limits (rad) checked before a move; the module checks the controller's own
         (its MOC configuration) too.
     poll_s : float
-        How often a move's acknowledgement and the status are polled (s).
+        How often a move's acknowledgement and the status are polled (s; RWS is served at
+        a low priority, so faster only loads the controller).
     """
 
     def __init__(self, url: str, host: str, port: int = C.DEFAULT_PORT, *,
@@ -108,7 +109,7 @@ class AbbRwsRobot:
                  n_joints: int = 6, task: str = C.TASK, module: str = C.MODULE,
                  mechunit: str = C.MECHUNIT, tool: str = "tool0", wobj: str = "wobj0",
                  read_only: bool = False, restart_rapid: bool = True, limits=None,
-                 poll_s: float = 0.01) -> None:
+                 poll_s: float = 0.02) -> None:
         if not 1 <= n_joints <= 6:
             raise ValueError(f"n_joints must be 1..6, got {n_joints}")
         self.url = url
@@ -238,11 +239,24 @@ class AbbRwsRobot:
             self._refused = f"{e.command}: {e.detail}"
             raise
         self._refused = ""
+        self._check_speed_ratio(_left(deadline))
         ident = self._identity
         log.info("robot %s: link open%s; controller %s, serial %s, RobotWare %s%s, %d joints",
                  self.url, "" if self.read_only else ", mastership taken",
                  ident.model or "?", ident.serial or "?", ident.firmware or "?",
                  " (virtual)" if ident.simulator else "", self.n_joints)
+
+    def _check_speed_ratio(self, timeout: float) -> None:
+        """Warn when the pendant's speed override is below 100 %: every move then takes
+        longer than the driver asks (its timeout may run out)."""
+        try:
+            ratio = float(self._field(self._get(C.SPEEDRATIO, timeout, retry=True),
+                                      "speedratio", "GET speedratio"))
+        except (DriverError, ValueError):
+            return
+        if ratio < 100:
+            log.warning("robot %s: speed ratio %g %% at the controller: moves take %.3gx "
+                        "longer than asked", self.url, ratio, 100 / max(ratio, 1e-3))
 
     def close(self) -> None:
         """Release the mastership, log out, close the link; idempotent, never raises. A

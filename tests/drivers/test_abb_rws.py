@@ -167,3 +167,12 @@ def test_close_after_a_link_lost_mid_move_ends_its_session(abb):
     rob.connect(2.0)
     assert ctl.master not in (None, old)
     rob.move_joints(TARGET, timeout=2.0)
+
+
+def test_a_speed_override_below_100_percent_is_a_warning_at_connect(abb, caplog):
+    abb.driver.close()
+    abb.server.controller.speedratio = 25
+    with caplog.at_level(logging.WARNING, logger="drivers.abb.driver"):
+        abb.driver.connect(2.0)
+    assert any("speed ratio 25 % at the controller: moves take 4x longer" in r.getMessage()
+               for r in caplog.records)
