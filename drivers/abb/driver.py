@@ -68,6 +68,8 @@ log = logging.getLogger(__name__)
 STOPS = {"guardstop": "guard stop (the safety circuit opened: a protective stop)",
          "emergencystop": "emergency stop", "emergencystopreset": "emergency stop (reset "
          "pending)"}
+#: the shortest ``\T`` the driver gives MoveAbsJ (s)
+MIN_MOVE_S = 0.05
 #: status error codes of those states (the simulated cell's numbers)
 STOP_CODES = {"guardstop": 30, "emergencystop": 31, "emergencystopreset": 31, "sysfail": 32}
 
@@ -398,7 +400,8 @@ class AbbRwsRobot:
         with self._as(command):
             ack = self._ready(command, deadline)
             q_now = self.read_joints(_left(deadline)).q
-            seconds = float(np.max(np.abs(q - q_now))) / speed
+            # \T of at least 50 ms: a target where the robot stands is a move of no length
+            seconds = max(float(np.max(np.abs(q - q_now))) / speed, MIN_MOVE_S)
             self._set(C.VAR_JOINTS, C.jointtarget_text(np.rad2deg(q).tolist()), deadline)
             self._set(C.VAR_TIME, C.rapid_num(seconds), deadline)
             self._set(C.VAR_ZONE, C.ZONE_FINE, deadline)
