@@ -129,8 +129,8 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     with SimStack(config, truth_factory=lambda s, h: truth) as stack:
         robot_url = next(u for u in stack.urls if u.startswith(scheme))
         tracker_url = next(u for u in stack.urls if u.startswith("tracker+tcp://"))
-        say(f"[1/7] cell served on loopback: robot {robot_url} ({controller}), tracker "
-            f"{tracker_url}")
+        served = "" if robot == "modbus" else f" ({controller})"
+        say(f"[1/7] cell served on loopback: robot {robot_url}{served}, tracker {tracker_url}")
         robot, tracker = open_robot(robot_url), open_tracker(tracker_url)
         try:
             robot.connect(5.0)

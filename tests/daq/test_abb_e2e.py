@@ -43,7 +43,7 @@ def _taught_targets(db, path, n=16) -> None:
     with RunStore(db) as store:
         s = store.samples(2)
     rows = [i for i, name in enumerate(s.set_name) if name == "valid"][:n]
-    q = np.asarray(s.joints_rad)[rows]
+    q = np.asarray(s.q)[rows]
     p = tool_points(model, q)
     lines = ["pose_id,x,y,z,q1,q2,q3,q4,q5,q6"] + [
         f"T{k}," + ",".join(f"{v:.6f}" for v in [*p[k], *np.degrees(q[k])])
