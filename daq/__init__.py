@@ -20,4 +20,12 @@ Modules
     ``run_data``        runs as calibration inputs: a data set, zero-point postures
     ``service``         plan, start and resume runs (the commands and the demo call it)
     ``frame_fit``       circle, line and measurement-frame fits for the frame routine
+
+Logging: each module logs to ``logging.getLogger(__name__)`` (the service's decisions at
+INFO); the package configures no handler but a ``NullHandler`` (the application does:
+``cellcal -v``).
 """
+
+import logging
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())
