@@ -268,9 +268,8 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             self._events.append((now, name_of(ES_SystemStatusChange, change)))
             key = _SETTING_OF_CHANGE.get(change)
             if key is not None:
-                log.info("%s: %s (another client?): the %s setting is read back before the "
-                         "next measurement", self._dev, name_of(ES_SystemStatusChange, change),
-                         key)
+                log.debug("%s: %s: the %s setting is read back before the next "
+                          "measurement", self._dev, name_of(ES_SystemStatusChange, change), key)
                 self._confirmed.discard(key)
             if change in (SSC.ES_SSC_MeasStatus_NotReady, SSC.ES_SSC_MeasStatus_Busy,
                           SSC.ES_SSC_MeasStatus_Ready):

@@ -54,7 +54,7 @@ class Shown:
             elif isinstance(v, bytes):
                 v = repr(v.decode("utf-16-le", "replace").split("\0", 1)[0])
             elif isinstance(v, float):
-                v = f"{v:.6g}"
+                v = f"{v:.10g}"
             parts.append(f"{k}={v}")
         return f"{type(p).__name__}({', '.join(parts)})"
 
