@@ -91,6 +91,21 @@ def check_log_file(path: str | Path, what: str = "--log-file") -> Path:
     return p
 
 
+class _Stderr(logging.StreamHandler):
+    """stderr; each record first erases the progress line a capture keeps refreshed in
+    place on a terminal (:func:`cellcal.progress.erase_line`: drawn again at its next
+    update)."""
+
+    def __init__(self) -> None:
+        super().__init__(sys.stderr)
+
+    def emit(self, record: logging.LogRecord) -> None:
+        from .progress import erase_line
+
+        erase_line()
+        super().emit(record)
+
+
 def _file_handler(path: Path) -> logging.Handler:
     h = logging.FileHandler(path, mode="a", encoding="utf-8")  # flushed after each record
     h.setFormatter(OneLineFormatter())
@@ -134,7 +149,7 @@ def configured(args):
     handlers: list[logging.Handler] = []
     levels = _Levels()
     try:
-        stderr = logging.StreamHandler(sys.stderr)
+        stderr = _Stderr()
         stderr.setFormatter(OneLineFormatter())
         stderr.setLevel(level if target is None else max(level, logging.WARNING))
         handlers.append(stderr)
