@@ -33,7 +33,7 @@ import time
 import numpy as np
 
 from calibration import Dataset, ErrorModel, identify, load_model
-from calibration.simulate import add_blunders, random_joints, realistic_truth, simulate
+from calibration.fit.simulate import add_blunders, random_joints, realistic_truth, simulate
 
 SIGMA = 0.015
 

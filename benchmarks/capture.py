@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT))
 
 import sim_drivers.inprocess as inproc  # noqa: E402
 from calibration import load_model  # noqa: E402
-from calibration.cell import CellSpec  # noqa: E402
+from calibration.cell.cell import CellSpec  # noqa: E402
 from daq.executor import Executor  # noqa: E402
 from daq.routines import make_plan  # noqa: E402
 from daq.run_context import ExecutorOptions  # noqa: E402

@@ -28,10 +28,10 @@ import numpy as np
 from reference_lm import textbook_lm  # beside this script
 
 from calibration import ErrorModel, identify, load_model
-from calibration.auto_diagnosis import auto_diagnose
-from calibration.diagnosis import diagnose
+from calibration.diagnosis.auto_diagnosis import auto_diagnose
+from calibration.diagnosis.diagnosis import diagnose
 from calibration.effects import parse_effects
-from calibration.simulate import Bump, random_joints, realistic_truth, simulate
+from calibration.fit.simulate import Bump, random_joints, realistic_truth, simulate
 
 HIDDEN = ("harmonic20:2,harmonic2:3,harmonic:1,harmonic8:5,harmonic3:4,compliance:2,"
           "compliance:3,backlash:3,scale:2,coupling:5,harmonic12:6,scale:4,backlash:5")

@@ -5,7 +5,7 @@ For 100, 1 000 and 10 000 calibration poses (plus 2 000 validation poses), print
 median identification time (``Fit.solve_s``: binding, the identifiability QR, the solve,
 the validation) over several runs, idle and while a busy-loop process holds a core,
 with BLAS pinned to one thread for small problems (the default,
-:mod:`calibration.blas`) and with BLAS's default threads; then the peak memory the
+:mod:`calibration.numerics.blas`) and with BLAS's default threads; then the peak memory the
 identification allocates (tracemalloc) and the validation RMS divided by the noise floor
 sqrt(3)*sigma. The claim: pinned, the loaded time stays within 1.5x of the idle one.
 
@@ -25,9 +25,9 @@ import tracemalloc
 
 import numpy as np
 
-import calibration.blas
+import calibration.numerics.blas
 from calibration import ErrorModel, identify, load_model
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
 
 SIGMA = 0.015
 
@@ -59,12 +59,12 @@ def load(busy: bool):
 
 
 def median_solve_s(em, data, runs: int, pinned: bool) -> tuple[float, object]:
-    small = calibration.blas.SMALL_ELEMENTS
-    calibration.blas.SMALL_ELEMENTS = small if pinned else -1
+    small = calibration.numerics.blas.SMALL_ELEMENTS
+    calibration.numerics.blas.SMALL_ELEMENTS = small if pinned else -1
     try:
         fits = [identify(em, data) for _ in range(runs)]
     finally:
-        calibration.blas.SMALL_ELEMENTS = small
+        calibration.numerics.blas.SMALL_ELEMENTS = small
     return statistics.median(f.solve_s for f in fits), fits[-1]
 
 
@@ -102,8 +102,9 @@ def main(sizes=(100, 1000, 10000), runs: int | None = None) -> None:
             idle, _ = median_solve_s(em, data, n_runs, pinned)
             with load(True):
                 loaded, _ = median_solve_s(em, data, n_runs, pinned)
+            small = calibration.numerics.blas.SMALL_ELEMENTS
             label = ("1 thread" if 3 * (n + 2000) * em.n_params
-                     <= calibration.blas.SMALL_ELEMENTS else "default") if pinned else "default"
+                     <= small else "default") if pinned else "default"
             print(f"{n:>6} {label:>8} {idle * 1000:>8.1f} {loaded * 1000:>10.1f} "
                   f"{loaded / idle:>12.2f} {n_runs:>5} {fit.iterations:>6} {peak:>8.1f} "
                   f"{ratio:>16.3f}")

@@ -57,7 +57,7 @@ def make_report(workdir: Path, auto: bool = True) -> Path:
     import numpy as np
 
     from calibration import DEFAULT_EFFECTS, ErrorModel, load_model
-    from calibration.simulate import add_blunders, random_joints, realistic_truth, simulate
+    from calibration.fit.simulate import add_blunders, random_joints, realistic_truth, simulate
     from presentation.html_report import build_report
     from presentation.provenance import Provenance
 

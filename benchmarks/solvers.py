@@ -13,7 +13,7 @@ Prints one table: validation RMS and its ratio to the noise floor sqrt(3) sigma,
 calibration RMS, the wall time of identify() and the solver's iterations (annealing:
 temperature levels and model evaluations). Ridge: the ridge parameter xi, the
 condition class and the poses IGG3 rejected; every solver: whether the blunders it left out
-(calibration.outliers, the default) are the injected ones.
+(calibration.fit.outliers, the default) are the injected ones.
 
     python benchmarks/solvers.py [--seed N]
 """
@@ -26,7 +26,7 @@ import time
 import numpy as np
 
 from calibration import Dataset, ErrorModel, identify, load_model
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
 
 SIGMA = 0.015
 N_CAL = 300

@@ -43,9 +43,9 @@ from threadpoolctl import threadpool_limits
 
 import calibration
 from calibration import ErrorModel, identify, load_model
-from calibration.auto_diagnosis import auto_diagnose
-from calibration.heap import keep_freed_memory
-from calibration.identify import structural_identifiability
+from calibration.diagnosis.auto_diagnosis import auto_diagnose
+from calibration.fit.identify import structural_identifiability
+from calibration.numerics.heap import keep_freed_memory
 
 #: the checkout measured: the one ``calibration`` is imported from (PYTHONPATH)
 ROOT = Path(calibration.__file__).resolve().parents[1]

@@ -22,14 +22,14 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from calibration import ErrorModel, identify, load_model  # noqa: E402
-from calibration.controller_export import (  # noqa: E402
+from calibration.exports.controller_export import (  # noqa: E402
     ur_conf_parity,
     write_table_csv,
     write_ur_kinematics_yaml,
 )
-from calibration.model_export import calibrated_model, write_ur_conf  # noqa: E402
-from calibration.simulate import random_joints, realistic_truth, simulate  # noqa: E402
-from calibration.urdf_export import write_urdf  # noqa: E402
+from calibration.exports.model_export import calibrated_model, write_ur_conf  # noqa: E402
+from calibration.exports.urdf_export import write_urdf  # noqa: E402
+from calibration.fit.simulate import random_joints, realistic_truth, simulate  # noqa: E402
 from tests.calibration.urdf_writers import dh_chain_urdf, rot, ur_style_urdf  # noqa: E402
 
 SIGMA = 0.015

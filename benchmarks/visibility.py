@@ -33,8 +33,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from calibration import Dataset, ErrorModel, identify, load_model  # noqa: E402
-from calibration.cell import CellSpec  # noqa: E402
-from calibration.visibility import assess, sample_visible, workspace_ok  # noqa: E402
+from calibration.cell.cell import CellSpec  # noqa: E402
+from calibration.cell.visibility import assess, sample_visible, workspace_ok  # noqa: E402
 from daq.plans import Plan, Target, estimate_capture_s  # noqa: E402
 from daq.routines import make_plan  # noqa: E402
 from daq.run_context import ExecutorOptions, RunContext  # noqa: E402

@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from calibration import load_model
-from calibration.inverse import ChainFK
+from calibration.model.inverse import ChainFK
 from calibration.zero_point import rigorous_method, seed_method, simulate_postures
 
 TOOL = np.array([12.0, -8.0, 135.0])

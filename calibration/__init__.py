@@ -4,49 +4,33 @@ Numbers only: imports nothing from the other cellcal packages, draws nothing, pr
 nothing (figures, the HTML report and the command line's JSON live in ``presentation``).
 Lengths mm, angles rad inside.
 
+Rooms, each importing only the rooms below it (the ``layers`` contract of pyproject.toml):
+
 Modules
 -------
-robot_model     RobotModel: the nominal robot from the model YAML (docs/formats.md §2), built-ins
-kinematics      run_chain: forward kinematics vectorised over poses, exact Jacobians
-transforms      rotations and rigid transforms on arrays; fit_rigid / fit_rotation (Kabsch)
-inverse         batched damped-Newton inverse kinematics (ChainFK, solve_ik)
-gravity         gravity torques at every joint from the mass model
-files           reading inputs strictly and writing outputs atomically (one helper each)
-dataset         Dataset and the measurement CSV (docs/formats.md §1), CsvTable for every table
-capture_meta    CaptureMeta: the capture context a measurement file carries (tool, frame, run)
-data_quality    data too poor to identify a model: refused (InsufficientData), not fitted
-effects/        the physical causes of error (geometric, base, tool, compliance, ...)
-error_model     ErrorModel: a model plus effects; perturb (the one apply chain), evaluate
-identifiability which parameters a data set determines (QR with column pivoting)
-solvers/        lm, ridge, besa, sa: the least-squares solvers identify uses
-blas            one BLAS thread for small problems (timings independent of the neighbours)
-linalg          Cholesky solves and pivoted QR on numpy alone (no scipy on calibrate's path)
-chi3            the chi distribution with 3 degrees of freedom: tail and quantile
-identify        identify -> Fit (values, uncertainties, residuals, statistics), fit_at
-uncertainty     correlations, Monte-Carlo re-identification, position uncertainty
-diagnosis       diagnose: where a fit fails and which missing effect explains it
-screening       candidates screened at a linearised fit (linear_screen: the formulas;
-                candidate_columns; table_screening: spacing and smoothing by GCV; f_test)
-workflow        staged_fit: uncalibrated -> current -> current + the recommended effect
-params_io       params.json: a fit's parameters written and read back
-compensation    compensated joints and corrected targets from a calibration
-model_export    the calibrated model as model YAML and UR calibration.conf deltas
-ur_conf         UR calibration.conf deltas and the exact conversion to pure DH
-zero_point/     zero-point recalibration from 20 postures on one fixed point
-frame_fit       circle, line and measurement-frame fits of the frame routine
-cell            CellSpec: the cell YAML (tracker position, SMR axis and reflector, fixtures)
-visibility      the tracker's line of sight: facing angle, link capsules, fixtures, facing IK
-sight_cause     why no pose is visible: the SMR inside the wrist, the constraint hiding most
-simulate        synthetic measurements with a known truth
+workflow      staged_fit: uncalibrated -> current -> current + the recommended effect
+compensation/ compensated joints and corrected targets, a program's targets, controller joints
+zero_point/   zero-point recalibration from 20 postures on one fixed point
+diagnosis/    where a fit fails and which missing effect explains it; the auto loop; history
+exports/      params.json, model YAML, controller files and URDF, with parity checks
+fit/          the error model, identification, solvers, outliers, uncertainty, simulation
+cell/         the cell YAML, the tracker's line of sight, the frame routine's fits
+effects/      the physical causes of error (geometric, base, tool, compliance, ...)
+data/         the Dataset and the measurement CSV, the capture's context
+model/        the nominal robot: models, kinematics, inverse kinematics, transforms, gravity
+numerics/     linear algebra, the chi(3) quantile, BLAS threads, the heap
+errors        the core's error family, each with its exit code
+files         reading inputs strictly and writing outputs atomically (one helper each)
+version       the software's version, as recorded with runs and calibrations
 """
 
-from .dataset import DataError, Dataset, load_csv
+from .data.dataset import DataError, Dataset, load_csv
 from .effects import DEFAULT_EFFECTS, Effect, EffectError, JointEffect, parse_effects
-from .error_model import ErrorModel
-from .identify import Fit, error_stats, identify
-from .kinematics import forward, run_chain, tool_points
-from .model_loading import load_model
-from .robot_model import ModelError, RobotModel, builtin_models
+from .fit.error_model import ErrorModel
+from .fit.identify import Fit, error_stats, identify
+from .model.kinematics import forward, run_chain, tool_points
+from .model.model_loading import load_model
+from .model.robot_model import ModelError, RobotModel, builtin_models
 
 __all__ = [
     "DEFAULT_EFFECTS",

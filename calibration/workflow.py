@@ -6,7 +6,7 @@ read from a params.json, or identified) and, when the diagnosis of the current m
 finds a significant missing effect, the current model *plus that effect*, refitted.
 
 With ``auto`` the third act is the automatic diagnosis instead
-(:func:`~calibration.auto_diagnosis.auto_diagnose`): effects added one at a time while the
+(:func:`~calibration.diagnosis.auto_diagnosis.auto_diagnose`): effects added one at a time while the
 held-out error falls, every step kept as an :class:`AutoStory` (the fit after each step, its
 calibration and held-out RMS). A params.json written by ``diagnose --auto --out`` records its
 steps (``auto_steps``); given such a file, the steps are replayed (each prefix of the
@@ -26,15 +26,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .auto_diagnosis import AutoDiagnosis, auto_diagnose, explain_effect, heldout_errors
-from .dataset import Dataset
-from .diagnosis import Diagnosis, diagnose
+from .data.dataset import Dataset
+from .diagnosis.auto_diagnosis import AutoDiagnosis, auto_diagnose, explain_effect, heldout_errors
+from .diagnosis.diagnosis import Diagnosis, diagnose
 from .effects import DEFAULT_EFFECTS
-from .error_model import ErrorModel
-from .full_pose import for_data
-from .identify import Fit, fit_at, identify
-from .params_io import ParamsError, read_auto_steps, read_params
-from .robot_model import RobotModel
+from .exports.params_io import ParamsError, read_auto_steps, read_params
+from .fit.error_model import ErrorModel
+from .fit.full_pose import for_data
+from .fit.identify import Fit, fit_at, identify
+from .model.robot_model import RobotModel
 
 #: the "uncalibrated" reference: nominal kinematics, with only the base (where the robot
 #: stands) and the tool (where the SMR sits) fitted, since neither is a property of the arm
@@ -48,7 +48,7 @@ ParamsSource = str | Path | tuple[ErrorModel, np.ndarray]
 
 def fit_uncalibrated(model: RobotModel, data: Dataset, **kw) -> Fit:
     """The nominal robot's accuracy: only the base and tool fitted (see
-    :data:`UNCALIBRATED_EFFECTS`); ``kw`` go to :func:`~calibration.identify.identify`."""
+    :data:`UNCALIBRATED_EFFECTS`); ``kw`` go to :func:`~calibration.fit.identify.identify`."""
     em, _ = for_data(ErrorModel(model, UNCALIBRATED_EFFECTS), data, position_only=True)
     return identify(em, data, **kw)
 
@@ -63,10 +63,10 @@ def current_fit(model: RobotModel, data: Dataset, effects: str = DEFAULT_EFFECTS
     data : the measured poses (calibration and ``set=valid`` rows)
     effects : the current model's effects (ignored with ``params``)
     params : the current model's parameters are taken from there instead of fitted
-        (:func:`~calibration.identify.fit_at`), see :data:`ParamsSource`
+        (:func:`~calibration.fit.identify.fit_at`), see :data:`ParamsSource`
     solver : identification method
 
-    Raises :class:`~calibration.params_io.ParamsError` when the parameters' model has
+    Raises :class:`~calibration.exports.params_io.ParamsError` when the parameters' model has
     other joints or another convention than ``model``; the loaders' own errors pass
     through.
     """
@@ -127,7 +127,7 @@ def staged_fit(data: Dataset, model: RobotModel, effects: str = DEFAULT_EFFECTS,
 
     Parameters are those of :func:`current_fit`; ``refit`` adds the recommended effect
     (when the diagnosis finds a significant one) and refits, with the same solver.
-    ``auto`` runs :func:`~calibration.auto_diagnosis.auto_diagnose` from the current model
+    ``auto`` runs :func:`~calibration.diagnosis.auto_diagnosis.auto_diagnose` from the current model
     (``max_steps``, ``budget_s`` as there) and diagnoses its final model. Without
     ``auto``, a params.json that recorded the automatic diagnosis' steps (``auto_steps``)
     has them replayed (:func:`replay_story`).

@@ -5,7 +5,7 @@ A cell that drives its robot from Python (ur-rtde, Modbus, the line protocol: an
 :class:`CompensatedRobot` with a calibration. Targets are given as the nominal model means
 them: joints (where the nominal model puts the TCP), a TCP pose (4x4, robot base frame,
 mm) or a point (the orientation the robot has now). The wrapper solves for the joints at
-which the *calibrated* robot's TCP is there (:mod:`calibration.pose_compensation`, with
+which the *calibrated* robot's TCP is there (:mod:`calibration.compensation.pose_compensation`, with
 the thermal state, the payload and the approach direction where the model has them) and
 sends them as a joint move. Every move passes the checks a capture's moves pass
 (:class:`~daq.motion_guard.MotionGuard`: limits, floor, keep-out boxes, reach; after the
@@ -21,7 +21,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from calibration.pose_compensation import NominalTcpFK, PoseCompensation, compensate_targets
+from calibration.compensation.pose_compensation import (
+    NominalTcpFK,
+    PoseCompensation,
+    compensate_targets,
+)
 from drivers.protocols import JointReading, RobotDriver
 
 from .motion_guard import MotionGuard, MotionLimits, MotionMismatch, MotionRefused
@@ -33,7 +37,7 @@ class CompensatedRobot:
     Parameters
     ----------
     robot : an open (connected) RobotDriver
-    error_model, x : the calibration (e.g. :func:`calibration.params_io.read_params`'s
+    error_model, x : the calibration (e.g. :func:`calibration.exports.params_io.read_params`'s
         ``error_model`` and ``values``)
     flange_T_tcp : the TCP (4x4, flange frame, mm); None: the point the calibration
         measured (its tool stage; the nominal model's tool for the controller)

@@ -37,7 +37,7 @@ import math
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from calibration.kinematics import run_chain
+from calibration.model.kinematics import run_chain
 
 from .errors import CaptureError
 

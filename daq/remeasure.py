@@ -10,7 +10,7 @@ executor hands it each new sample before the commit (:meth:`Remeasure.settle`).
 
 The running model (:class:`RunningModel`)
     ``geometric,base,tool`` of the run's nominal model (its controller tool),
-    identified (:func:`calibration.identify`) from the accepted calibration rows once
+    identified (:func:`calibration.fit.identify`) from the accepted calibration rows once
     there are :data:`WARMUP_FACTOR` times as many as the plan's calibration poses
     identify parameters; refitted, warm-started, every ``refit_every`` accepted
     calibration rows (or 10 % of them, when more), and used as it is in between. The
@@ -19,7 +19,7 @@ The running model (:class:`RunningModel`)
     screen could not leave out more than 6 %, and four blunders in the 50 warm-up
     rows of a UR10e at a 5 % rate are not rare), on one BLAS thread (small systems).
     A new reading (calibration or validation row) is judged by the test of
-    :func:`calibration.outliers.find_blunders`: its residual from the
+    :func:`calibration.fit.outliers.find_blunders`: its residual from the
     prediction, studentised with the prediction's covariance (``I + H``), over the
     tracker's sigma of the reading (the RMS of its per-axis std) is out of line when
     it exceeds ``k c``: ``k`` the chi(3) quantile at ``1 - alpha / n`` over the plan's
@@ -83,8 +83,8 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from calibration import Dataset, ErrorModel, identify
-from calibration.kinematics import tool_points
-from calibration.outliers import ALPHA, residual_factors, studentise, threshold
+from calibration.fit.outliers import ALPHA, residual_factors, studentise, threshold
+from calibration.model.kinematics import tool_points
 
 from .executor import PointContext, approach_dirs
 from .plans import Plan, Target
@@ -134,7 +134,7 @@ def reading_sigma(s: Sample) -> float:
 
 def identifiable_count(error_model: ErrorModel, q: np.ndarray) -> int:
     """How many parameters of ``error_model`` poses ``q`` (rad, (n, N)) identify
-    (structural: at the nominal geometry, as :func:`calibration.identify` judges it)."""
+    (structural: at the nominal geometry, as :func:`calibration.fit.identify` judges it)."""
     if len(q) < 2:
         return error_model.n_params
     data = Dataset(q=q, tracker_p_smr=tool_points(error_model.model, q))

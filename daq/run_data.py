@@ -101,10 +101,10 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
 
 def run_meta(store: RunStore, run, sigma_mm: np.ndarray | None = None) -> dict[str, str]:
     """The run's capture context as measurement-file metadata
-    (:class:`calibration.capture_meta.CaptureMeta`): run id and store, model, the
+    (:class:`calibration.data.capture_meta.CaptureMeta`): run id and store, model, the
     controller's tool, the SMR, the measurement frame and the tracker's sigma (RMS of the
     points' ``sigma_mm``), for ``# key: value`` header lines."""
-    from calibration.capture_meta import CaptureMeta
+    from calibration.data.capture_meta import CaptureMeta
 
     ctx = run.context
     T = ctx.tracker_T_base_matrix

@@ -14,7 +14,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from calibration.cell import CellSpec
+from calibration.cell.cell import CellSpec
 
 from .check import CheckResult
 from .drift_checks import DriftCheck
@@ -58,7 +58,7 @@ class CaptureRequest:
     frame_run: int | None = None
     executor: ExecutorOptions = field(default_factory=ExecutorOptions)
     acquire: dict = field(default_factory=dict)
-    #: the cell (tracker, SMR, margins, fixtures; :mod:`calibration.cell`), the user's rough
+    #: the cell (tracker, SMR, margins, fixtures; :mod:`calibration.cell.cell`), the user's rough
     #: tracker position (mm, base frame), and whether to plan for the line of sight
     cell: CellSpec | None = None
     tracker_at: tuple[float, float, float] | None = None

@@ -6,7 +6,7 @@ user's rough position) first, then the measurement frame of a frame run in the s
 (``tracker_T_base``, measured), then the cell file; no source leaves the tracker unknown,
 and :func:`require_tracker` refuses to plan blind (unless the reflector accepts every
 direction; the caller may waive the line of sight). :func:`predict` checks every target
-of a plan against it (:func:`calibration.visibility.assess`, with the cell's margins)
+of a plan against it (:func:`calibration.cell.visibility.assess`, with the cell's margins)
 and :func:`estimate_time` estimates the capture time from the executor's speed.
 
 Units: mm, rad, s.
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.cell import CellSpec, tracker_in_base
+from calibration.cell.cell import CellSpec, tracker_in_base
 
 from .errors import TrackerUnknown
 from .plans import Plan, estimate_capture_s
@@ -118,7 +118,7 @@ def predict(plan: Plan, model, cell: CellSpec | None) -> SightReport:
     out = SightReport(len(plan), cell)
     if not out.checked or not rows:
         return out
-    from calibration.visibility import assess
+    from calibration.cell.visibility import assess
 
     s = assess(model, np.array([t.q for t in rows], float), cell)
     out.hidden = [(rows[i].index, rows[i].label, s.reason(i)) for i in np.flatnonzero(~s.visible)]

@@ -3,7 +3,7 @@
 Writes ``cal01.csv`` ... ``cal10.csv`` (measurement CSVs, docs/formats.md §1) into the
 directory given: 300 random poses each, measured with 0.015 mm tracker noise on Mondays
 06:00 UTC one week apart (the ``t_s`` column holds the epoch times). The robot's hidden
-errors (geometric, base, tool: :func:`calibration.simulate.realistic_truth`) stay the
+errors (geometric, base, tool: :func:`calibration.fit.simulate.realistic_truth`) stay the
 same, except the zero of joint 2, which creeps by +0.0002 deg a week and slips by
 +0.010 deg between the 6th and the 7th calibration (a collision). Calibrate each with
 ``--db ... --robot-id ...`` and ``cellcal history`` shows both (docs/history.md).
@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from calibration import DEFAULT_EFFECTS, ErrorModel, load_model
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
 
 #: the hidden joint-2 zero error added at each calibration (deg): a creep and a slip
 CREEP_DEG_PER_WEEK = 0.0002

@@ -8,11 +8,11 @@ Every function returns text (lines joined by newlines) and prints nothing.
 
 from __future__ import annotations
 
-from calibration.dataset import Dataset
-from calibration.identify import Fit
-from calibration.outliers import BlunderScreen
-from calibration.robot_model import RobotModel
-from calibration.uncertainty import MonteCarlo, correlations
+from calibration.data.dataset import Dataset
+from calibration.fit.identify import Fit
+from calibration.fit.outliers import BlunderScreen
+from calibration.fit.uncertainty import MonteCarlo, correlations
+from calibration.model.robot_model import RobotModel
 from calibration.workflow import UNCALIBRATED_LABEL
 
 from .orientation_text import orientation_lines

@@ -5,7 +5,7 @@ lines about the files exported (:func:`export_lines`) and the ``--json`` object
 
 Every function returns text or a JSON-ready mapping and prints nothing. An export is any
 object with ``key`` (its JSON key), ``path`` and ``parity``
-(:class:`calibration.parity.Parity`).
+(:class:`calibration.exports.parity.Parity`).
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.capture_meta import CaptureMeta
-from calibration.compensation import Compensation, Targets
-from calibration.robot_model import RobotModel
-from calibration.transforms import matrix_to_rotvec
+from calibration.compensation.compensation import Compensation, Targets
+from calibration.data.capture_meta import CaptureMeta
+from calibration.model.robot_model import RobotModel
+from calibration.model.transforms import matrix_to_rotvec
 
 from .text_table import fmt
 

@@ -8,9 +8,9 @@ Every function returns text (lines joined by newlines) and prints nothing.
 
 from __future__ import annotations
 
-from calibration.auto_diagnosis import AutoDiagnosis, AutoStep
-from calibration.diagnosis import Diagnosis
-from calibration.identify import Fit
+from calibration.diagnosis.auto_diagnosis import AutoDiagnosis, AutoStep
+from calibration.diagnosis.diagnosis import Diagnosis
+from calibration.fit.identify import Fit
 
 from .calibration_text import blunder_lines
 from .orientation_text import orientation_lines

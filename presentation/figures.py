@@ -19,8 +19,8 @@ import scipy.stats
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from calibration.diagnosis import ALPHA, Diagnosis
-from calibration.identify import Fit
+from calibration.diagnosis.diagnosis import ALPHA, Diagnosis
+from calibration.fit.identify import Fit
 
 from .plot_base import (
     BLUNDER_COLOUR,

@@ -16,8 +16,8 @@ import matplotlib.dates as mdates
 import numpy as np
 from matplotlib.figure import Figure
 
+from calibration.diagnosis.history import ParameterHistory
 from calibration.files import write_atomic
-from calibration.history import ParameterHistory
 
 from .figures import png_bytes, style
 

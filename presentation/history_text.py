@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.history import CalibrationSummary, ParameterHistory
+from calibration.diagnosis.history import CalibrationSummary, ParameterHistory
 
 from .text_table import table
 

@@ -4,7 +4,7 @@ calibration — how far off the robot was, what each step fixed, what is left.
 :func:`build_report` fits the stages itself (:func:`calibration.workflow.staged_fit`:
 uncalibrated → current model → current plus the effect the diagnosis recommends, or with
 ``auto`` the automatic diagnosis' steps) and renders them; :func:`render_report` renders
-already-computed fits, a :class:`~calibration.diagnosis.Diagnosis` and optionally the
+already-computed fits, a :class:`~calibration.diagnosis.diagnosis.Diagnosis` and optionally the
 :class:`~calibration.workflow.AutoStory` (for callers such as ``cellcal demo`` that have
 them at hand). Figures: :mod:`presentation.figures` and :mod:`presentation.joint_figures`;
 tables and style: :mod:`presentation.html_tables`; where it comes from:
@@ -24,12 +24,12 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from calibration.dataset import Dataset
-from calibration.diagnosis import Diagnosis
+from calibration.data.dataset import Dataset
+from calibration.diagnosis.diagnosis import Diagnosis
 from calibration.effects import DEFAULT_EFFECTS
 from calibration.files import write_atomic
-from calibration.identify import Fit
-from calibration.robot_model import RobotModel
+from calibration.fit.identify import Fit
+from calibration.model.robot_model import RobotModel
 from calibration.workflow import AutoStory, ParamsSource, staged_fit
 
 from .figures import (

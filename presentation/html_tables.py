@@ -13,9 +13,9 @@ import math
 
 import numpy as np
 
-from calibration.diagnosis import Diagnosis, describe_effect
-from calibration.identify import error_stats
-from calibration.outliers import BlunderScreen
+from calibration.diagnosis.diagnosis import Diagnosis, describe_effect
+from calibration.fit.identify import error_stats
+from calibration.fit.outliers import BlunderScreen
 from calibration.workflow import AutoStory
 
 from .plot_base import Stage
@@ -56,7 +56,7 @@ def stats_table(stages: list[Stage], floor: float | None) -> str:
             f"per pose)</caption>{head}{''.join(rows)}{foot}</table></div>")
 
 
-#: how the diagnosis orders its candidates (:func:`calibration.diagnosis.diagnose`)
+#: how the diagnosis orders its candidates (:func:`calibration.diagnosis.diagnosis.diagnose`)
 RANKING = (
     "Ranked by the diagnosis: first the significant candidates a refit confirmed (the "
     "held-out error falls with the effect), by their held-out RMS with it, lowest first; "

@@ -19,10 +19,10 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from calibration.diagnosis import Diagnosis
+from calibration.diagnosis.diagnosis import Diagnosis
 from calibration.effects import JointEffect
-from calibration.gravity import gravity_torques
-from calibration.identify import Fit
+from calibration.fit.identify import Fit
+from calibration.model.gravity import gravity_torques
 from calibration.workflow import joint_view
 
 from .plot_base import (

@@ -4,7 +4,7 @@ to measured, and its parts about the flange's x, y and z axes) and the joints ra
 their share of the orientation residual.
 
 The numbers are those ``calibrate`` and ``diagnose`` print
-(:func:`calibration.orientation_view.orientation_view`); this module only draws them and
+(:func:`calibration.diagnosis.orientation_view.orientation_view`); this module only draws them and
 says what they mean.
 """
 
@@ -16,8 +16,8 @@ from collections.abc import Callable
 import numpy as np
 from matplotlib.figure import Figure
 
-from calibration.identify import Fit
-from calibration.orientation_view import OrientationView, orientation_view
+from calibration.diagnosis.orientation_view import OrientationView, orientation_view
+from calibration.fit.identify import Fit
 
 from .plot_base import FIG_WIDTH, FLOOR_COLOUR, marker_size
 from .summaries import orientation_floor_deg

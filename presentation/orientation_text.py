@@ -1,7 +1,7 @@
 """The orientation lines ``cellcal calibrate`` prints when the data have orientations (a
 6-DoF target): the error table of the orientations, fitted (full pose) or predicted (a
 position-only fit), the residual about the flange's axes and the joints ranked by how
-much of it their axes carry (:mod:`calibration.orientation_view`).
+much of it their axes carry (:mod:`calibration.diagnosis.orientation_view`).
 
 Returns text and prints nothing.
 """
@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration.identify import Fit
-from calibration.orientation_view import orientation_view
+from calibration.diagnosis.orientation_view import orientation_view
+from calibration.fit.identify import Fit
 
 from .text_table import fmt, table
 

@@ -6,7 +6,7 @@ position is a dot (calibration, validation, spare), its opening a short line, it
 a faint line to the tracker; points the tracker would not see (with the cell's margins)
 are red crosses. The robot's link capsules are drawn at the first target, the visiting
 order as a thin line, the cell's fixtures as outlines. Computes nothing beyond
-:mod:`calibration.visibility`.
+:mod:`calibration.cell.visibility`.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from calibration.visibility import assess, link_capsules, smr_pose
+from calibration.cell.visibility import assess, link_capsules, smr_pose
 
 matplotlib.use("Agg")
 
@@ -46,7 +46,7 @@ def _cylinder_edges(cyl, n: int = 24) -> list[np.ndarray]:
 
 def plan_figure(model, plan, cell=None) -> Figure:
     """The figure of ``plan`` (a :class:`daq.plans.Plan`) for ``model`` in ``cell``
-    (:class:`~calibration.cell.CellSpec`; None or no tracker: no beams)."""
+    (:class:`~calibration.cell.cell.CellSpec`; None or no tracker: no beams)."""
     rows = [t for t in plan.targets if t.q is not None and len(t.q) == model.n_joints]
     q = np.array([t.q for t in rows], float).reshape(-1, model.n_joints)
     kind = np.array(["spare" if t.spare else t.set for t in rows])

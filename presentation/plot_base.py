@@ -17,7 +17,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from calibration.identify import Fit
+from calibration.fit.identify import Fit
 
 matplotlib.use("Agg")
 

@@ -8,7 +8,7 @@ import html
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from calibration.dataset import Dataset
+from calibration.data.dataset import Dataset
 from calibration.version import software_version
 
 

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calibration.dataset import Dataset
+from calibration.data.dataset import Dataset
 from calibration.effects.physical import derive_directions
-from calibration.gravity import gravity_torques, has_mass_model
-from calibration.identify import Fit
+from calibration.fit.identify import Fit
+from calibration.model.gravity import gravity_torques, has_mass_model
 from calibration.workflow import joint_view
 
 #: the joint-equivalent residual of a pose is shown only where the joint moves the target

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from calibration.files import atomic_output
-from calibration.solvers.ridge import gcv
+from calibration.fit.solvers.ridge import gcv
 
 
 def plot_ridge(info: dict, path, title: str = "") -> None:

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from calibration.dataset import Dataset
-from calibration.error_model import ErrorModel
-from calibration.simulate import BlunderTruth
+from calibration.data.dataset import Dataset
+from calibration.fit.error_model import ErrorModel
+from calibration.fit.simulate import BlunderTruth
 
 
 def simulation_line(out: str, data: Dataset, error_model: ErrorModel, sigma_mm: float,

@@ -10,12 +10,12 @@ import math
 
 import numpy as np
 
-from calibration.diagnosis import Diagnosis
-from calibration.identify import Fit
-from calibration.orientation_blindness import Blindness
-from calibration.orientation_view import orientation_view
-from calibration.params_io import params_by_name, solver_summary
-from calibration.uncertainty import MonteCarlo, correlations
+from calibration.diagnosis.diagnosis import Diagnosis
+from calibration.diagnosis.orientation_blindness import Blindness
+from calibration.diagnosis.orientation_view import orientation_view
+from calibration.exports.params_io import params_by_name, solver_summary
+from calibration.fit.identify import Fit
+from calibration.fit.uncertainty import MonteCarlo, correlations
 from calibration.zero_point import ZeroResult, assess
 
 #: the orientation keys of ``calib`` and ``valid`` (docs/formats.md §4), with orientations
@@ -86,7 +86,7 @@ def calibration_summary(fit: Fit, baseline: Fit, *, params_file: str | None,
 
 def orientation_summary(fit: Fit) -> dict | None:
     """The ``orientation`` object of ``calibrate --json``: the residual per flange axis
-    and per joint (:func:`calibration.orientation_view.orientation_view`) and the noise
+    and per joint (:func:`calibration.diagnosis.orientation_view.orientation_view`) and the noise
     floor; None when the data have no orientations."""
     view = orientation_view(fit)
     if view is None:

@@ -1,5 +1,5 @@
 """The thermal state a compensation was made for, in words (``cellcal compensate``): the
-state :func:`calibration.thermal_state.target_state` describes."""
+state :func:`calibration.fit.thermal_state.target_state` describes."""
 
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ capsules (the model's ``link_radius``, at the true joints), the true SMR axis on
 flange and the mounted reflector's acceptance half-angle, the tracker where the true
 base pose puts it, and the cell's fixtures. :meth:`BeamPhysics.blocked` says why the
 beam cannot reach the true SMR centre (no margins: this is the physics, not a plan), or
-None. The geometry is :func:`calibration.visibility.assess`, the planner's own, with
+None. The geometry is :func:`calibration.cell.visibility.assess`, the planner's own, with
 the truth in place of the nominal.
 
 The links' pose comes from the nominal chain at the true joints: the hidden geometric
@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration.cell import CellSpec, Smr, tracker_in_base
-from calibration.visibility import assess
+from calibration.cell.cell import CellSpec, Smr, tracker_in_base
+from calibration.cell.visibility import assess
 
 
 class BeamPhysics:
@@ -48,7 +48,7 @@ class BeamPhysics:
         self.cell = self.cell.with_tracker(tracker_in_base(T), "the simulated cell")
 
     def sight(self, q: np.ndarray, p_tracker: np.ndarray):
-        """The :class:`~calibration.visibility.Sight` of the true SMR centre ``p_tracker``
+        """The :class:`~calibration.cell.visibility.Sight` of the true SMR centre ``p_tracker``
         (mm, tracker frame) at the true joints ``q`` (rad, (N,)), without margins."""
         p = self.base_T_tracker[:3, :3] @ np.asarray(p_tracker, float) + self.base_T_tracker[:3, 3]
         return assess(self.model, np.asarray(q, float)[None], self.cell, margins=False,

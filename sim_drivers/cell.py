@@ -59,8 +59,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calibration.cell import REFLECTOR_ACCEPTANCE_DEG, CellSpec
-from calibration.simulate import blunder_offsets
+from calibration.cell.cell import REFLECTOR_ACCEPTANCE_DEG, CellSpec
+from calibration.fit.simulate import blunder_offsets
 from sim_drivers.beam import BeamPhysics
 from sim_drivers.refusals import CellRefused
 from sim_drivers.six_dof import SixDofMeasuring, SixDofTarget
@@ -175,7 +175,7 @@ class SimCell(SixDofMeasuring):
         The tracker's two-face (collimation) error, rad.
     reflector : str
         Name of the reflector mounted on the robot (and selected at start); its
-        acceptance half-angle (:data:`calibration.cell.REFLECTOR_ACCEPTANCE_DEG`) limits
+        acceptance half-angle (:data:`calibration.cell.cell.REFLECTOR_ACCEPTANCE_DEG`) limits
         how far the SMR may face away from the tracker.
     cell : CellSpec, optional
         The cell's fixtures (base frame); its SMR's acceptance half-angle (its reflector
@@ -508,7 +508,7 @@ class SimCell(SixDofMeasuring):
         """Where the simulated robot stands when the cell starts: a posture whose SMR faces
         the tracker in the clear, as at a real cell, where the operator locks the beam on
         the SMR before a run (the middle of the limits when none is found)."""
-        from calibration.visibility import solve_facing
+        from calibration.cell.visibility import solve_facing
 
         T = np.asarray(tracker_T_base, float)
         tracker = -T[:3, :3].T @ T[:3, 3]

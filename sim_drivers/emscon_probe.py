@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration.dh_conversion import urdf_rpy
-from calibration.transforms import quat_to_matrix
+from calibration.model.dh_conversion import urdf_rpy
+from calibration.model.transforms import quat_to_matrix
 from drivers.leica import codec, probe_packets
 from drivers.leica.enums import (
     ES_MeasMode,

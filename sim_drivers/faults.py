@@ -29,7 +29,7 @@ modbus    Modbus server: the request gets exception response 4
 stale     Modbus server: the heartbeat register stops counting for that read
 blunder   tracker (the cell's injector, so over the wire and in process): the
           reading is displaced by 0.5-5 mm along the line of sight or in a
-          random direction (:func:`calibration.simulate.blunder_offsets`), with
+          random direction (:func:`calibration.fit.simulate.blunder_offsets`), with
           nothing on the wire to tell; the cell records the truth
           (:attr:`sim_drivers.cell.SimCell.blunder_log`)
 ========  =================================================================

@@ -17,7 +17,7 @@ a tracker URL may leave it out once its robot's cell exists. Other query paramet
 when the cell is first created: ``tool=X,Y,Z`` (the controller's TCP, mm, default the SMR
 on a 60 mm holder), ``time_scale`` (default 0), ``faults`` (only ``beam``, ``pstop`` and
 ``blunder`` apply in process) and ``reflector`` (the mounted reflector's type, e.g. ``360``
-for one with no facing limit; :data:`calibration.cell.REFLECTOR_ACCEPTANCE_DEG`) and
+for one with no facing limit; :data:`calibration.cell.cell.REFLECTOR_ACCEPTANCE_DEG`) and
 ``thermal=cold|warm`` (the robot warms up with its work, from cold or already warm, and its
 joint zeros and links drift with the temperatures: :mod:`sim_drivers.thermal`; off by
 default).
@@ -367,7 +367,7 @@ def open_sim(url: str, kind: str, **kw):
                              f"{' or '.join(STARTS)}")
         extra["thermal"] = q["thermal"]
     if q.get("reflector"):
-        from calibration.cell import CellSpec, Smr
+        from calibration.cell.cell import CellSpec, Smr
 
         extra["cell"] = CellSpec(smr=Smr(reflector=q["reflector"]))
     try:

@@ -18,10 +18,10 @@ import numpy as np
 
 from calibration import Dataset, ErrorModel, RobotModel, load_model
 from calibration.effects import DEFAULT_EFFECTS, display_unit
-from calibration.inverse import ChainFK, solve_ik
-from calibration.kinematics import run_chain, tool_points
-from calibration.simulate import realistic_truth
-from calibration.transforms import make_T, rotvec_to_matrix
+from calibration.fit.simulate import realistic_truth
+from calibration.model.inverse import ChainFK, solve_ik
+from calibration.model.kinematics import run_chain, tool_points
+from calibration.model.transforms import make_T, rotvec_to_matrix
 
 from .thermal import thermal_effects
 from .truth import PoseContext

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calibration.transforms import matrix_to_quat, rotvec_to_matrix
+from calibration.model.transforms import matrix_to_quat, rotvec_to_matrix
 from sim_drivers.refusals import CellRefused
 
 #: the simulated T-Mac: name, internal probe id, serial number

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration.simulate import WARM_RISE_K, WARMUP_TAU_S, per_joint
+from calibration.fit.simulate import WARM_RISE_K, WARMUP_TAU_S, per_joint
 
 #: the thermal starts a simulated cell knows: from cold (at the air's temperature), or warm
 #: (at the equilibrium of a capture's typical work)
@@ -52,7 +52,7 @@ class JointThermal:
         :data:`WORKING_HEAT`)
     ambient_c : the air's temperature, °C
     rise_k, tau_s : per joint, the equilibrium rise at working heat (K) and the time
-        constant (s); six-joint defaults from :mod:`calibration.simulate`
+        constant (s); six-joint defaults from :mod:`calibration.fit.simulate`
     """
 
     def __init__(self, n_joints: int, start: str = "cold", *, ambient_c: float = 20.0,

@@ -25,7 +25,7 @@ import sys
 from pathlib import Path
 
 from ..files import check_regular_file
-from ..robot_model import RobotModel
+from ..model.robot_model import RobotModel
 from .base import Effect, EffectError, JointEffect, display_unit
 from .drift import DRIFT
 from .geometric import BUILTIN, Base, Geometric, NestedTool, Tool

@@ -1,7 +1,7 @@
 """The :class:`Effect` interface: one physical cause of error.
 
 An effect owns named parameters (with internal units and a typical scale) and
-perturbs the chain at one *stage*; the :class:`~calibration.error_model.ErrorModel`
+perturbs the chain at one *stage*; the :class:`~calibration.fit.error_model.ErrorModel`
 composes the stages in this order:
 
 ``joint``   adds a correction to one joint's angle, per pose
@@ -27,9 +27,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..dataset import Dataset
+from ..data.dataset import Dataset
 from ..errors import EffectError
-from ..robot_model import RobotModel
+from ..model.robot_model import RobotModel
 
 
 def display_unit(unit: str) -> tuple[str, float]:
@@ -110,7 +110,7 @@ class Effect:
     def bind(self, data: Dataset, nominal: Any) -> Any:
         """Precompute what this effect needs from a data set (gravity torques, directions...).
 
-        ``nominal`` is the nominal model's :class:`~calibration.kinematics.ChainResult` for
+        ``nominal`` is the nominal model's :class:`~calibration.model.kinematics.ChainResult` for
         the data's joints. Returns an opaque state handed back to the stage hook. Raise
         :class:`EffectError` when the data lack what the effect needs.
         """

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ..dataset import Dataset
+from ..data.dataset import Dataset
 from .base import Effect, EffectError, JointEffect
 
 #: the reference temperature (°C) when the data's metadata name none (``temp_ref_c``)

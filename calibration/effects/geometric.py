@@ -6,10 +6,10 @@ from typing import Any
 
 import numpy as np
 
-from ..dataset import Dataset
-from ..kinematics import ALPHA, BETA, THETA
-from ..robot_model import DH_COLUMNS, RobotModel
-from ..transforms import fit_rigid, matrix_to_rotvec, right_jacobian, rotvec_to_matrix
+from ..data.dataset import Dataset
+from ..model.kinematics import ALPHA, BETA, THETA
+from ..model.robot_model import DH_COLUMNS, RobotModel
+from ..model.transforms import fit_rigid, matrix_to_rotvec, right_jacobian, rotvec_to_matrix
 from .base import Effect, EffectError
 
 _LENGTH_SCALE = 0.1  # mm, typical size of a length error

@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from ..dataset import Dataset
-from ..gravity import gravity_torques, has_mass_model
+from ..data.dataset import Dataset
+from ..model.gravity import gravity_torques, has_mass_model
 from .base import Effect, EffectError, JointEffect
 
 # typical sizes at the tool of a hidden effect when simulating: 0.05-0.5 mm

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ..dataset import Dataset
+from ..data.dataset import Dataset
 from .base import EffectError, JointEffect
 
 #: penalty rows are in mm: a second difference of 1 rad counts like this many mm

@@ -4,7 +4,7 @@ With the ``tool`` effect (the target's centre in the flange frame) it makes the 
 full frame, ``flange_T_target``. A 6-DoF target (a T-Mac) measures
 ``tracker_R_target = tracker_R_base · base_R_flange · flange_R_target``; the effect's
 parameters are the rotation vector of ``flange_R_target`` (absolute, rad), at the
-``target`` stage of :class:`~calibration.error_model.ErrorModel`. Data without
+``target`` stage of :class:`~calibration.fit.error_model.ErrorModel`. Data without
 orientations do not see it: its parameters are then unidentifiable and fixed.
 """
 
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..transforms import (
+from ..model.transforms import (
     fit_rotation,
     matrix_to_rotvec,
     quat_to_matrix,

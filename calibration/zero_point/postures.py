@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from ..inverse import ChainFK, solve_ik, solve_ik_multistart, wrap_to_pi
+from ..model.inverse import ChainFK, solve_ik, solve_ik_multistart, wrap_to_pi
 
 
 def _frame_from_z(z: np.ndarray, x_hint: np.ndarray) -> np.ndarray:

@@ -1,6 +1,6 @@
 """Zero-point postures as data: :class:`Postures`, the postures CSV (docs/formats.md §1) read
 strictly by :func:`load_postures`, and :func:`postures_from_dataset` for a
-:class:`~calibration.dataset.Dataset` (e.g. a ``zero20`` run from the store).
+:class:`~calibration.data.dataset.Dataset` (e.g. a ``zero20`` run from the store).
 
 Lengths mm, angles rad; degrees only in files.
 """
@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..dataset import MAX_LENGTH_MM, PLAUSIBLE_LENGTH, CsvTable, DataError, Dataset
+from ..data.dataset import MAX_LENGTH_MM, PLAUSIBLE_LENGTH, CsvTable, DataError, Dataset
 from ..files import write_atomic
-from ..robot_model import RobotModel
+from ..model.robot_model import RobotModel
 
 
 @dataclass

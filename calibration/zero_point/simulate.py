@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..inverse import ChainFK
+from ..model.inverse import ChainFK
 from .postures import zero20_postures
 from .postures_io import Postures
 from .solvers import DEFAULT_SIGMA_MM

@@ -13,10 +13,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..identifiability import analyse
-from ..identify import covariance
-from ..inverse import ChainFK
-from ..kinematics import cross, run_chain
+from ..fit.identifiability import analyse
+from ..fit.identify import covariance
+from ..model.inverse import ChainFK
+from ..model.kinematics import cross, run_chain
 from .postures_io import Postures
 
 #: tip repeatability assumed when none is given (per axis), mm
@@ -110,7 +110,7 @@ def _identify_free(fk: ChainFK, postures: Postures, offsets, tool, target, measu
                    rtol: float = 1e-3):
     """Identifiability of (offsets, tool, target) from the postures: QR with pivoting.
 
-    Structural, like :func:`~calibration.identify.identify` at the nominal geometry: the
+    Structural, like :func:`~calibration.fit.identify.identify` at the nominal geometry: the
     Jacobian is taken as if every tip were exactly on the target, so exact redundancies
     (joint 1 with the target, the last joint with the tool) stay exact.
     """

@@ -5,7 +5,7 @@ and prints: the calibrations (when their data were measured, UTC; source; effect
 RMS), one line per parameter (first and last value ± std, net change, the largest
 change between consecutive calibrations in combined standard uncertainties, a trend
 line), every change larger than ``--sigma`` (default 3) combined sigma
-(sqrt(σ1² + σ2²), :mod:`calibration.history`), and the value over time with its
+(sqrt(σ1² + σ2²), :mod:`calibration.diagnosis.history`), and the value over time with its
 uncertainty of the parameters that changed (or of those named with ``--param``).
 ``--plot FILE.html|FILE.png`` draws the trends; ``--json`` prints one object
 (docs/formats.md §4).
@@ -20,7 +20,8 @@ from __future__ import annotations
 from .common import positive_float
 from .parsers import command_parser
 
-#: flag a change larger than this many combined sigma (:data:`calibration.history.DEFAULT_SIGMA`,
+#: flag a change larger than this many combined sigma
+#: (:data:`calibration.diagnosis.history.DEFAULT_SIGMA`,
 #: kept equal by tests/cellcal/test_cli_help.py)
 DEFAULT_SIGMA = 3.0
 

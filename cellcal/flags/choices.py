@@ -10,7 +10,7 @@ from __future__ import annotations
 #: :data:`calibration.effects.DEFAULT_EFFECTS`
 DEFAULT_EFFECTS = "geometric,base,tool"
 
-#: the keys of :data:`calibration.solvers.SOLVERS`, with what each is
+#: the keys of :data:`calibration.fit.solvers.SOLVERS`, with what each is
 SOLVERS = {
     "lm": "Levenberg-Marquardt",
     "ridge": "robust ridge estimation: IGG3 pose weights, Tikhonov ridge",
@@ -19,7 +19,7 @@ SOLVERS = {
     "besa+lm": "annealing as a global start, polished by Levenberg-Marquardt",
 }
 
-#: :data:`calibration.outliers.MODES`: what ``--outliers`` does with blunders
+#: :data:`calibration.fit.outliers.MODES`: what ``--outliers`` does with blunders
 OUTLIER_MODES = ("exclude", "flag", "keep")
 
 

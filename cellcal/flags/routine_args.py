@@ -228,7 +228,7 @@ def _warmup_params(args) -> dict:
 
 
 # ------------------------------------------------------------------ validate
-#: the variants ``cellcal validate`` can run (calibration.controller_joints.VARIANTS)
+#: the variants ``cellcal validate`` can run (calibration.compensation.controller_joints.VARIANTS)
 VALIDATE_VARIANTS = ("uncompensated", "compensated", "geometric")
 
 

@@ -2,7 +2,8 @@
 
 :func:`compensate_program` is what ``cellcal compensate --program`` runs: it reads a
 URScript (``.script``, ``.urscript``, ``.txt``) or KRL ``.dat`` file, compensates every
-target it can (:func:`calibration.pose_compensation.compensate_targets`: joint targets by
+target it can
+(:func:`calibration.compensation.pose_compensation.compensate_targets`: joint targets by
 the full model, pose targets near their neighbouring joint targets with the active TCP),
 writes the result atomically, and returns a :class:`ProgramReport` (what the command
 prints, and its exit code: 1 when something could not be compensated, unless
@@ -19,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.controller_joints import ControllerJoints, controller_joints
+from calibration.compensation.controller_joints import ControllerJoints, controller_joints
+from calibration.compensation.pose_compensation import neighbour_seeds
 from calibration.files import read_input, write_atomic
-from calibration.pose_compensation import neighbour_seeds
 
 from . import krl, urscript
 from .poses import T_to_krl, T_to_ur, krl_to_T, ur_to_T
@@ -117,7 +118,8 @@ MEASURED_TOL_MM = 1e-3
 class Solved:
     """A program's targets solved (:func:`solve`): the targets used (program order), their
     bases (n, 4, 4), TCPs (n, 4, 4), which TCPs are the calibration's measured point, the
-    joints of each controller variant (:class:`~calibration.controller_joints.ControllerJoints`)
+    joints of each controller variant
+    (:class:`~calibration.compensation.controller_joints.ControllerJoints`)
     and the targets refused."""
 
     targets: list[Target]
@@ -220,7 +222,7 @@ def compensate_program(path: str | Path, error_model, x, out: str | Path, *,
                        allow_partial: bool = False, language: str | None = None,
                        options: Options | None = None) -> ProgramReport:
     """Read the program at ``path``, compensate it with the calibration ``(error_model,
-    x)`` (e.g. :func:`calibration.params_io.read_params`), write it to ``out`` atomically
+    x)`` (e.g. :func:`calibration.exports.params_io.read_params`), write it to ``out`` atomically
     and report. Nothing is written when a target cannot be compensated, unless
     ``allow_partial`` (those targets stay as they were and are listed); a program a
     previous compensation wrote is refused (it would be compensated twice)."""

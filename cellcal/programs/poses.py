@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration.transforms import make_T, matrix_to_rotvec, rotvec_to_matrix
+from calibration.model.transforms import make_T, matrix_to_rotvec, rotvec_to_matrix
 
 
 def ur_to_T(p) -> np.ndarray:

@@ -16,11 +16,11 @@ import numpy as np
 from pydantic import Field
 
 from calibration import DEFAULT_EFFECTS, identify, load_csv
-from calibration.full_pose import for_data
-from calibration.identify import Fit
-from calibration.orientation_blindness import Blindness, orientation_blindness
-from calibration.params_io import read_params, save_params
-from calibration.uncertainty import MonteCarlo, monte_carlo
+from calibration.diagnosis.orientation_blindness import Blindness, orientation_blindness
+from calibration.exports.params_io import read_params, save_params
+from calibration.fit.full_pose import for_data
+from calibration.fit.identify import Fit
+from calibration.fit.uncertainty import MonteCarlo, monte_carlo
 from calibration.workflow import fit_uncalibrated
 
 from ..errors import UsageError
@@ -67,7 +67,7 @@ class Calibrated:
         not recorded, the fit did not converge, or no ``--db``)
     notes : remarks for the user on the data and the start parameters
     blindness : how much tool orientation a position-only fit leaves undetermined
-        (:mod:`calibration.orientation_blindness`), None for a full-pose fit
+        (:mod:`calibration.diagnosis.orientation_blindness`), None for a full-pose fit
     """
 
     fit: Fit

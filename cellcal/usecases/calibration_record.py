@@ -9,8 +9,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from calibration.identify import Fit
-from calibration.params_io import fit_to_dict
+from calibration.exports.params_io import fit_to_dict
+from calibration.fit.identify import Fit
 
 from ..errors import UsageError
 

@@ -151,7 +151,7 @@ def service_request(req: CaptureArgs):
     """The capture service's request (:class:`daq.service.CaptureRequest`): the motion
     limits, the cell, the executor and the tracker setup checked (UsageError naming the
     flag)."""
-    from calibration.cell import load_cell
+    from calibration.cell.cell import load_cell
     from daq.motion_guard import MotionLimits
     from daq.service import CaptureRequest
 

@@ -16,12 +16,12 @@ import numpy as np
 from pydantic import Field
 
 from calibration import ErrorModel, RobotModel
-from calibration.capture_meta import CaptureMeta
-from calibration.compensation import Compensation, Targets, compensate, load_targets
+from calibration.compensation.compensation import Compensation, Targets, compensate, load_targets
+from calibration.data.capture_meta import CaptureMeta
 from calibration.effects import load_effect_file
+from calibration.exports.params_io import capture_of, read_params
 from calibration.files import write_atomic
-from calibration.params_io import capture_of, read_params
-from calibration.thermal_state import target_state
+from calibration.fit.thermal_state import target_state
 from presentation.compensation_text import compensated_csv
 
 from ..errors import UsageError
@@ -68,7 +68,7 @@ class Compensated:
     targets, result : the targets read and their compensation (None without targets)
     csv_text : the compensated CSV (written to ``--out`` when given)
     thermal : the thermal state compensated for (a model with drift effects:
-        :func:`calibration.thermal_state.target_state`), else None
+        :func:`calibration.fit.thermal_state.target_state`), else None
     """
 
     model: RobotModel

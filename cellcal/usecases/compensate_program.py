@@ -13,7 +13,7 @@ from __future__ import annotations
 from pydantic import Field
 
 from calibration.effects import load_effect_file
-from calibration.params_io import read_params
+from calibration.exports.params_io import read_params
 
 from ..errors import UsageError
 from ..programs import compensate as program_filter

@@ -23,10 +23,10 @@ from typing import Any
 from pydantic import Field
 
 from calibration import load_csv
-from calibration.auto_diagnosis import auto_diagnose
-from calibration.diagnosis import diagnose
+from calibration.diagnosis.auto_diagnosis import auto_diagnose
+from calibration.diagnosis.diagnosis import diagnose
+from calibration.exports.params_io import save_params
 from calibration.files import write_atomic
-from calibration.params_io import save_params
 from calibration.workflow import UNCALIBRATED_LABEL, AutoStory, staged_fit
 from daq.run_data import dataset_from_run
 from daq.service import CaptureRequest, plan_run, start_run
@@ -242,7 +242,7 @@ def demo(req: DemoRequest, *, say: Callable[[str], None] | None = None,
     """Check the request (the hidden effect, the folder: UsageError), then
     :func:`run_demo`."""
     from calibration.effects import EffectError, parse_effect
-    from calibration.model_loading import load_model
+    from calibration.model.model_loading import load_model
 
     from ..errors import UsageError
 

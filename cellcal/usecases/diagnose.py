@@ -14,13 +14,13 @@ from dataclasses import dataclass, field
 
 from pydantic import Field
 
-from calibration.auto_diagnosis import AutoDiagnosis, AutoStep, auto_diagnose
-from calibration.dataset import Dataset
-from calibration.diagnosis import Diagnosis
-from calibration.diagnosis import diagnose as rank_candidates
+from calibration.data.dataset import Dataset
+from calibration.diagnosis.auto_diagnosis import AutoDiagnosis, AutoStep, auto_diagnose
+from calibration.diagnosis.diagnosis import Diagnosis
+from calibration.diagnosis.diagnosis import diagnose as rank_candidates
+from calibration.exports.params_io import fit_to_dict
 from calibration.files import write_atomic
-from calibration.identify import Fit
-from calibration.params_io import fit_to_dict
+from calibration.fit.identify import Fit
 from calibration.workflow import current_fit
 
 from ..errors import UsageError

@@ -2,7 +2,7 @@
 
 :class:`HistoryRequest` is what the command was asked; :func:`robot_history` reads the
 calibrations from the store (read-only), follows every parameter over them
-(:func:`calibration.history.parameter_histories`) and draws the trends when asked; it
+(:func:`calibration.diagnosis.history.parameter_histories`) and draws the trends when asked; it
 returns a :class:`RobotHistory`.
 """
 
@@ -14,7 +14,7 @@ from pathlib import Path
 
 from pydantic import Field
 
-from calibration.history import (
+from calibration.diagnosis.history import (
     DEFAULT_SIGMA,
     CalibrationSummary,
     ParameterHistory,

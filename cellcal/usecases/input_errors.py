@@ -10,7 +10,7 @@ def wrap_errors(fn, *exc):
     """Run fn(); turn the given exception types into UsageError."""
     from calibration import DataError, ModelError
     from calibration.effects import EffectError
-    from calibration.params_io import ParamsError
+    from calibration.exports.params_io import ParamsError
 
     try:
         return fn()

@@ -48,7 +48,7 @@ def model_name(request: DataInputs) -> str:
     """``--model``, else the model the data file's metadata names; UsageError when neither."""
     if request.model:
         return request.model
-    from calibration.dataset import read_meta
+    from calibration.data.dataset import read_meta
 
     name = read_meta(request.data).get("model")
     if not name:
@@ -100,7 +100,7 @@ def current_model(request: CurrentModelInputs, model: RobotModel):
     """The current model of diagnose/report: (error model, params source for
     :func:`calibration.workflow.current_fit` or None, notes). ``--params`` is read
     strictly and checked against ``--model``; else ``--effects`` on the model."""
-    from calibration.params_io import read_params
+    from calibration.exports.params_io import read_params
 
     if request.params:
         p = read_params(request.params, model=model)
@@ -111,6 +111,6 @@ def current_model(request: CurrentModelInputs, model: RobotModel):
 def check_data(error_model: ErrorModel, data: Dataset) -> list[str]:
     """Refuse data too poor to identify ``error_model`` (InsufficientData: exit 3); the
     notes on marginal data otherwise."""
-    from calibration.data_quality import check_for_fit
+    from calibration.fit.data_quality import check_for_fit
 
     return check_for_fit(error_model, data).notes

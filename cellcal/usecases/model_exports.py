@@ -11,15 +11,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calibration import ErrorModel
-from calibration.controller_export import (
+from calibration.exports.controller_export import (
     ExportError,
     ur_conf_parity,
     write_table_csv,
     write_ur_kinematics_yaml,
 )
-from calibration.model_export import calibrated_model, write_model_yaml, write_ur_conf
-from calibration.parity import Parity, model_file_parity
-from calibration.urdf_export import mount_note, write_urdf
+from calibration.exports.model_export import calibrated_model, write_model_yaml, write_ur_conf
+from calibration.exports.parity import Parity, model_file_parity
+from calibration.exports.urdf_export import mount_note, write_urdf
 
 from ..errors import UsageError
 

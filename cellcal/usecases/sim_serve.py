@@ -80,7 +80,7 @@ def _check_hidden(req: SimServeRequest) -> None:
 def sim_stack(req: SimServeRequest):
     """The simulated cell's servers (:class:`sim_drivers.serve.SimStack`), not started;
     UsageError for a bad model, hidden effect or cell."""
-    from calibration.cell import load_cell
+    from calibration.cell.cell import load_cell
     from sim_drivers.serve import ServeConfig, SimStack
 
     _check_hidden(req)

@@ -16,7 +16,7 @@ from pydantic import Field
 from calibration import DEFAULT_EFFECTS, Dataset, ErrorModel, RobotModel
 from calibration.effects import display_unit
 from calibration.files import write_atomic
-from calibration.simulate import (
+from calibration.fit.simulate import (
     BlunderTruth,
     add_blunders,
     random_joints,

@@ -1,7 +1,7 @@
 """Targets that contradict themselves: nominal joints that do not reach their own x, y, z.
 
 A targets CSV may give each target's nominal joints (``q1..qN``, the joints the program
-uses today) next to its point. :func:`compensate <calibration.compensation.compensate>`
+uses today) next to its point. :func:`compensate <calibration.compensation.compensation.compensate>`
 starts from those joints and reports the correction against their nominal point, so
 joints that put the tool somewhere else give a "correction" of that distance and new
 joints far from the given ones, reported as reached. :func:`check_joints_reach` refuses
@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration.compensation import Targets
-from calibration.inverse import ChainFK
+from calibration.compensation.compensation import Targets
+from calibration.model.inverse import ChainFK
 
 from ..errors import UsageError
 from ..flags.choices import JOINTS_TOLERANCE_MM

@@ -4,7 +4,8 @@ run of the ``validate`` routine (:mod:`daq.routines.validate`: resumable, nothin
 
 :class:`ValidateRequest` is what the command was asked; :func:`validate` reads the
 calibration and the waypoints, computes the joints each controller ends at
-(:func:`cellcal.programs.compensate.solve`, :mod:`calibration.controller_joints`), plans
+(:func:`cellcal.programs.compensate.solve`,
+:mod:`calibration.compensation.controller_joints`), plans
 and dry-runs the run with the capture service and, unless a dry run, runs it. The errors
 are measured in the calibration's base frame when it identified one (the frame its
 targets live in: a tracker calibration cannot tell joint 1's zero from the base's turn
@@ -21,11 +22,11 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
-from calibration.compensation import load_targets
-from calibration.controller_joints import controller_joints
+from calibration.compensation.compensation import load_targets
+from calibration.compensation.controller_joints import controller_joints
+from calibration.compensation.pose_compensation import NominalTcpFK, as_poses
 from calibration.effects import load_effect_file
-from calibration.params_io import read_params
-from calibration.pose_compensation import NominalTcpFK, as_poses
+from calibration.exports.params_io import read_params
 from daq.sight import frame_from_store
 
 from ..errors import UsageError

@@ -113,10 +113,10 @@ def _document(req: ZeroRequest, model, postures, results: dict, measured) -> dic
 
 
 def _write_out(out: Path, model, params_path: str | None, result) -> None:
-    """The updated params (``.json``, :func:`calibration.params_io.write_zero_update`) or
+    """The updated params (``.json``, :func:`calibration.exports.params_io.write_zero_update`) or
     model (``.yaml``: the corrections added to the joints' ``theta_offset``)."""
+    from calibration.exports.params_io import write_zero_update
     from calibration.files import write_atomic
-    from calibration.params_io import write_zero_update
 
     off = np.where(result.determined, result.offsets, 0.0)
     if out.suffix == ".json":

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from calibration import load_model
-from calibration.dataset import Dataset
+from calibration.data.dataset import Dataset
 from calibration.zero_point import Postures
 
 from ..errors import UsageError
@@ -38,8 +38,8 @@ class ZeroInputs:
 def from_csv(path: str, model_name: str | None) -> ZeroInputs:
     """A postures CSV, with the model ``model_name`` or the one its ``# model:`` line names
     (and the tool its ``# tool_mm:`` line records)."""
-    from calibration.capture_meta import CaptureMeta
-    from calibration.dataset import read_meta
+    from calibration.data.capture_meta import CaptureMeta
+    from calibration.data.dataset import read_meta
     from calibration.zero_point import load_postures
 
     meta = read_meta(path)
@@ -89,8 +89,8 @@ def chain(model, params_path: str | None, note: Callable[[str], None]):
     if model.prismatic_mask() is not None:
         raise UsageError(f"model {model.name} has a prismatic joint: the zero-point "
                          "recalibration handles revolute joints only")
-    from calibration.inverse import ChainFK
-    from calibration.params_io import read_params
+    from calibration.exports.params_io import read_params
+    from calibration.model.inverse import ChainFK
 
     if not params_path:
         return ChainFK.from_model(model), None
@@ -107,7 +107,7 @@ def joints_as_calibrated(params_path: str, inputs: ZeroInputs, notes: list[str])
     ...) make of the readings, so the offsets found are changes of the zeros alone (not
     the backlash of the side the postures were approached from, say). Needs the run's
     approach directions (``--db``); a CSV's postures are used as read, with a note."""
-    from calibration.params_io import load_params
+    from calibration.exports.params_io import load_params
 
     postures = inputs.postures
     em, x, _ = wrap_errors(lambda: load_params(params_path))

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration.inverse import ChainFK, solve_ik
+from calibration.model.inverse import ChainFK, solve_ik
 
 
 def default_start(model) -> np.ndarray:
@@ -65,7 +65,7 @@ def visibility_params(cell) -> dict | None:
 
 def hidden(model, q: np.ndarray, cell) -> list[tuple[int, str]]:
     """(row, reason) of every joint vector of ``q`` (n, N) the tracker would not see."""
-    from calibration.visibility import assess
+    from calibration.cell.visibility import assess
 
     if not knows_tracker(cell) or len(q) == 0:
         return []
@@ -94,9 +94,9 @@ def what_hides(model, cell, *, floor_z_mm: float | None = 0.0,
                max_reach_mm: float | None = None) -> str:
     """Why the tracker sees no pose at all, as advice naming the flag that fixes it: the SMR
     inside the wrist (the tool offset), else the one constraint that hides the most of the
-    poses drawn facing it (:mod:`calibration.sight_cause`); "" when nothing stands out."""
-    from calibration.sight_cause import smr_inside_link
-    from calibration.sight_cause import what_hides as hiding
+    poses drawn facing it (:mod:`calibration.cell.sight_cause`); "" when nothing stands out."""
+    from calibration.cell.sight_cause import smr_inside_link
+    from calibration.cell.sight_cause import what_hides as hiding
 
     inside = smr_inside_link(model, cell.margins.clearance_mm)
     if inside is not None:
@@ -133,7 +133,7 @@ def facing_starts(model, cell, *, radii=(700.0, 900.0, 1100.0), heights=(250.0, 
     sees with the cell's margins, above the floor, away from singularities (smallest
     singular value of the Jacobian [Jp / 1 m; Jw] at least ``min_sv``). Returns
     (q (m, N) rad, clearance (m,) mm: how far the beam passes the nearest link)."""
-    from calibration.visibility import assess, solve_facing, workspace_ok
+    from calibration.cell.visibility import assess, solve_facing, workspace_ok
 
     T = cell.tracker_mm
     az0 = np.arctan2(T[1], T[0])
@@ -168,7 +168,7 @@ def facing_start(model, cell, routine: str, change: str, points) -> np.ndarray:
     joints (n, N), whether each is reached (n,) and labels. Refused
     (:class:`~daq.errors.NotEnoughVisible`) with the best start's problems when none fits.
     """
-    from calibration.visibility import smr_pose
+    from calibration.cell.visibility import smr_pose
 
     from ..errors import NotEnoughVisible
 

@@ -5,7 +5,7 @@ Joint 1 alone turns through ``circle_span_deg`` in ``circle_points`` steps
 the base x axis alone, ``line_points`` points over ``line_length_mm`` centred
 on the start (a joint move to the first, in the start's orientation, then linear
 moves, which keep it). :func:`finalize` fits the circle and the line
-(:mod:`calibration.frame_fit`) and stores the base frame in the tracker frame
+(:mod:`calibration.cell.frame_fit`) and stores the base frame in the tracker frame
 (``tracker_T_base``) and the fit quality with the run.
 
 Line of sight (when the plan knows roughly where the tracker is: ``cell``): a
@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calibration.frame_fit import measurement_frame
+from calibration.cell.frame_fit import measurement_frame
 
 from ..errors import NotEnoughVisible
 from ..plans import Plan, Target
@@ -50,7 +50,7 @@ def visible_arcs(model, q0: np.ndarray, cell, span_rad: float, step_rad: float =
     """For each start (m, N): the joint-1 offsets (rad) ``lo <= 0 <= hi`` of the widest arc
     around it that the tracker sees throughout (at most ``span_rad`` wide; lo = hi = 0 when
     the start itself is hidden). Returns (lo (m,), hi (m,))."""
-    from calibration.visibility import assess
+    from calibration.cell.visibility import assess
 
     K = int(np.ceil(span_rad / step_rad))
     off = np.arange(-K, K + 1) * step_rad

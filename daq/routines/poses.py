@@ -9,10 +9,10 @@ scaled identification Jacobian of the error model (D-optimal design; J from
 :class:`calibration.ErrorModel`, scaled by the parameters' typical sizes).
 A fraction ``valid_fraction`` of the poses (random, not optimised) is marked
 ``set=valid``. The observability index O1 of the calibration poses
-(:func:`calibration.identifiability.analyse`) is stored in the plan's params.
+(:func:`calibration.fit.identifiability.analyse`) is stored in the plan's params.
 
 Line of sight (``cell`` with a tracker position): every candidate is built facing the
-tracker (:func:`calibration.visibility.sample_visible`: the SMR axis within the acceptance
+tracker (:func:`calibration.cell.visibility.sample_visible`: the SMR axis within the acceptance
 cone less the margin, the beam clear of every link and fixture by the clearance), so
 random and D-optimal poses alike come from visible ones only; fewer than needed is
 :class:`~daq.errors.NotEnoughVisible` (exit 3) saying what to change. ``spares`` more
@@ -30,9 +30,9 @@ from __future__ import annotations
 import numpy as np
 
 from calibration import Dataset, ErrorModel
-from calibration.identifiability import analyse
-from calibration.kinematics import run_chain
-from calibration.visibility import sample_visible, workspace_ok
+from calibration.cell.visibility import sample_visible, workspace_ok
+from calibration.fit.identifiability import analyse
+from calibration.model.kinematics import run_chain
 
 from ..errors import NotEnoughVisible
 from ..plans import Plan, Target, path_time, shortest_order
@@ -114,7 +114,7 @@ def greedy_d_optimal(J: np.ndarray, k: int, eps: float = 1e-6, start: int = 0) -
 
 
 def observability(error_model: ErrorModel, q: np.ndarray) -> float:
-    """O1 of the error model on poses q (rad), see :mod:`calibration.identifiability`."""
+    """O1 of the error model on poses q (rad), see :mod:`calibration.fit.identifiability`."""
     J = scaled_jacobian(error_model, q) / np.asarray(error_model.scales, float)
     fam = [error_model.effect_of(k).family for k in range(error_model.n_params)]
     ident = analyse(J.reshape(-1, error_model.n_params), error_model.names, error_model.scales,

@@ -1,7 +1,7 @@
 """``validate``: a program's waypoints, as written and compensated, measured by the tracker.
 
 The waypoints come with the joints each controller variant ends at (``joints_deg``:
-variant -> deg, :mod:`calibration.controller_joints`: the program as written, the
+variant -> deg, :mod:`calibration.compensation.controller_joints`: the program as written, the
 compensated program, the calibrated DH table alone) and the TCP point the program means
 (``xyz_mm``, robot base frame). ``cycles`` cycles run every variant's waypoints in program
 order (a variant after the other, as the program would run), by joint moves. The plan is

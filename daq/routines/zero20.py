@@ -42,7 +42,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from calibration.transforms import fit_rigid
+from calibration.model.transforms import fit_rigid
 
 from ..errors import NotEnoughVisible, ZeroDiverged, ZeroNotReached
 from ..plans import Plan, Target, shortest_order
@@ -262,7 +262,7 @@ def acquisition(model, context) -> ZeroLoop:
 
 def tool_jacobian(model, q: np.ndarray) -> np.ndarray:
     """d(tool point)/dq of the nominal model at ``q`` (rad, (N,)): shape (3, N), mm/rad."""
-    from calibration.kinematics import run_chain
+    from calibration.model.kinematics import run_chain
 
     r = run_chain(model.convention, model.dh_table(), np.asarray(q, float)[None],
                   model.tool_mm(), jacobian=True)
@@ -272,7 +272,7 @@ def tool_jacobian(model, q: np.ndarray) -> np.ndarray:
 def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The rotation R (3x3) minimising sum |R a_i - b_i|^2 (displacements, (n, 3)).
 
-    :func:`calibration.transforms.fit_rigid` on the displacements and their mirror
+    :func:`calibration.model.transforms.fit_rigid` on the displacements and their mirror
     images: their centroids are the origin, so the best rigid fit is a rotation alone.
     """
     a, b = np.asarray(a, float), np.asarray(b, float)
@@ -367,7 +367,7 @@ class ZeroLoop:
         summary = ctx.summary()
         if summary.zero_tracker_R_base is not None:
             return np.asarray(summary.zero_tracker_R_base, float), jr, m
-        from calibration.inverse import ChainFK
+        from calibration.model.inverse import ChainFK
 
         fk = ChainFK.from_model(self.model)
         q0 = np.asarray(jr.q, float)
@@ -405,7 +405,7 @@ class ZeroLoop:
         measured displacement disagrees with its correction's prediction;
         :class:`~daq.errors.ZeroNotReached` after ``max_iter`` corrections.
         """
-        from calibration.inverse import ChainFK
+        from calibration.model.inverse import ChainFK
 
         o = self.o
         dev = f"robot {ctx.robot_url}"

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify, load_model
-from calibration.auto_diagnosis import auto_diagnose, explain_effect
+from calibration.diagnosis.auto_diagnosis import auto_diagnose, explain_effect
 from calibration.effects import parse_effects
-from calibration.simulate import Bump, random_joints, realistic_truth, simulate
+from calibration.fit.simulate import Bump, random_joints, realistic_truth, simulate
 
 UR10E = load_model("ur10e")
 SIGMA = 0.015
@@ -112,7 +112,7 @@ def test_every_family_is_explained_in_its_own_words():
 def test_blunders_left_out_of_the_fit_do_not_stop_the_loop():
     """Millimetre blunders in the calibration rows: the start fit leaves them out, and so
     does the screening, which finds the same effects as on the clean data."""
-    from calibration.simulate import add_blunders
+    from calibration.fit.simulate import add_blunders
 
     em, x, data = _capture("compliance:3,harmonic2:4", seed=5, n=500)
     clean = auto_diagnose(identify(ErrorModel(UR10E), data), data)
@@ -129,7 +129,7 @@ def test_cross_validated_errors_of_fits_without_other_blunders_are_paired_by_pos
     """Fewer validation rows than MIN_HELDOUT: held-out errors are cross-validated over each
     fit's own rows; a refit that leaves out other blunders is compared on the poses both
     kept (it used to crash on the mismatched lengths)."""
-    from calibration.auto_diagnosis import Heldout, paired_gain
+    from calibration.diagnosis.auto_diagnosis import Heldout, paired_gain
 
     ids = np.array([f"p{i}" for i in range(6)], dtype=object)
     before = Heldout(np.array([1.0, 2.0, 3.0, 4.0, 5.0, 6.0]), "cv", ids)

@@ -10,8 +10,8 @@ import numpy as np
 from threadpoolctl import threadpool_info
 
 from calibration import ErrorModel, identify, load_model
-from calibration.blas import SMALL_ELEMENTS, blas_threads
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
+from calibration.numerics.blas import SMALL_ELEMENTS, blas_threads
 
 
 def _blas_threads() -> set[int]:
@@ -37,7 +37,7 @@ def test_identify_runs_in_the_limit(monkeypatch):
             yield
 
     # the module (the package's ``identify`` is the function)
-    monkeypatch.setattr(sys.modules["calibration.identify"], "blas_threads", spy)
+    monkeypatch.setattr(sys.modules["calibration.fit.identify"], "blas_threads", spy)
     m = load_model("ur5")
     em = ErrorModel(m)
     rng = np.random.default_rng(0)
@@ -52,7 +52,7 @@ def test_scipy_blas_loaded_after_the_first_limit_is_pinned_too():
     import subprocess
 
     code = ("import numpy\nfrom threadpoolctl import threadpool_info\n"
-            "from calibration.blas import blas_threads\n"
+            "from calibration.numerics.blas import blas_threads\n"
             "with blas_threads(10):\n    pass\n"
             "import scipy.linalg\n"
             "with blas_threads(10):\n"

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from calibration import DataError, load_csv, load_model
-from calibration.capture_meta import CaptureMeta
-from calibration.dataset import read_meta
+from calibration.data.capture_meta import CaptureMeta
+from calibration.data.dataset import read_meta
 
 
 def _T():

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from calibration import Dataset, ErrorModel, identify, load_model
-from calibration.compensation import CalibratedFK, compensate
-from calibration.inverse import ChainFK, solve_ik
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.compensation.compensation import CalibratedFK, compensate
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
+from calibration.model.inverse import ChainFK, solve_ik
 
 SIGMA = 0.015
 
@@ -96,8 +96,8 @@ def test_nominal_solution_from_a_start(calibrated):
 def test_cli_compensate_and_exports(calibrated, tmp_path, capsys):
     import json
 
-    from calibration.params_io import save_params
-    from calibration.ur_conf import read_calibration_conf
+    from calibration.exports.params_io import save_params
+    from calibration.exports.ur_conf import read_calibration_conf
     from cellcal.cli import main
 
     m, em, _, fit, rng = calibrated
@@ -135,7 +135,7 @@ def test_cli_compensate_and_exports(calibrated, tmp_path, capsys):
 def test_refused_targets_leave_no_export_behind(calibrated, tmp_path, capsys):
     """Every input is checked before anything is written: targets whose joints contradict
     their point (exit 2) leave neither the compensated CSV nor the model exports."""
-    from calibration.params_io import save_params
+    from calibration.exports.params_io import save_params
     from cellcal.cli import main
 
     m, em, _, fit, _ = calibrated

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify, load_model
-from calibration.data_quality import InsufficientData, check_for_fit, distinct_poses
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.fit.data_quality import InsufficientData, check_for_fit, distinct_poses
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
 
 UR5 = load_model("ur5")
 

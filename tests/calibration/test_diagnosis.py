@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify, load_model
-from calibration.diagnosis import diagnose
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.diagnosis.diagnosis import diagnose
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
 
 UR10E = load_model("ur10e")
 SIGMA = 0.015

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from calibration import Dataset, ErrorModel, load_model
-from calibration.dataset import load_csv
-from calibration.diagnosis import candidate_names
+from calibration.data.dataset import load_csv
+from calibration.diagnosis.diagnosis import candidate_names
 from calibration.effects import EffectError, parse_effects
 from calibration.errors import DataError
-from calibration.simulate import random_joints, realistic_truth, warmup_temperatures
+from calibration.fit.simulate import random_joints, realistic_truth, warmup_temperatures
 
 UR = load_model("ur10e")
 DRIFTS = ["thermal_growth", "thermal_zero:2", "thermal_zero:6", "time_growth", "time_growth3",

@@ -5,7 +5,7 @@ import pytest
 
 from calibration import Dataset, ErrorModel, identify, load_model
 from calibration.effects import REGISTRY, EffectError, load_effect_file, parse_effects
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
 from tests.shared_data import ROOT
 
 MODEL = load_model("ur10e").with_changes(payload={"mass_kg": 4.0, "com": [0.0, 0.0, 40.0]})

@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from calibration import ErrorModel, load_model
-from calibration.controller_export import (
+from calibration.exports.controller_export import (
     ExportError,
     libstdcxx_hash,
     read_table_csv,
@@ -19,12 +19,12 @@ from calibration.controller_export import (
     write_table_csv,
     write_ur_kinematics_yaml,
 )
-from calibration.kinematics import run_chain
-from calibration.model_export import calibrated_model, write_ur_conf
-from calibration.parity import model_poses, parity_joints
-from calibration.simulate import realistic_truth
-from calibration.urdf_export import urdf_text, write_urdf
-from calibration.urdf_model import mount_transform
+from calibration.exports.model_export import calibrated_model, write_ur_conf
+from calibration.exports.parity import model_poses, parity_joints
+from calibration.exports.urdf_export import urdf_text, write_urdf
+from calibration.fit.simulate import realistic_truth
+from calibration.model.kinematics import run_chain
+from calibration.model.urdf_model import mount_transform
 
 from .test_urdf_model import track_model
 from .urdf_writers import rot, trans, ur_style_urdf
@@ -191,9 +191,9 @@ def test_ur_files_of_a_ur_urdf_from_base_link_are_the_controllers(tmp_path):
     """A calibrated UR10e written as a ur_description-style URDF and read from base_link
     (its own frames: turned 180 deg, signs of a and alpha flipped) gives the controller's
     pure-DH chain, calibration.conf deltas and hash of the original."""
-    from calibration.controller_export import ur_table
-    from calibration.model_export import ur_deltas
-    from calibration.ur_conf import to_pure_dh
+    from calibration.exports.controller_export import ur_table
+    from calibration.exports.model_export import ur_deltas
+    from calibration.exports.ur_conf import to_pure_dh
 
     ref = load_model("ur10e")
     em = ErrorModel(ref)

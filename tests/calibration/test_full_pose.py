@@ -13,14 +13,14 @@ import numpy as np
 import pytest
 
 from calibration import load_csv, load_model
-from calibration.dataset import Dataset
-from calibration.error_model import ErrorModel
+from calibration.data.dataset import Dataset
+from calibration.diagnosis.orientation_blindness import orientation_blindness
 from calibration.errors import InputError
-from calibration.identify import identify
-from calibration.orientation_blindness import orientation_blindness
-from calibration.orientation_residuals import OrientationRows, rotation_residuals
-from calibration.simulate import random_joints, realistic_truth, simulate
-from calibration.transforms import matrices_to_rotvecs, rotvecs_to_matrices
+from calibration.fit.error_model import ErrorModel
+from calibration.fit.identify import identify
+from calibration.fit.orientation_residuals import OrientationRows, rotation_residuals
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
+from calibration.model.transforms import matrices_to_rotvecs, rotvecs_to_matrices
 
 SIGMA_MM, SIGMA_DEG = 0.01, 0.01
 #: the floors of 3-D errors: sqrt(3) sigma
@@ -205,8 +205,8 @@ def _nest_data(model, nests, n=72, seed=6):
 
 
 def test_smr_nests_are_each_identified_and_see_the_orientation(ur10e, tmp_path):
-    from calibration.full_pose import for_data
-    from calibration.params_io import read_params, save_params
+    from calibration.exports.params_io import read_params, save_params
+    from calibration.fit.full_pose import for_data
 
     nests = {"A": [0.0, 0.0, 60.0], "B": [80.0, 0.0, 40.0], "C": [0.0, 80.0, 40.0]}
     _, _, data = _nest_data(ur10e, nests)
@@ -226,7 +226,7 @@ def test_smr_nests_are_each_identified_and_see_the_orientation(ur10e, tmp_path):
 
 
 def test_for_data_adds_tool_rotation_for_orientations_unless_position_only(ur10e):
-    from calibration.full_pose import for_data
+    from calibration.fit.full_pose import for_data
 
     data = _data(ur10e, n=10, n_valid=0)
     em, notes = for_data(ErrorModel(ur10e, POSITION), data)

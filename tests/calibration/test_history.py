@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from calibration.history import CalibrationSummary, parameter_histories
+from calibration.diagnosis.history import CalibrationSummary, parameter_histories
 
 
 def _doc(rows, effects=("geometric",), rms=0.02):

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, builtin_models, identify, load_model
-from calibration.identifiability import analyse
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.fit.identifiability import analyse
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
 
 SIGMA = 0.015  # mm, tracker noise per axis
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from calibration import Dataset, ErrorModel, builtin_models, load_model
-from calibration.simulate import random_joints, realistic_truth
+from calibration.fit.simulate import random_joints, realistic_truth
 
 
 @pytest.mark.parametrize("name", builtin_models())

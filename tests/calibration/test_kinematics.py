@@ -6,8 +6,8 @@ import scipy.linalg
 import yaml
 
 from calibration import builtin_models, forward, load_model
-from calibration.gravity import gravity_torques, potential_energy
-from calibration.kinematics import run_chain
+from calibration.model.gravity import gravity_torques, potential_energy
+from calibration.model.kinematics import run_chain
 from tests.shared_data import shared_file
 
 

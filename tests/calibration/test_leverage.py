@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import calibration.outliers
+import calibration.fit.outliers
 from calibration import ErrorModel, identify, load_model
-from calibration.leverage import residual_factors, solve3, studentise, studentised_norms
-from calibration.simulate import add_blunders, random_joints, realistic_truth, simulate
+from calibration.fit.leverage import residual_factors, solve3, studentise, studentised_norms
+from calibration.fit.simulate import add_blunders, random_joints, realistic_truth, simulate
 
 CASES = [  # model, effects, calibration poses, blunder rate, seed
     ("ur10e", "geometric,base,tool", 400, 0.02, 5),
@@ -82,10 +82,10 @@ def test_the_exclusion_loop_names_the_same_points_as_the_straightforward_one(cas
                                                                                  monkeypatch):
     m, d = _data(*case)
     fast = identify(ErrorModel(m, case[1]), d)
-    monkeypatch.setattr(calibration.outliers, "residual_factors",
+    monkeypatch.setattr(calibration.fit.outliers, "residual_factors",
                         lambda fit, rows, included, jacobian=None:
                         straightforward_factors(fit, rows, included))
-    monkeypatch.setattr(calibration.outliers, "studentised_norms",
+    monkeypatch.setattr(calibration.fit.outliers, "studentised_norms",
                         lambda r, f: np.linalg.norm(studentise(r, f), axis=1))
     slow = identify(ErrorModel(m, case[1]), d)
     assert fast.outliers.ids == slow.outliers.ids and fast.outliers.ids

@@ -1,5 +1,5 @@
 """The numpy-only linear algebra and chi(3) quantile of the default calibrate path agree
-with scipy's to rounding (calibration/linalg.py, calibration/chi3.py)."""
+with scipy's to rounding (calibration/numerics/linalg.py, calibration/numerics/chi3.py)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import pytest
 import scipy.linalg
 import scipy.special
 
-from calibration.chi3 import chi3_isf, chi3_sf
-from calibration.linalg import cho_solve, cholesky_upper, qr_pivoted, triangular_inverse
+from calibration.numerics.chi3 import chi3_isf, chi3_sf
+from calibration.numerics.linalg import cho_solve, cholesky_upper, qr_pivoted, triangular_inverse
 
 
 def _matrices(rng, count=300):

@@ -10,12 +10,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from calibration import DataError
-from calibration.dataset import CsvTable
-from calibration.orientation_columns import (
+from calibration.data.dataset import CsvTable
+from calibration.data.orientation_columns import (
     UNIT_TOLERANCE,
     read_orientation_columns,
 )
-from calibration.transforms import matrix_to_quat, random_rotation
+from calibration.model.transforms import matrix_to_quat, random_rotation
 
 SETTINGS = settings(max_examples=80, deadline=None, derandomize=True,
                     suppress_health_check=[HealthCheck.function_scoped_fixture])

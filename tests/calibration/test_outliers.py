@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify, load_model
-from calibration.diagnosis import diagnose
-from calibration.outliers import (
+from calibration.diagnosis.diagnosis import diagnose
+from calibration.exports.params_io import fit_to_dict, load_params, read_outliers, save_params
+from calibration.fit.outliers import (
     CHI3_MAD,
     CHI3_MEDIAN,
     concentration,
@@ -18,8 +19,7 @@ from calibration.outliers import (
     studentise,
     threshold,
 )
-from calibration.params_io import fit_to_dict, load_params, read_outliers, save_params
-from calibration.simulate import add_blunders, random_joints, realistic_truth, simulate
+from calibration.fit.simulate import add_blunders, random_joints, realistic_truth, simulate
 
 UR10E = load_model("ur10e")
 SIGMA = 0.015

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify, load_model
-from calibration.params_io import ParamsError, fit_to_dict, load_params, save_params
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.exports.params_io import ParamsError, fit_to_dict, load_params, save_params
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
 
 
 def test_params_round_trip(tmp_path):
@@ -49,8 +49,8 @@ def test_bad_params_files(tmp_path):
 def test_auto_steps_are_recorded_and_read_back(tmp_path):
     """``diagnose --auto --out``'s steps ride along in params.json; the parameters read as
     before, and a file without them (``calibrate``) has none."""
-    from calibration.auto_diagnosis import auto_diagnose
-    from calibration.params_io import read_auto_steps
+    from calibration.diagnosis.auto_diagnosis import auto_diagnose
+    from calibration.exports.params_io import read_auto_steps
 
     m = load_model("ur5e")
     em = ErrorModel(m, "geometric,base,tool,compliance:3")
@@ -159,7 +159,7 @@ def test_params_of_another_model_are_refused(fitted, tmp_path):
     with pytest.raises(ParamsError, match="ur5e.*joints.*ur10e"):
         load_params(p, model=load_model("ur10e"))
     # the same joints, another tool: used, with a note
-    from calibration.params_io import read_params
+    from calibration.exports.params_io import read_params
 
     other = load_model("ur5e").with_changes(tool=(0.0, 0.0, 60.0))
     loaded = read_params(p, model=other)
@@ -169,7 +169,7 @@ def test_params_of_another_model_are_refused(fitted, tmp_path):
 def test_effect_files_run_only_when_given_and_unchanged(tmp_path):
     from calibration import effects
     from calibration.effects import load_effect_file
-    from calibration.params_io import read_params
+    from calibration.exports.params_io import read_params
 
     registry = dict(effects.REGISTRY)
     try:
@@ -235,7 +235,7 @@ def test_a_user_effect_replaces_a_builtin_only_when_it_says_so(tmp_path):
 
 
 def test_zero_offsets_shift_the_joint_angles_and_are_recorded(fitted, tmp_path):
-    from calibration.params_io import with_zero_offsets, write_zero_update
+    from calibration.exports.params_io import with_zero_offsets, write_zero_update
 
     p, out = tmp_path / "p.json", tmp_path / "rezeroed.json"
     save_params(fitted, p)

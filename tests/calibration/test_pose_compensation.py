@@ -8,11 +8,8 @@ import numpy as np
 import pytest
 
 from calibration import Dataset, ErrorModel, identify, load_model
-from calibration.compensation import CalibratedFK
-from calibration.effects import EffectError
-from calibration.identifiability import analyse
-from calibration.inverse import solve_ik
-from calibration.pose_compensation import (
+from calibration.compensation.compensation import CalibratedFK
+from calibration.compensation.pose_compensation import (
     NominalTcpFK,
     as_poses,
     compensate_joint_targets,
@@ -21,8 +18,11 @@ from calibration.pose_compensation import (
     neighbour_seeds,
     pose_difference,
 )
-from calibration.simulate import random_joints, realistic_truth, simulate
-from calibration.transforms import make_T, rotvec_to_matrix
+from calibration.effects import EffectError
+from calibration.fit.identifiability import analyse
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
+from calibration.model.inverse import solve_ik
+from calibration.model.transforms import make_T, rotvec_to_matrix
 
 HIDDEN = "geometric,base,tool,compliance:2,compliance:3,harmonic:1,harmonic:2,thermal"
 TCP = make_T(rotvec_to_matrix([0.1, 0.2, 0.3]), [10.0, -20.0, 150.0])

@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from calibration.transforms import (
+from calibration.model.transforms import (
     matrices_to_rotvecs,
     matrix_to_quat,
     matrix_to_rotvec,

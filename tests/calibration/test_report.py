@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from calibration import DEFAULT_EFFECTS, ErrorModel, identify, load_model
-from calibration.diagnosis import diagnose
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.diagnosis.diagnosis import diagnose
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
 from presentation.figures import MAX_POINTS, Stage, _subsample
 from presentation.html_report import _value_std, build_report, render_report
 

@@ -9,9 +9,9 @@ import re
 import pytest
 
 from calibration import load_model
-from calibration.diagnosis import diagnose
-from calibration.error_model import ErrorModel
-from calibration.identify import identify
+from calibration.diagnosis.diagnosis import diagnose
+from calibration.fit.error_model import ErrorModel
+from calibration.fit.identify import identify
 from presentation.html_report import render_report
 from presentation.plot_base import Stage
 from tests.calibration.test_full_pose import POSITION, _data

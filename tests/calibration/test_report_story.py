@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from calibration import DEFAULT_EFFECTS, ErrorModel, identify, load_model
-from calibration.simulate import add_blunders, random_joints, realistic_truth, simulate
+from calibration.fit.simulate import add_blunders, random_joints, realistic_truth, simulate
 from calibration.workflow import joint_view
 from presentation.figures import fig_steps
 from presentation.html_report import build_report

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify, load_model
-from calibration.simulate import random_joints, realistic_truth, simulate, warmup_temperatures
+from calibration.fit.simulate import random_joints, realistic_truth, simulate, warmup_temperatures
 from presentation.figures import time_axes
 from presentation.html_report import render_report
 from presentation.joint_figures import _step_x, _what
@@ -35,7 +35,7 @@ def cold():
 
 def test_the_report_plots_the_error_against_the_joint_temperatures(cold):
     data, start = cold
-    from calibration.diagnosis import diagnose
+    from calibration.diagnosis.diagnosis import diagnose
 
     page = render_report(diagnose(start, data), [Stage("current model", start)],
                          data=data, dpi=30).html

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify, load_model
+from calibration.diagnosis.screening import _loo, data_gap_deg, kfold_errors, linearise, screen
 from calibration.effects import parse_effect
 from calibration.effects.table import Table, gcv_smoothing, penalised_path
-from calibration.identify import fit_at
-from calibration.params_io import fit_to_dict, params_from_dict
-from calibration.screening import _loo, data_gap_deg, kfold_errors, linearise, screen
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.exports.params_io import fit_to_dict, params_from_dict
+from calibration.fit.identify import fit_at
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
 
 UR10E = load_model("ur10e")
 

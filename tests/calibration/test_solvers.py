@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify, load_model
-from calibration.simulate import random_joints, realistic_truth, simulate
-from calibration.solvers import SOLVERS, igg3_weights
-from calibration.solvers.ridge import condition_class
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
+from calibration.fit.solvers import SOLVERS, igg3_weights
+from calibration.fit.solvers.ridge import condition_class
 from presentation.ridge_plot import plot_ridge
 
 SIGMA = 0.015  # mm per axis

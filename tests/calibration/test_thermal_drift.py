@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify, load_model
-from calibration.auto_diagnosis import auto_diagnose
-from calibration.simulate import random_joints, realistic_truth, simulate, warmup_temperatures
+from calibration.diagnosis.auto_diagnosis import auto_diagnose
+from calibration.fit.simulate import random_joints, realistic_truth, simulate, warmup_temperatures
 
 UR = load_model("ur10e")
 SIGMA = 0.015

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify, load_model
-from calibration.compensation import load_targets
+from calibration.compensation.compensation import load_targets
 from calibration.errors import ParamsError
-from calibration.identify import fit_at
-from calibration.params_io import fit_to_dict, read_params, save_params
-from calibration.simulate import random_joints, realistic_truth, simulate, warmup_temperatures
-from calibration.thermal_state import target_state
+from calibration.exports.params_io import fit_to_dict, read_params, save_params
+from calibration.fit.identify import fit_at
+from calibration.fit.simulate import random_joints, realistic_truth, simulate, warmup_temperatures
+from calibration.fit.thermal_state import target_state
 from cellcal.cli import main
 from presentation.thermal_text import state_line
 

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from calibration import load_model
-from calibration.error_model import ErrorModel
-from calibration.model_export import calibrated_model, write_model_yaml
-from calibration.parity import model_file_parity
-from calibration.transforms import rotvec_to_matrix
-from calibration.urdf_export import write_urdf
+from calibration.exports.model_export import calibrated_model, write_model_yaml
+from calibration.exports.parity import model_file_parity
+from calibration.exports.urdf_export import write_urdf
+from calibration.fit.error_model import ErrorModel
+from calibration.model.transforms import rotvec_to_matrix
 from tests.calibration.test_full_pose import FULL, POSITION, _truth
 
 
@@ -46,7 +46,7 @@ def test_the_urdf_turns_its_tcp_by_the_tool_rotation(full_pose, tmp_path):
     # a URDF without the turn would miss the tool frame by the tool rotation's angle
     flat = m.with_changes(tool_rpy_deg=None)
     write_urdf(flat, tmp_path / "flat.urdf")
-    from calibration.urdf_export import urdf_parity
+    from calibration.exports.urdf_export import urdf_parity
 
     assert urdf_parity(tmp_path / "flat.urdf", m, n=20).max_rad > np.radians(1.0)
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from calibration.transforms import fit_rigid, fit_rotation, random_rotation
+from calibration.model.transforms import fit_rigid, fit_rotation, random_rotation
 
 
 def test_fit_rotation_recovers_a_rotation_from_three_probe_displacements():

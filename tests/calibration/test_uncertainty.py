@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify, load_model
-from calibration.params_io import fit_to_dict
-from calibration.simulate import random_joints, realistic_truth, simulate
-from calibration.uncertainty import correlations, monte_carlo, position_uncertainty
+from calibration.exports.params_io import fit_to_dict
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
+from calibration.fit.uncertainty import correlations, monte_carlo, position_uncertainty
 
 SIGMA = 0.015
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify
-from calibration.auto_diagnosis import auto_diagnose
-from calibration.diagnosis import diagnose
-from calibration.kinematics import tool_points
+from calibration.diagnosis.auto_diagnosis import auto_diagnose
+from calibration.diagnosis.diagnosis import diagnose
+from calibration.model.kinematics import tool_points
 from tests.calibration.jacobi_ur5 import GRID, RANDOM, load, ur5_with_smr
 
 

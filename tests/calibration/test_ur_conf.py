@@ -5,9 +5,13 @@ import pytest
 import yaml
 
 from calibration import ErrorModel, load_model
-from calibration.kinematics import run_chain
-from calibration.model_export import calibrated_model, calibrated_table, ur_deltas, write_ur_conf
-from calibration.ur_conf import (
+from calibration.exports.model_export import (
+    calibrated_model,
+    calibrated_table,
+    ur_deltas,
+    write_ur_conf,
+)
+from calibration.exports.ur_conf import (
     URConfError,
     deltas_from_table,
     model_from_table,
@@ -17,6 +21,7 @@ from calibration.ur_conf import (
     to_pure_dh,
     write_calibration_conf,
 )
+from calibration.model.kinematics import run_chain
 from tests.shared_data import shared_file
 
 TOOL = np.array([10.0, 20.0, 100.0])

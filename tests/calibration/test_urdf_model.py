@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 
 from calibration import Dataset, ErrorModel, load_model
-from calibration.gravity import gravity_torques, potential_energy
-from calibration.kinematics import PRISMATIC_MM_PER_UNIT, run_chain
-from calibration.simulate import random_joints, realistic_truth
-from calibration.urdf_export import urdf_joint_values
-from calibration.urdf_model import UrdfError, mount_transform
+from calibration.exports.urdf_export import urdf_joint_values
+from calibration.fit.simulate import random_joints, realistic_truth
+from calibration.model.gravity import gravity_torques, potential_energy
+from calibration.model.kinematics import PRISMATIC_MM_PER_UNIT, run_chain
+from calibration.model.urdf_model import UrdfError, mount_transform
 
 from .urdf_writers import UR_JOINTS, dh_chain_urdf, rot, trans, ur_style_urdf, urdf_tip_poses
 

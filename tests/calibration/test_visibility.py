@@ -1,11 +1,11 @@
-"""Line-of-sight geometry (calibration.visibility) and the cell description (calibration.cell),
-each checked against a brute-force construction of its own."""
+"""Line-of-sight geometry (calibration.cell.visibility) and the cell description
+(calibration.cell.cell), each checked against a brute-force construction of its own."""
 
 import numpy as np
 import pytest
 
 from calibration import load_model
-from calibration.cell import (
+from calibration.cell.cell import (
     REFLECTOR_ACCEPTANCE_DEG,
     Box,
     CellError,
@@ -15,9 +15,7 @@ from calibration.cell import (
     load_cell,
     tracker_in_base,
 )
-from calibration.simulate import random_joints
-from calibration.transforms import make_T, random_rotation
-from calibration.visibility import (
+from calibration.cell.visibility import (
     assess,
     box_blocks,
     cylinder_blocks,
@@ -31,6 +29,8 @@ from calibration.visibility import (
     solve_facing,
     workspace_ok,
 )
+from calibration.fit.simulate import random_joints
+from calibration.model.transforms import make_T, random_rotation
 
 UR = load_model("ur10e").with_changes(tool=(0.0, 0.0, 60.0))
 
@@ -116,7 +116,7 @@ def test_link_capsules_follow_the_chain_and_end_flat_at_the_flange():
     assert caps.a.shape == caps.b.shape == (20, len(caps.radius), 3)
     assert list(caps.link) == [1, 2, 3, 4, 5, 6]  # one non-degenerate segment per UR row
     np.testing.assert_allclose(caps.radius, UR.link_radii())
-    from calibration.kinematics import run_chain
+    from calibration.model.kinematics import run_chain
 
     r = run_chain(UR.convention, UR.dh_table(), q, UR.tool_mm(), jacobian=False)
     np.testing.assert_allclose(caps.a[:, 0], r.frames_p[:, 0], atol=1e-9)

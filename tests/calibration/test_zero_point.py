@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from calibration import DataError, load_model
-from calibration.inverse import ChainFK
+from calibration.model.inverse import ChainFK
 from calibration.zero_point import (
     Postures,
     assess,

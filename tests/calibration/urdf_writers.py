@@ -1,6 +1,6 @@
 """URDF files for the tests, written from published DH/MDH tables (nothing downloaded).
 
-The writers are independent of :mod:`calibration.urdf_model`: each joint origin is
+The writers are independent of :mod:`calibration.model.urdf_model`: each joint origin is
 the product of elementary DH transforms, written as URDF xyz (m) and rpy (rad,
 R = Rz(yaw) Ry(pitch) Rx(roll)). Options make the files harder than a plain DH
 transcription: link frames turned at random (so axes are not z), fixed joints with

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, load_model
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
 from cellcal.cli import main
 
 

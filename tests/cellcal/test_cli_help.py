@@ -57,9 +57,9 @@ def test_routine_options_are_the_routines_own():
 
 def test_parser_constants_agree_with_the_core():
     from calibration import DEFAULT_EFFECTS
-    from calibration.history import DEFAULT_SIGMA
-    from calibration.outliers import MODES as OUTLIER_MODES
-    from calibration.solvers import SOLVERS
+    from calibration.diagnosis.history import DEFAULT_SIGMA
+    from calibration.fit.outliers import MODES as OUTLIER_MODES
+    from calibration.fit.solvers import SOLVERS
     from calibration.zero_point import DEFAULT_SIGMA_MM
     from cellcal.commands import history, sim_serve, zero
     from cellcal.flags import choices

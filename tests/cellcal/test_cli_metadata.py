@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, load_model
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
 from cellcal.cli import main
 from tests.daq.capture_helpers import DATA
 from tests.daq.test_store_upgrade import v2_db  # noqa: F401  (the fixture)

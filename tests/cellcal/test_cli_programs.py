@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify, load_model
-from calibration.params_io import save_params
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.exports.params_io import save_params
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
 from cellcal.cli import main
 from daq.store import RunStore
 
@@ -119,7 +119,7 @@ def test_validate_runs_the_waypoints_on_the_cell(params, tmp_path, capsys):
         assert run.summary.validation_frame == "the calibration's base frame"
         assert run.routine == "validate"
     # a targets CSV (points and their nominal joints), dry-run: planned, nothing moves
-    from calibration.kinematics import tool_points
+    from calibration.model.kinematics import tool_points
 
     model = load_model("ur10e").with_changes(tool=(0.0, 0.0, 60.0))
     q = np.array([[0.6007, -1.9745, -2.2809, 1.2080, 0.9082, -1.6289]])

@@ -96,9 +96,9 @@ def test_measured_tips_are_used_in_the_frame_they_are_in(tmp_path, capsys):
     """Base-frame tips stay as they are with --params; tracker-frame tips are mapped into
     the base frame with the params' base pose."""
     from calibration import ErrorModel, identify
-    from calibration.params_io import save_params
-    from calibration.simulate import random_joints, realistic_truth, simulate
-    from calibration.transforms import rotvec_to_matrix
+    from calibration.exports.params_io import save_params
+    from calibration.fit.simulate import random_joints, realistic_truth, simulate
+    from calibration.model.transforms import rotvec_to_matrix
 
     m = load_model("ur10e")
     rng = np.random.default_rng(7)

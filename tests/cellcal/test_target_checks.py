@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from calibration import load_model
-from calibration.compensation import Targets
-from calibration.inverse import ChainFK
+from calibration.compensation.compensation import Targets
+from calibration.model.inverse import ChainFK
 from cellcal.errors import UsageError
 from cellcal.flags.choices import JOINTS_TOLERANCE_MM
 from cellcal.usecases.target_checks import check_joints_reach

@@ -14,9 +14,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from calibration import DataError, ErrorModel, ModelError, load_csv, load_model
-from calibration.compensation import load_targets
-from calibration.params_io import ParamsError, params_from_doc, read_params
-from calibration.simulate import random_joints, realistic_truth, simulate
+from calibration.compensation.compensation import load_targets
+from calibration.exports.params_io import ParamsError, params_from_doc, read_params
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
 from calibration.zero_point import load_postures
 
 SETTINGS = settings(max_examples=60, deadline=None, derandomize=True,
@@ -38,7 +38,7 @@ def good(tmp_path_factory):
     data = simulate(em, realistic_truth(em, rng), random_joints(UR5, 12, rng), 0.01, rng)
     csv_text = data.to_csv()
     from calibration import identify
-    from calibration.params_io import fit_to_dict
+    from calibration.exports.params_io import fit_to_dict
 
     data40 = simulate(em, realistic_truth(em, rng), random_joints(UR5, 40, rng), 0.01, rng)
     params = fit_to_dict(identify(em, data40))

@@ -63,8 +63,8 @@ def _quiet(fn, *args):
 def build(ws: Path) -> Path:
     """Write the good files into ``ws`` (created); returns ``ws``."""
     from calibration import ErrorModel, load_model
-    from calibration.kinematics import tool_points
-    from calibration.simulate import random_joints, realistic_truth, simulate
+    from calibration.fit.simulate import random_joints, realistic_truth, simulate
+    from calibration.model.kinematics import tool_points
     from calibration.zero_point import simulate_postures
     from cellcal.cli import main
     from daq.store import RunStore

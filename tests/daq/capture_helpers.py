@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from calibration import ErrorModel, load_model
-from calibration.cell import CellSpec
+from calibration.cell.cell import CellSpec
 from daq.run_context import ExecutorOptions, RunContext
 from daq.service import execute
 from daq.store import RunStore
@@ -55,7 +55,7 @@ def base_only_truth(seed: int, hidden=None, tracker_at=DEFAULT_TRACKER_AT_MM) ->
     nominal = ur10e_controller_model()
     em = ErrorModel(nominal, "base,tool")
     rng = np.random.default_rng(seed)
-    from calibration.simulate import realistic_truth
+    from calibration.fit.simulate import realistic_truth
 
     x = realistic_truth(em, rng)
     x[em.index("tool.x"):em.index("tool.x") + 3] = nominal.tool_mm()

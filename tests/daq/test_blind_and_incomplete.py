@@ -9,7 +9,7 @@ import json
 import pytest
 
 from calibration import load_model
-from calibration.cell import CellSpec, Smr
+from calibration.cell.cell import CellSpec, Smr
 from cellcal.cli import main
 from daq.completeness import MISSING_SHARE, end_status
 from daq.errors import NotEnoughVisible, TrackerUnknown

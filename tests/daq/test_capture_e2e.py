@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pytest
 
-from calibration.frame_fit import axis_angle_deg
+from calibration.cell.frame_fit import axis_angle_deg
 from cellcal.cli import main
 from daq.check import check_plan
 from daq.routines import make_plan

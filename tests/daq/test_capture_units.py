@@ -10,7 +10,7 @@ import pytest
 
 import sim_drivers.inprocess as inproc
 from calibration import ErrorModel, identify, load_csv, load_model
-from calibration.frame_fit import axis_angle_deg, fit_circle, fit_line, measurement_frame
+from calibration.cell.frame_fit import axis_angle_deg, fit_circle, fit_line, measurement_frame
 from cellcal.cli import main
 from cellcal.commands.capture import confirm_motion
 from cellcal.progress import Progress
@@ -301,7 +301,7 @@ def test_capture_errors_are_their_own_family():
 
 
 def test_zero_loop_rotation_fit_recovers_the_tracker_orientation():
-    from calibration.transforms import random_rotation
+    from calibration.model.transforms import random_rotation
     from daq.routines.zero20 import rotation_between
 
     rng = np.random.default_rng(3)

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify
-from calibration.simulate import random_joints, simulate
-from calibration.transforms import make_T
-from calibration.visibility import solve_facing
+from calibration.cell.visibility import solve_facing
+from calibration.fit.simulate import random_joints, simulate
+from calibration.model.transforms import make_T
 from daq.compensated_robot import CompensatedRobot
 from daq.motion_guard import MotionLimits, MotionRefused
 from sim_drivers.model_truth import ModelTruth
@@ -74,7 +74,7 @@ def test_compensated_waypoints_on_the_served_cell(protocol):
         q = _waypoints(truth)
         assert len(q) >= 8
         model = truth.model
-        from calibration.kinematics import tool_points
+        from calibration.model.kinematics import tool_points
 
         target = tool_points(model, q)  # what the program means: the nominal TCP
         full, fit = _calibrate(truth, "geometric,base,tool," + HIDDEN)

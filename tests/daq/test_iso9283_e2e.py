@@ -37,7 +37,7 @@ def test_iso9283_summary_is_plausible(tmp_path, capsys):
         ctx = PoseContext(direction=None, temp_c=cell.temp0_c, t_s=0.0)
         true_tip = np.array([truth.true_point(q, ctx) for q in s.joints_rad])
         sigma_t = np.array([cell.tracker_sigma(p) for p in s.tracker_p_smr])
-        from calibration.kinematics import run_chain
+        from calibration.model.kinematics import run_chain
 
         m = truth.model
         J = run_chain(m.convention, m.dh_table(), s.joints_rad, m.tool_mm(),

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calibration.dataset import load_csv
+from calibration.data.dataset import load_csv
 from cellcal.cli import main
 from daq.routines import make_plan
 from daq.store import RunStore

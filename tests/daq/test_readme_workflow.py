@@ -21,11 +21,11 @@ import time
 import numpy as np
 import pytest
 
-from calibration.cell import CellSpec, Smr, TrackerPlacement
-from calibration.inverse import ChainFK
-from calibration.params_io import load_params
-from calibration.simulate import random_joints
-from calibration.visibility import assess
+from calibration.cell.cell import CellSpec, Smr, TrackerPlacement
+from calibration.cell.visibility import assess
+from calibration.exports.params_io import load_params
+from calibration.fit.simulate import random_joints
+from calibration.model.inverse import ChainFK
 from cellcal.cli import main
 from drivers.urls import open_robot, open_tracker
 from sim_drivers.model_truth import DEFAULT_TRACKER_AT_MM, ModelTruth

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify, load_csv
-from calibration.cell import CellSpec, Smr
+from calibration.cell.cell import CellSpec, Smr
 from cellcal.cli import main
 from daq.remeasure import RunningModel
 from daq.routines import make_plan

@@ -25,8 +25,8 @@ import time
 import numpy as np
 import pytest
 
-from calibration.cell import CellSpec, Smr
-from calibration.transforms import make_T, rotvec_to_matrix
+from calibration.cell.cell import CellSpec, Smr
+from calibration.model.transforms import make_T, rotvec_to_matrix
 from cellcal.cli import main
 from daq.plans import Plan
 from daq.routines import make_plan

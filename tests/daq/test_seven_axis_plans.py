@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from calibration import load_model
-from calibration.kinematics import tool_points
+from calibration.model.kinematics import tool_points
 from daq.check import check_plan
 from daq.routines import make_plan
 

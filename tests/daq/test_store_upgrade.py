@@ -13,7 +13,7 @@ import sqlite3
 import numpy as np
 import pytest
 
-from calibration.cell import CellSpec, Smr
+from calibration.cell.cell import CellSpec, Smr
 from cellcal.cli import main
 from daq.plans import Plan
 from daq.routines.zero20 import ZeroLoopOptions

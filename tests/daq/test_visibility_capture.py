@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from calibration.cell import CellSpec, cell_from_dict
-from calibration.visibility import assess, sample_visible, smr_pose
+from calibration.cell.cell import CellSpec, cell_from_dict
+from calibration.cell.visibility import assess, sample_visible, smr_pose
 from cellcal.cli import main
 from daq.errors import NotEnoughVisible
 from daq.plans import path_time, shortest_order

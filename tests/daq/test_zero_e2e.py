@@ -13,7 +13,7 @@ import json
 import numpy as np
 
 from calibration import ErrorModel, load_model
-from calibration.simulate import realistic_truth
+from calibration.fit.simulate import realistic_truth
 from calibration.zero_point import load_postures
 from cellcal.cli import main
 from daq.run_data import postures_from_run

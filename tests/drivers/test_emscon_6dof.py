@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 
-from calibration.transforms import matrix_to_quat, quat_angle
+from calibration.model.transforms import matrix_to_quat, quat_angle
 from drivers.errors import BeamBroken, CommandRejected, ProtocolError
 from drivers.leica import codec, probe_packets
 from drivers.leica.enums import ES_MeasMode, ES_ResultStatus, ES_TrackerProcessorStatus

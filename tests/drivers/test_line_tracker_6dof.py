@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calibration.transforms import matrix_to_quat, quat_angle
+from calibration.model.transforms import matrix_to_quat, quat_angle
 from drivers.errors import CommandRejected, ProtocolError
 from drivers.protocols import PoseMeasurement
 from drivers.urls import open_tracker

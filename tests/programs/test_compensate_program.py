@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from calibration import ErrorModel, identify, load_model
-from calibration.compensation import CalibratedFK
-from calibration.inverse import solve_ik
-from calibration.pose_compensation import NominalTcpFK, as_poses, pose_difference
-from calibration.simulate import random_joints, realistic_truth, simulate
-from calibration.transforms import make_T
+from calibration.compensation.compensation import CalibratedFK
+from calibration.compensation.pose_compensation import NominalTcpFK, as_poses, pose_difference
+from calibration.fit.simulate import random_joints, realistic_truth, simulate
+from calibration.model.inverse import solve_ik
+from calibration.model.transforms import make_T
 from cellcal.programs import krl, urscript
 from cellcal.programs.compensate import Options, compensate_program
 from cellcal.programs.poses import krl_to_T, ur_to_T

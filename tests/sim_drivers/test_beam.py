@@ -1,14 +1,14 @@
 """The simulated tracker's line of sight: it refuses to measure an SMR that faces away and one
 whose beam a link crosses, and measures the poses it sees; the refusals are checked against
 the simulator's own truth (true SMR point and axis, the true robot's link segments) by a
-construction independent of calibration.visibility."""
+construction independent of calibration.cell.visibility."""
 
 import numpy as np
 import pytest
 
-from calibration.cell import CellSpec, cell_from_dict
-from calibration.kinematics import run_chain
-from calibration.visibility import assess, sample_visible, smr_pose, solve_facing
+from calibration.cell.cell import CellSpec, cell_from_dict
+from calibration.cell.visibility import assess, sample_visible, smr_pose, solve_facing
+from calibration.model.kinematics import run_chain
 from sim_drivers.cell import CellRefused, SimCell
 from sim_drivers.model_truth import DEFAULT_TRACKER_AT_MM, ModelTruth
 from sim_drivers.truth import PoseContext

@@ -3,7 +3,7 @@
 import numpy as np
 
 from calibration import ErrorModel, identify
-from calibration.dataset import Dataset
+from calibration.data.dataset import Dataset
 from sim_drivers.cell import SimCell
 from sim_drivers.model_truth import ModelTruth
 from sim_drivers.truth import PoseContext

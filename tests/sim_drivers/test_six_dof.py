@@ -6,7 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calibration.transforms import matrices_to_rotvecs, matrix_to_quat, quat_angle, quat_to_matrix
+from calibration.model.transforms import (
+    matrices_to_rotvecs,
+    matrix_to_quat,
+    quat_angle,
+    quat_to_matrix,
+)
 from sim_drivers.cell import CellRefused, SimCell
 from sim_drivers.model_truth import ModelTruth
 from sim_drivers.six_dof import SixDofTarget

@@ -1,0 +1,8 @@
+"""Measured data: the Dataset and the measurement CSV (docs/formats.md §1).
+
+Modules
+-------
+dataset             Dataset and the measurement CSV, CsvTable for every table
+capture_meta        CaptureMeta: the capture context a measurement file carries
+orientation_columns the CSV's orientation columns (qw, qx, qy, qz, sigma_deg)
+"""

@@ -1,0 +1,625 @@
+"""Measured poses: :class:`Dataset` and the measurement CSV of docs/formats.md §1.
+
+The reader is strict: a missing required column, a non-numeric value, a NaN, a
+duplicated ``pose_id``, a bad ``set``/``dirJ``/``face`` value, an empty
+``reflector`` or a joint outside the model's limits is refused with a
+:class:`DataError` naming the file, the line and the column. Nothing is guessed.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataError
+from ..files import read_text, write_atomic
+from ..model.robot_model import RobotModel
+from .capture_meta import CaptureMeta
+from .orientation_columns import QUAT_COLUMNS, read_orientation_columns
+
+
+@dataclass
+class Dataset:
+    """Measured poses, vectorised. Angles in rad, lengths in mm.
+
+    Attributes
+    ----------
+    q : (n, N) joint positions reported by the controller, rad
+    tracker_p_smr : (n, 3) measured target (SMR) centre in the tracker frame, mm
+        (the CSV's ``x, y, z``)
+    pose_id : list of n labels
+    cmd : (n, 3) controller's nominal TCP position (base frame, mm), or None
+    temp_c, t_s, payload_kg, sigma_mm : (n,) or None
+    pressure_hpa, humidity_pct : (n,) the air at each measurement (hPa, %RH), or None
+    reflector : (n,) str (object array), the reflector measured, or None
+    face : (n,) int, the tracker face (1 or 2), or None
+    dirs : (n, N) approach direction per joint (-1, 0, +1), or None
+    joint_temp : (n, N) each joint's temperature as the controller reports it, °C, or None
+    quat : (n, 4) unit quaternions (w, x, y, z) of a 6-DoF target's frame in the tracker
+        frame (the CSV's ``qw, qx, qy, qz``), or None
+    sigma_deg : (n,) the orientation's standard uncertainty, deg, or None
+    tool_id : (n,) str (object array), which target on the tool each row measured, or None
+    is_valid : (n,) bool, True for validation rows (``set=valid``)
+    is_drift : (n,) bool, True for a capture's drift checks (``set=drift``: a reference
+        pose measured again during the capture; calibration rows that also show the
+        drift over time), or None when there are none
+    meta : ``# key: value`` metadata from the file's first comment lines
+    source : where the data came from (a path or a description)
+    lines : (n,) file line number of each row (0 when not from a file)
+    """
+
+    q: np.ndarray
+    tracker_p_smr: np.ndarray
+    pose_id: list[str] = field(default_factory=list)
+    cmd: np.ndarray | None = None
+    temp_c: np.ndarray | None = None
+    t_s: np.ndarray | None = None
+    payload_kg: np.ndarray | None = None
+    sigma_mm: np.ndarray | None = None
+    pressure_hpa: np.ndarray | None = None
+    humidity_pct: np.ndarray | None = None
+    reflector: np.ndarray | None = None
+    face: np.ndarray | None = None
+    dirs: np.ndarray | None = None
+    is_valid: np.ndarray | None = None
+    joint_temp: np.ndarray | None = None
+    is_drift: np.ndarray | None = None
+    quat: np.ndarray | None = None
+    sigma_deg: np.ndarray | None = None
+    tool_id: np.ndarray | None = None
+    meta: dict[str, str] = field(default_factory=dict)
+    source: str = "<arrays>"
+    lines: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self.q = np.atleast_2d(np.asarray(self.q, float))
+        self.tracker_p_smr = np.atleast_2d(np.asarray(self.tracker_p_smr, float))
+        n = self.q.shape[0]
+        if self.tracker_p_smr.shape != (n, 3):
+            raise DataError(f"{self.source}: tracker_p_smr has shape "
+                            f"{self.tracker_p_smr.shape}, expected ({n}, 3)")
+        if not self.pose_id:
+            self.pose_id = [str(i + 1) for i in range(n)]
+        if self.is_valid is None:
+            self.is_valid = np.zeros(n, bool)
+        if self.lines is None:
+            self.lines = np.zeros(n, int)
+        if self.is_drift is not None:
+            self.is_drift = np.asarray(self.is_drift, bool)
+            if not self.is_drift.any():
+                self.is_drift = None
+        if self.reflector is not None:
+            self.reflector = np.array([str(r) for r in self.reflector], dtype=object)
+        if self.face is not None:
+            self.face = np.asarray(self.face, int)
+        if self.joint_temp is not None:
+            self.joint_temp = np.atleast_2d(np.asarray(self.joint_temp, float))
+            if self.joint_temp.shape != self.q.shape:
+                raise DataError(f"{self.source}: joint_temp has shape {self.joint_temp.shape}, "
+                                f"expected {self.q.shape} (one temperature per joint)")
+        if self.quat is not None:
+            self.quat = np.atleast_2d(np.asarray(self.quat, float))
+            if self.quat.shape != (n, 4):
+                raise DataError(f"{self.source}: quat has shape {self.quat.shape}, expected "
+                                f"({n}, 4) (qw, qx, qy, qz per row)")
+        if self.tool_id is not None:
+            self.tool_id = np.array([str(t) for t in self.tool_id], dtype=object)
+
+    # ---- views -----------------------------------------------------------
+    @property
+    def n(self) -> int:
+        return self.q.shape[0]
+
+    @property
+    def n_joints(self) -> int:
+        return self.q.shape[1]
+
+    def subset(self, mask_or_index) -> Dataset:
+        """Rows selected by a boolean mask or an index array (order kept)."""
+        idx = np.arange(self.n)[mask_or_index]
+
+        def pick(a):
+            return None if a is None else a[idx]
+
+        return replace(
+            self,
+            q=self.q[idx],
+            tracker_p_smr=self.tracker_p_smr[idx],
+            pose_id=[self.pose_id[i] for i in idx.tolist()],
+            cmd=pick(self.cmd),
+            temp_c=pick(self.temp_c),
+            t_s=pick(self.t_s),
+            payload_kg=pick(self.payload_kg),
+            sigma_mm=pick(self.sigma_mm),
+            pressure_hpa=pick(self.pressure_hpa),
+            humidity_pct=pick(self.humidity_pct),
+            reflector=pick(self.reflector),
+            face=pick(self.face),
+            dirs=pick(self.dirs),
+            is_valid=pick(self.is_valid),
+            joint_temp=pick(self.joint_temp),
+            is_drift=pick(self.is_drift),
+            quat=pick(self.quat),
+            sigma_deg=pick(self.sigma_deg),
+            tool_id=pick(self.tool_id),
+            lines=pick(self.lines),
+        )
+
+    def drift_rows(self) -> np.ndarray:
+        """(n,) bool: the drift checks (``set=drift``), all False when there are none."""
+        return np.zeros(self.n, bool) if self.is_drift is None else self.is_drift
+
+    def calib(self) -> Dataset:
+        return self.subset(~self.is_valid)
+
+    def valid(self) -> Dataset:
+        return self.subset(self.is_valid)
+
+    def sigma(self) -> float | None:
+        """The tracker's standard uncertainty per axis (mm), if known."""
+        if self.sigma_mm is not None and self.n:
+            return float(np.sqrt(np.mean(self.sigma_mm**2)))
+        v = self.meta.get("tracker_sigma_mm")
+        return float(v) if v is not None else None
+
+    def with_tracker_sigma(self, sigma_mm: float) -> Dataset:
+        """This data set with the tracker's standard uncertainty per axis, mm, set to
+        ``sigma_mm`` for every point (a user's ``--sigma`` over the file's): the per-point
+        ``sigma_mm`` column is dropped and the capture metadata says it, so :meth:`sigma`,
+        the noise floor and :attr:`capture` (kept in params.json) agree. The value is kept
+        exactly (shortest round-trip text, as :func:`calibration.fit.simulate.simulate` writes).
+
+        Raises
+        ------
+        DataError
+            ``sigma_mm`` is not a positive finite number.
+        """
+        sigma_mm = float(sigma_mm)
+        if not (sigma_mm > 0 and math.isfinite(sigma_mm)):
+            raise DataError(f"{self.source}: tracker sigma {sigma_mm!r} mm is not a positive "
+                            "number")
+        return replace(self, sigma_mm=None,
+                       meta={**self.meta, "tracker_sigma_mm": repr(sigma_mm)})
+
+    @property
+    def capture(self) -> CaptureMeta:
+        """What the file's metadata says about its capture (tool, frame, run...)."""
+        return CaptureMeta.from_meta(self.meta, self.source)
+
+    def noise_floor_mm(self) -> float | None:
+        """RMS of the 3-D measurement error the instrument alone causes: sqrt(3) sigma."""
+        s = self.sigma()
+        return None if s is None else math.sqrt(3.0) * s
+
+    def concat(self, other: Dataset) -> Dataset:
+        """This data set followed by ``other`` (columns missing in either become None)."""
+
+        def cat(a, b):
+            return None if a is None or b is None else np.concatenate([a, b])
+
+        return Dataset(
+            q=np.vstack([self.q, other.q]),
+            tracker_p_smr=np.vstack([self.tracker_p_smr, other.tracker_p_smr]),
+            pose_id=self.pose_id + other.pose_id,
+            cmd=cat(self.cmd, other.cmd),
+            temp_c=cat(self.temp_c, other.temp_c),
+            t_s=cat(self.t_s, other.t_s),
+            payload_kg=cat(self.payload_kg, other.payload_kg),
+            sigma_mm=cat(self.sigma_mm, other.sigma_mm),
+            pressure_hpa=cat(self.pressure_hpa, other.pressure_hpa),
+            humidity_pct=cat(self.humidity_pct, other.humidity_pct),
+            reflector=cat(self.reflector, other.reflector),
+            face=cat(self.face, other.face),
+            dirs=cat(self.dirs, other.dirs),
+            is_valid=np.concatenate([self.is_valid, other.is_valid]),
+            joint_temp=cat(self.joint_temp, other.joint_temp),
+            is_drift=(None if self.is_drift is None and other.is_drift is None else
+                      np.concatenate([self.drift_rows(), other.drift_rows()])),
+            quat=cat(self.quat, other.quat),
+            sigma_deg=cat(self.sigma_deg, other.sigma_deg),
+            tool_id=cat(self.tool_id, other.tool_id),
+            meta={**other.meta, **self.meta},
+            source=self.source,
+            lines=np.concatenate([self.lines, other.lines]),
+        )
+
+    # ---- writing -----------------------------------------------------------
+    def to_csv(self, path: str | Path | None = None, extra: dict | None = None) -> str:
+        """Write the measurement CSV (deg, mm); returns the text, writes it when a path is
+        given. ``extra``: more columns (name -> n values), written last."""
+        N = self.n_joints
+        cols: dict[str, np.ndarray | list] = {"pose_id": self.pose_id}
+        for j in range(N):
+            cols[f"q{j + 1}"] = np.degrees(self.q[:, j])
+        for k, c in enumerate("xyz"):
+            cols[c] = self.tracker_p_smr[:, k]
+        if self.cmd is not None:
+            for k, c in enumerate("xyz"):
+                cols[f"cmd_{c}"] = self.cmd[:, k]
+        for name in ("temp_c", "t_s", "payload_kg", "sigma_mm", *_TRACKER_COLUMNS):
+            if getattr(self, name) is not None:
+                cols[name] = getattr(self, name)
+        if self.dirs is not None:
+            for j in range(N):
+                cols[f"dir{j + 1}"] = self.dirs[:, j].astype(int)
+        if self.joint_temp is not None:
+            for j in range(N):
+                cols[f"joint_temp{j + 1}"] = self.joint_temp[:, j]
+        if self.quat is not None:  # full precision (repr), far beyond 10 decimals
+            for k, c in enumerate(QUAT_COLUMNS):
+                cols[c] = self.quat[:, k]
+        for name in ("sigma_deg", "tool_id"):
+            if getattr(self, name) is not None:
+                cols[name] = getattr(self, name)
+        if self.is_valid.any() or self.is_drift is not None:
+            cols["set"] = np.where(self.is_valid, "valid",
+                                   np.where(self.drift_rows(), "drift", "calib"))
+        cols.update(extra or {})
+        buf = io.StringIO()
+        for k, v in self.meta.items():
+            buf.write(f"# {k}: {v}\n")
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(cols.keys())
+        columns = list(cols.values())
+        for i in range(self.n):
+            row = []
+            for c in columns:
+                v = c[i]
+                if isinstance(v, (float, np.floating)):
+                    row.append(repr(float(v)))
+                elif isinstance(v, (np.integer,)):
+                    row.append(str(int(v)))
+                else:
+                    row.append(str(v))
+            w.writerow(row)
+        text = buf.getvalue()
+        if path is not None:
+            write_atomic(path, text)
+        return text
+
+
+# ---- reading ----------------------------------------------------------------
+_OPTIONAL_FLOAT = ("temp_c", "t_s", "payload_kg", "sigma_mm", "pressure_hpa", "humidity_pct")
+#: the tracker's own columns, written after ``sigma_mm``
+_TRACKER_COLUMNS = ("pressure_hpa", "humidity_pct", "reflector", "face")
+
+#: lengths beyond 1 km are no measurement of a robot cell
+MAX_LENGTH_MM = 1e6
+PLAUSIBLE_LENGTH = "a plausible length (|value| <= 1e6 mm)"
+#: plausible ranges of the optional columns: (low, high, expected form)
+OPTIONAL_RANGES = {
+    "temp_c": (-100.0, 200.0, "a plausible temperature (-100 to 200 °C)"),
+    "payload_kg": (0.0, 10000.0, "a payload mass (0 to 10000 kg)"),
+    "sigma_mm": (0.0, 1000.0, "a plausible tracker uncertainty (0 to 1000 mm)"),
+}
+
+
+#: the largest CSV file read (bytes) and the longest field (characters)
+MAX_CSV_BYTES = 500 << 20
+MAX_FIELD_CHARS = 1000
+#: the metadata lines read_meta looks at, at most
+_META_LINES = 200
+
+
+def read_meta(path: str | Path) -> dict[str, str]:
+    """The ``# key: value`` metadata at the top of a CSV file (before the header), without
+    reading the rows: e.g. to find the model a measurement file was captured with.
+    An unreadable file gives ``{}`` (reading it for real says why)."""
+    meta: dict[str, str] = {}
+    try:
+        if not Path(path).is_file():  # a folder, /dev/zero, a FIFO: reading it says why
+            return {}
+        with open(path, encoding="utf-8") as fh:
+            for _ in range(_META_LINES):
+                line = fh.readline(MAX_FIELD_CHARS * 4)
+                if not line:
+                    break
+                stripped = line.strip()
+                if not stripped:
+                    continue
+                if not stripped.startswith("#"):
+                    break
+                body = stripped[1:].strip()
+                if ":" in body:
+                    k, v = body.split(":", 1)
+                    meta[k.strip()] = v.strip()
+    except (OSError, UnicodeDecodeError):
+        return {}
+    return meta
+
+
+def _read_rows(path: Path, source: str):
+    """Metadata, header, its line number and the data rows as (line_no, fields)."""
+    text = read_text(path, DataError, "CSV file", MAX_CSV_BYTES)
+    meta: dict[str, str] = {}
+    meta_line: dict[str, int] = {}
+    header = None
+    header_line = 0
+    rows = []
+    in_preamble = True
+    for line_no, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if stripped.startswith("#"):
+            body = stripped[1:].strip()
+            if in_preamble and ":" in body:
+                k, v = body.split(":", 1)
+                k = k.strip()
+                if k in meta and meta[k] != v.strip():
+                    raise DataError(f"{source}: line {line_no}: metadata {k} given twice "
+                                    f"(line {meta_line[k]}: {meta[k]!r}, here: {v.strip()!r})")
+                meta[k], meta_line[k] = v.strip(), line_no
+            continue
+        in_preamble = False
+        try:
+            fields = next(csv.reader([line]))
+        except csv.Error as e:
+            raise DataError(f"{source}: line {line_no}: {e}") from None
+        for f in fields:
+            if len(f) > MAX_FIELD_CHARS:
+                raise DataError(f"{source}: line {line_no}: a field of {len(f)} characters "
+                                f"(at most {MAX_FIELD_CHARS}): not a measurement CSV")
+        if header is None:
+            header = [f.strip() for f in fields]
+            header_line = line_no
+            _check_separator(header, source, line_no)
+            continue
+        rows.append((line_no, [f.strip() for f in fields]))
+    if header is None:
+        raise DataError(f"{source}: empty: no header row (comma-separated values with a "
+                        "header, FORMATS.md §1)")
+    return meta, header, header_line, rows
+
+
+def _check_separator(header: list[str], source: str, line_no: int) -> None:
+    """Refuse a header that is one field holding semicolons or tabs (another separator)."""
+    if len(header) != 1:
+        return
+    for sep, name in ((";", "semicolons (';')"), ("\t", "tabs")):
+        if sep in header[0]:
+            raise DataError(f"{source}: line {line_no}: the fields are separated by {name}; "
+                            "cellcal reads comma-separated values with '.' as the decimal "
+                            "point (FORMATS.md §1)")
+
+
+def _float(source, line_no, col, text) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise DataError(f"{source}: line {line_no}, column {col}: not a number: {text!r}") from None
+    if not math.isfinite(v):
+        raise DataError(f"{source}: line {line_no}, column {col}: {text!r} is not a finite number")
+    return v
+
+
+class CsvTable:
+    """A CSV file read strictly, for every table format of docs/formats.md §1.
+
+    Reading refuses a file with no header, duplicated columns or a row whose field
+    count differs from the header's; :meth:`require` refuses missing columns and a
+    file without data rows; the accessors refuse
+    empty or non-numeric values, NaNs, duplicated ids and joints outside the limits.
+    Every message names the file, the line and the column.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.source = str(self.path)
+        self.meta, self.header, self.header_line, rows = _read_rows(self.path, self.source)
+        dupes = {h for h in self.header if self.header.count(h) > 1}
+        if dupes:
+            raise self.error(f"duplicated column(s) {sorted(dupes)}")
+        for line_no, f in rows:
+            if len(f) != len(self.header):
+                raise DataError(f"{self.source}: line {line_no}: {len(f)} fields, the header "
+                                f"has {len(self.header)}")
+        self.rows = rows
+        self.col = {h: i for i, h in enumerate(self.header)}
+        self.lines = np.array([ln for ln, _ in rows])
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.col
+
+    def error(self, message: str) -> DataError:
+        """An error about the header line."""
+        return DataError(f"{self.source}: line {self.header_line}: {message}")
+
+    def keep(self, rows: np.ndarray) -> None:
+        """Keep only the data rows where ``rows`` (bool, one per row) is True."""
+        self.rows = [r for r, k in zip(self.rows, rows, strict=True) if k]
+        self.lines = self.lines[np.asarray(rows, bool)]
+
+    def require(self, names: list[str], hint: str = "") -> None:
+        """Refuse a file without these columns, or (then) without data rows."""
+        missing = [c for c in names if c not in self.col]
+        if missing:
+            raise self.error(f"missing required column(s) {', '.join(missing)}"
+                             + (f" ({hint})" if hint else ""))
+        if not self.rows:
+            raise DataError(f"{self.source}: no data rows")
+
+    def all_or_none(self, names: list[str], what: str) -> bool:
+        """True when all of ``names`` are present, False when none is; refuses a part."""
+        present = [c for c in names if c in self.col]
+        if present and len(present) != len(names):
+            missing = [c for c in names if c not in self.col]
+            raise self.error(f"{what} need all of {names[0]}..{names[-1]}; missing "
+                             f"{', '.join(missing)}")
+        return bool(present)
+
+    def text(self, name: str) -> list[str]:
+        k = self.col[name]
+        return [f[k] for _, f in self.rows]
+
+    def numeric(self, name: str) -> np.ndarray:
+        k = self.col[name]
+        out = np.empty(len(self.rows))
+        for r, (line_no, f) in enumerate(self.rows):
+            if f[k] == "":
+                raise DataError(f"{self.source}: line {line_no}, column {name}: empty value")
+            out[r] = _float(self.source, line_no, name, f[k])
+        return out
+
+    def within(self, name: str, values: np.ndarray, lo: float, hi: float, what: str) -> None:
+        """Refuse a value of column ``name`` outside [lo, hi] (``what``: the expected form)."""
+        bad = (values < lo) | (values > hi)
+        if bad.any():
+            r = int(np.argmax(bad))
+            raise DataError(f"{self.source}: line {self.lines[r]}, column {name}: {values[r]:g} "
+                            f"is not {what}")
+
+    def ids(self, name: str = "pose_id") -> list[str]:
+        """Unique, non-empty labels from a column (``1..n`` when the column is absent)."""
+        if name not in self.col:
+            return [str(i + 1) for i in range(len(self.rows))]
+        seen: dict[str, int] = {}
+        out = []
+        for line_no, f in self.rows:
+            pid = f[self.col[name]]
+            if pid == "":
+                raise DataError(f"{self.source}: line {line_no}, column {name}: empty value")
+            if pid in seen:
+                raise DataError(f"{self.source}: line {line_no}, column {name}: {pid!r} already "
+                                f"used on line {seen[pid]}")
+            seen[pid] = line_no
+            out.append(pid)
+        return out
+
+    def joints_deg(self, model: RobotModel | int, check_limits: bool = True) -> np.ndarray:
+        """``q1..qN`` (deg), shape (n, N); refuses extra joint columns and, with a model,
+        values outside its limits."""
+        N = model if isinstance(model, int) else model.n_joints
+        extra = [h for h in self.header if h.startswith("q") and h[1:].isdigit()
+                 and int(h[1:]) > N]
+        if extra:
+            raise self.error(f"column(s) {', '.join(extra)} but the model has {N} joints")
+        q = np.column_stack([self.numeric(f"q{j + 1}") for j in range(N)])
+        if not isinstance(model, int) and check_limits:
+            lim = np.array([[j.min, j.max] for j in model.joints])
+            bad = (q < lim[:, 0] - 1e-9) | (q > lim[:, 1] + 1e-9)
+            if bad.any():
+                r, j = map(int, np.argwhere(bad)[0])
+                raise DataError(
+                    f"{self.source}: line {self.lines[r]}, column q{j + 1}: {q[r, j]:g} deg is "
+                    f"outside the model's limits [{lim[j, 0]:g}, {lim[j, 1]:g}] of joint {j + 1} "
+                    f"({int(bad.any(axis=1).sum())} row(s) affected)"
+                )
+        return q
+
+
+def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = True) -> Dataset:
+    """Read a measurement CSV (docs/formats.md §1). Rows whose ``reading`` is ``rejected``
+    (readings a capture did not accept) are left out.
+
+    Parameters
+    ----------
+    path : the CSV file
+    model : the robot model (its joint count and limits are checked), or a joint count
+    check_limits : refuse joints outside the model's limits (only with a model)
+    """
+    t = CsvTable(path)
+    source = t.source
+    if "reading" in t:  # every reading of a run (cellcal export --all-readings)
+        values = t.text("reading")
+        for r, v in enumerate(values):
+            if v not in ("accepted", "rejected", ""):
+                raise DataError(f"{source}: line {t.lines[r]}, column reading: {v!r} is "
+                                "neither 'accepted' nor 'rejected'")
+        t.keep(np.array([v != "rejected" for v in values]))
+    N = model if isinstance(model, int) else model.n_joints
+    t.require([f"q{j + 1}" for j in range(N)] + ["x", "y", "z"],
+              f"the model has {N} joints: q1..q{N}, and x, y, z are required")
+    q = t.joints_deg(model, check_limits)
+    xyz = np.column_stack([t.numeric(c) for c in "xyz"])
+    for k, c in enumerate("xyz"):
+        t.within(c, xyz[:, k], -MAX_LENGTH_MM, MAX_LENGTH_MM, PLAUSIBLE_LENGTH)
+    pose_id = t.ids("pose_id")
+    cmd_cols = ["cmd_x", "cmd_y", "cmd_z"]
+    if any(c in t for c in cmd_cols) and not all(c in t for c in cmd_cols):
+        raise t.error("cmd_x, cmd_y, cmd_z must come together")
+    cmd = np.column_stack([t.numeric(c) for c in cmd_cols]) if "cmd_x" in t else None
+    if cmd is not None:
+        for k, c in enumerate(cmd_cols):
+            t.within(c, cmd[:, k], -MAX_LENGTH_MM, MAX_LENGTH_MM, PLAUSIBLE_LENGTH)
+    opt = {name: t.numeric(name) if name in t else None for name in _OPTIONAL_FLOAT}
+    for name, bad, rule in (("sigma_mm", lambda v: v <= 0, "must be positive"),
+                            ("pressure_hpa", lambda v: v <= 0, "must be positive"),
+                            ("humidity_pct", lambda v: (v < 0) | (v > 100),
+                             "must be within 0..100")):
+        if opt[name] is not None and bad(opt[name]).any():
+            r = int(np.argmax(bad(opt[name])))
+            raise DataError(f"{source}: line {t.lines[r]}, column {name}: {rule}")
+    reflector = face = None
+    if "reflector" in t:
+        reflector = np.array(t.text("reflector"), dtype=object)
+        if (reflector == "").any():
+            r = int(np.argmax(reflector == ""))
+            raise DataError(f"{source}: line {t.lines[r]}, column reflector: empty value")
+    if "face" in t:
+        face = t.numeric("face")
+        if (~np.isin(face, (1.0, 2.0))).any():
+            r = int(np.argmax(~np.isin(face, (1.0, 2.0))))
+            raise DataError(f"{source}: line {t.lines[r]}, column face: {face[r]:g} is neither "
+                            "1 nor 2")
+        face = face.astype(int)
+    for name, (lo, hi, what) in OPTIONAL_RANGES.items():
+        if opt[name] is not None:
+            t.within(name, opt[name], lo, hi, what)
+
+    dirs = None
+    dir_cols = [f"dir{j + 1}" for j in range(N)]
+    if t.all_or_none(dir_cols, "direction columns"):
+        dirs = np.column_stack([t.numeric(c) for c in dir_cols])
+        bad = ~np.isin(dirs, (-1.0, 0.0, 1.0))
+        if bad.any():
+            r, j = map(int, np.argwhere(bad)[0])
+            raise DataError(
+                f"{source}: line {t.lines[r]}, column dir{j + 1}: {dirs[r, j]:g} is not -1, 0 "
+                "or +1"
+            )
+        dirs = dirs.astype(int)
+
+    joint_temp = _joint_temperatures(t, N)
+    orientation = read_orientation_columns(t)
+
+    is_valid, is_drift = np.zeros(len(t), bool), np.zeros(len(t), bool)
+    if "set" in t:
+        for r, v in enumerate(t.text("set")):
+            if v not in ("calib", "valid", "drift", ""):
+                raise DataError(f"{source}: line {t.lines[r]}, column set: {v!r} is not "
+                                "'calib', 'valid' or 'drift'")
+            is_valid[r], is_drift[r] = v == "valid", v == "drift"
+
+    meta = t.meta
+    CaptureMeta.from_meta(meta, source)  # refuses malformed capture metadata now
+
+    return Dataset(q=np.radians(q), tracker_p_smr=xyz, pose_id=pose_id, cmd=cmd, dirs=dirs,
+                   is_valid=is_valid, is_drift=is_drift, meta=meta, source=source, lines=t.lines,
+                   reflector=reflector, face=face, joint_temp=joint_temp,
+                   quat=orientation.quat, sigma_deg=orientation.sigma_deg,
+                   tool_id=orientation.tool_id, **opt)
+
+
+def _joint_temperatures(t: CsvTable, n_joints: int) -> np.ndarray | None:
+    """``joint_temp1..N`` (°C, all or none), shape (n, N); refuses a part, a column beyond
+    the model's joints and an implausible temperature."""
+    extra = [h for h in t.header if h.startswith("joint_temp") and h[10:].isdigit()
+             and not 1 <= int(h[10:]) <= n_joints]
+    if extra:
+        raise t.error(f"column(s) {', '.join(extra)} but the model has {n_joints} joints")
+    cols = [f"joint_temp{j + 1}" for j in range(n_joints)]
+    if not t.all_or_none(cols, "joint temperatures"):
+        return None
+    lo, hi, what = OPTIONAL_RANGES["temp_c"]
+    for c in cols:
+        t.within(c, t.numeric(c), lo, hi, what)
+    return np.column_stack([t.numeric(c) for c in cols])
