@@ -118,6 +118,6 @@ def test_drift_checks_and_guard_refusals_are_logged(tmp_path, caplog):
 
 
 def _tcp_points(plan):
-    from calibration.kinematics import tool_points
+    from daq.motion_guard import MotionGuard
 
-    return tool_points(TOYM, np.array([t.q for t in plan.targets]))
+    return MotionGuard(TOYM).tool_points(np.array([t.q for t in plan.targets]))
