@@ -182,10 +182,16 @@ class _Buffer(logging.Handler):
         self.records.append(record)
 
 
+#: the folder of the logs of a PostgreSQL store's runs (default: the current directory)
+RUN_LOG_DIR_ENV = "CELLCAL_RUN_LOG_DIR"
+
+
 def run_log_path(db, run_id: int) -> Path:
     """The log file of run ``run_id`` of the run store ``db``: ``<db>.run<ID>.log`` beside a
     SQLite file; for a PostgreSQL store (no folder of its own),
-    ``postgresql-<host>-<dbname>.run<ID>.log`` in the current directory."""
+    ``postgresql-<host>-<dbname>.run<ID>.log`` in ``$CELLCAL_RUN_LOG_DIR``, else in the
+    current directory."""
+    import os
     from urllib.parse import urlsplit
 
     from daq.store.addresses import is_server_address
@@ -194,7 +200,8 @@ def run_log_path(db, run_id: int) -> Path:
         return Path(f"{db}.run{run_id}.log")
     parts = urlsplit(str(db))
     name = f"postgresql-{parts.hostname or 'localhost'}-{parts.path.strip('/') or 'postgres'}"
-    return Path(re.sub(r"[^A-Za-z0-9._-]+", "_", name) + f".run{run_id}.log")
+    name = re.sub(r"[^A-Za-z0-9._-]+", "_", name) + f".run{run_id}.log"
+    return Path(os.environ.get(RUN_LOG_DIR_ENV) or ".") / name
 
 
 class RunLog:

@@ -113,6 +113,18 @@ def test_a_capture_keeps_its_log_beside_its_run(tmp_path, capsys):
     capsys.readouterr()
 
 
+def test_a_postgresql_store_s_run_logs_are_named_by_server_and_database(tmp_path,
+                                                                       monkeypatch):
+    from cellcal.logs import run_log_path
+
+    assert run_log_path(tmp_path / "cell.db", 2) == tmp_path / "cell.db.run2.log"
+    url = "postgresql://cal:s3cret@db.plant.example:5433/cells"
+    monkeypatch.setenv("CELLCAL_RUN_LOG_DIR", str(tmp_path))
+    assert run_log_path(url, 7) == tmp_path / "postgresql-db.plant.example-cells.run7.log"
+    monkeypatch.delenv("CELLCAL_RUN_LOG_DIR")
+    assert str(run_log_path(url, 7)) == "postgresql-db.plant.example-cells.run7.log"
+
+
 def test_the_run_log_holds_the_wire_with_vv(tmp_path, capsys):
     db = tmp_path / "cell.db"
     with served_cell(model_truth_factory, seed=3) as stack:
