@@ -691,7 +691,6 @@ class Executor:
         log.info("%s: %sjoint move to %s", self._where() or "run", "adaptive " if adaptive else "",
                  _Shown(q))
         self.robot.move_joints(q, speed=o.speed_rad_s, timeout=o.move_timeout_s)
-        self.robot.wait_settled(timeout=o.move_timeout_s)
         jr = self._read_q(phase)
         self._mismatch(self.guard.check_arrival(jr.q, q_cmd=q), "after the joint move")
         return jr
@@ -706,7 +705,6 @@ class Executor:
         self._q_now = None
         log.info("%s: linear move to %s", self._where() or "run", _Shown(xyz, "mm"))
         self.robot.move_linear(xyz, speed=o.speed_mm_s, timeout=o.move_timeout_s)
-        self.robot.wait_settled(timeout=o.move_timeout_s)
         jr = self._read_q(phase)
         self._mismatch(self.guard.check_arrival(jr.q, xyz=xyz, planned=planned),
                        "after the linear move")
