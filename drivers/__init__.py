@@ -17,6 +17,7 @@ Modules
     ``line_tracker``  a laser tracker over TCP or serial, line protocol
     ``modbus_robot``  a PLC-style robot controller over Modbus TCP
     ``ur_rtde``       Universal Robots over ur-rtde
+    ``leica/``        Leica laser trackers over the emScon TPI (see its package)
 
 Logging: every driver logs its wire traffic decoded at DEBUG to its module's logger
 (``drivers.line_robot``, ``drivers.leica.link``...), its connection, retries and errors at
