@@ -200,8 +200,8 @@ class DriftWatch:
             return None
         watch = cls(params.get("bound_mm"))
         rows = np.flatnonzero(np.asarray(samples.set_name) == DRIFT_SET)
-        for i in rows[np.argsort(samples.t[rows])]:
-            info = (samples.targets[i] or {}).get("info") or {}
+        for i in rows[np.argsort(samples.t_s[rows])]:
+            info = (samples.target[i] or {}).get("info") or {}
             watch._add(int(info.get("reference", 1)), samples.tracker_p_smr[i],
                        samples.std_mm[i])
         return watch

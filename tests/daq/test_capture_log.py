@@ -11,7 +11,7 @@ import numpy as np
 
 import sim_drivers.inprocess as inproc
 from calibration import load_model
-from daq.drift_checks import DriftCheck, with_drift_checks
+from daq.drift_checks import DriftCheck, DriftWatch, with_drift_checks
 from daq.motion_guard import MotionLimits
 from daq.remeasure import RunningModel
 from daq.routines import make_plan
@@ -102,6 +102,9 @@ def test_drift_checks_and_guard_refusals_are_logged(tmp_path, caplog):
     assert drift[0].startswith("drift check 1, reference 1 (") and "0.0000 mm from its first" \
         in drift[0]
     assert all("the bound" in m for m in drift)
+    with RunStore(tmp_path / "drift.db") as st:  # a resumed run starts from the stored ones
+        watch = DriftWatch.of_run(plan, st.samples(out.run_id))
+    assert list(watch.first) == [1] and len(watch.std) == 3
 
     caplog.clear()
     inproc.reset_cells()
