@@ -18,11 +18,16 @@ Modules
     ``modbus_robot``  a PLC-style robot controller over Modbus TCP
     ``ur_rtde``       Universal Robots over ur-rtde
     ``leica/``        Leica laser trackers over the emScon TPI (see its package)
+
+Logging: every driver logs its wire traffic decoded at DEBUG to its module's logger
+(``drivers.line_robot``, ``drivers.leica.link``...), its connection, retries and errors at
+INFO; the package configures no handler but a ``NullHandler`` (the application does).
 """
 
 from __future__ import annotations
 
 import importlib
+import logging
 
 from drivers.errors import (
     BeamBroken,
@@ -36,6 +41,8 @@ from drivers.errors import (
     ProtocolError,
 )
 from drivers.urls import open_robot, open_tracker, register_scheme, unregister_scheme
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 #: names loaded at their first use: the protocols (a command that opens no device, such
 #: as ``calibrate``, registers ``sim://`` in drivers.urls without loading them) and the

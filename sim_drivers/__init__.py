@@ -24,4 +24,11 @@ Modules
     ``rtde_child``         that server's child process
     ``fake_rtde_control``  ``FakeRTDEControl``: ur-rtde's control interface on a cell
     ``serve``              ``SimStack``: every server for one cell (``cellcal sim serve``)
+
+Logging: the faults fired and the clients connected at INFO (``cellcal sim serve -v``);
+no handler but a ``NullHandler`` (the application configures them).
 """
+
+import logging
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())

@@ -25,6 +25,7 @@ are queued as events (:meth:`EmsconTracker.events`).
 from __future__ import annotations
 
 import collections
+import logging
 import time
 
 import numpy as np
@@ -62,6 +63,10 @@ from drivers.protocols import (
     Reflector,
     TrackerStatus,
 )
+
+#: the packets themselves are logged by :mod:`drivers.leica.link` (DEBUG); here, at INFO: the
+#: settings put, a resynchronisation, another client's changes, error statuses, a beam lost
+log = logging.getLogger(__name__)
 
 RS = ES_ResultStatus
 SSC = ES_SystemStatusChange
@@ -110,6 +115,12 @@ def status_error(device: str, command: int, status: int, detail: str = "") -> Dr
     cls = STATUS_ERRORS.get(int(status), DriverError)
     text = f"status {int(status)} {name_of(ES_ResultStatus, status)}"
     return cls(device, name_of(ES_Command, command), f"{text} {detail}".strip())
+
+
+def _logged(e: DriverError) -> DriverError:
+    """``e``, logged at INFO (an error status the driver raises)."""
+    log.info("%s", e)
+    return e
 
 
 class EmsconTracker(EmsconCapabilities, EmsconSixDof):
@@ -180,6 +191,9 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
         self._get("reflector", deadline)
         self._confirmed.add("reflector")
         self._face = self._call(codec.GetFaceCT(), deadline)[0].trackerFace
+        log.info("%s: settings put (mm, rad, °C, hPa, %%RH, right-handed, mode %s); %d "
+                 "reflectors, reflector %s, face %d", self._dev, self._mode,
+                 len(self._reflectors), self._reflector_id, self._face)
 
     def close(self) -> None:
         """Close the link (idempotent)."""
@@ -200,6 +214,7 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
     def _resync(self, deadline: float) -> None:
         """Reopen the link after a timeout or garbage (stale answers may be in flight)."""
         if self._dirty and not self._user_closed:
+            log.info("%s: reopening the link after a timeout or garbage", self._dev)
             self._link.open(max(deadline - time.monotonic(), 0.01))
             self._handshake(deadline)
 
@@ -219,6 +234,8 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             raise
         if packet is None:
             self._dirty = True
+            log.info("%s: %s: no answer in time%s", self._dev, command,
+                     " (beam lost)" if beam_lost else "")
             if beam_lost:
                 raise BeamBroken(self._dev, command, "beam lost (MeasStatus_NotReady), no result")
             raise CommandTimeout(self._dev, command, "no answer in time")
@@ -235,12 +252,12 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             p = self._next(deadline, name)
             if isinstance(p, codec.AnswerRT | codec.BasicCommandRT) and p.command == command:
                 if p.status != RS.ES_RS_AllOK:
-                    raise status_error(self._dev, command, p.status)
+                    raise _logged(status_error(self._dev, command, p.status))
                 out.append(p)
                 if isinstance(p, codec.GetReflectorsRT):
                     answers = max(1, p.iTotalReflectors)
             elif isinstance(p, codec.ErrorResponseT) and p.command == command:
-                raise status_error(self._dev, command, p.status)
+                raise _logged(status_error(self._dev, command, p.status))
             else:
                 self._unsolicited(p)
         return out
@@ -252,6 +269,8 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             self._events.append((now, name_of(ES_SystemStatusChange, change)))
             key = _SETTING_OF_CHANGE.get(change)
             if key is not None:
+                log.debug("%s: %s: the %s setting is read back before the next "
+                          "measurement", self._dev, name_of(ES_SystemStatusChange, change), key)
                 self._confirmed.discard(key)
             if change in (SSC.ES_SSC_MeasStatus_NotReady, SSC.ES_SSC_MeasStatus_Busy,
                           SSC.ES_SSC_MeasStatus_Ready):
@@ -331,6 +350,7 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             if key in self._confirmed:
                 continue
             if self._get(key, deadline) != self._wanted(key, stationary_ms):
+                log.info("%s: the server's %s setting was changed: set again", self._dev, key)
                 self._put(key, deadline, stationary_ms)
                 changed = True
             self._confirmed.add(key)
@@ -403,6 +423,8 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             if not suspect or not self._ensure(deadline, ms):
                 return m
             # another client changed a setting during the measurement: measure again
+            log.info("%s: a setting changed during the measurement: measuring again",
+                     self._dev)
         raise NotReady(self._dev, "ES_C_StartMeasurement",
                        "another client keeps changing the server's settings")
 
@@ -417,14 +439,15 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             p = self._next(deadline, name, beam_lost=lost)
             if isinstance(p, codec.AnswerRT | codec.BasicCommandRT) and p.command == command:
                 if p.status != RS.ES_RS_AllOK:
-                    raise status_error(self._dev, command, p.status)
+                    raise _logged(status_error(self._dev, command, p.status))
             elif isinstance(p, codec.ErrorResponseT) and p.command == command:
-                raise status_error(self._dev, command, p.status)
+                raise _logged(status_error(self._dev, command, p.status))
             elif isinstance(p, codec.SingleMeasResultT | codec.SingleMeasResult2T
                             | ProbeStationaryResultT):
                 if p.status != RS.ES_RS_AllOK:
-                    raise status_error(self._dev, command, p.status)
+                    raise _logged(status_error(self._dev, command, p.status))
                 if self._meas_status == SSC.ES_SSC_MeasStatus_NotReady:
+                    log.info("%s: beam lost during the measurement", self._dev)
                     raise BeamBroken(self._dev, name, "beam lost during the measurement "
                                      "(MeasStatus_NotReady before the result)")
                 return self._to_measurement(p), self._confirmed != before
