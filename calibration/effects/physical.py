@@ -76,6 +76,7 @@ class Harmonic(JointEffect):
 
     family = "harmonic"
     takes_order = True
+    order: int  # 1 when the family is named without one
     summary = "periodic joint error a·sin(Kθ) + b·cos(Kθ) (gears, encoders)"
 
     def __init__(self, model: RobotModel, joint: int | None = None,

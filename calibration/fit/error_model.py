@@ -38,7 +38,8 @@ class Bound:
     """An error model's view of one data set: the data, the nominal chain, effect states."""
 
     data: Dataset
-    nominal: ChainResult | NominalChain
+    #: the nominal chain on the data (a :class:`NominalChain`, which stands in for it)
+    nominal: ChainResult
     states: list[Any]
 
 
@@ -187,7 +188,7 @@ class ErrorModel:
             prismatic=self._prismatic,
         ))
         states = [e.bind(data, nominal) for e in self.effects]
-        return Bound(data, nominal, states)
+        return Bound(data, cast(ChainResult, nominal), states)
 
     def initial(self, bound: Bound) -> np.ndarray:
         """Starting parameter vector: each effect's own start; with both a base and a tool
