@@ -66,7 +66,8 @@ class Dataset:
     reflector: np.ndarray | None = None
     face: np.ndarray | None = None
     dirs: np.ndarray | None = None
-    is_valid: np.ndarray | None = None
+    # None (the default): no validation rows; always an array once made (__post_init__)
+    is_valid: np.ndarray = None  # type: ignore[assignment]
     joint_temp: np.ndarray | None = None
     is_drift: np.ndarray | None = None
     quat: np.ndarray | None = None
@@ -74,7 +75,8 @@ class Dataset:
     tool_id: np.ndarray | None = None
     meta: dict[str, str] = field(default_factory=dict)
     source: str = "<arrays>"
-    lines: np.ndarray | None = None
+    # None (the default): not read from a file (zeros); always an array once made
+    lines: np.ndarray = None  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
         self.q = np.atleast_2d(np.asarray(self.q, float))
@@ -119,11 +121,11 @@ class Dataset:
     def n_joints(self) -> int:
         return self.q.shape[1]
 
-    def subset(self, mask_or_index) -> Dataset:
+    def subset(self, mask_or_index: np.ndarray | list[int]) -> Dataset:
         """Rows selected by a boolean mask or an index array (order kept)."""
         idx = np.arange(self.n)[mask_or_index]
 
-        def pick(a):
+        def pick(a: np.ndarray | None) -> np.ndarray | None:
             return None if a is None else a[idx]
 
         return replace(
@@ -141,13 +143,13 @@ class Dataset:
             reflector=pick(self.reflector),
             face=pick(self.face),
             dirs=pick(self.dirs),
-            is_valid=pick(self.is_valid),
+            is_valid=self.is_valid[idx],
             joint_temp=pick(self.joint_temp),
             is_drift=pick(self.is_drift),
             quat=pick(self.quat),
             sigma_deg=pick(self.sigma_deg),
             tool_id=pick(self.tool_id),
-            lines=pick(self.lines),
+            lines=self.lines[idx],
         )
 
     def drift_rows(self) -> np.ndarray:
@@ -199,7 +201,7 @@ class Dataset:
     def concat(self, other: Dataset) -> Dataset:
         """This data set followed by ``other`` (columns missing in either become None)."""
 
-        def cat(a, b):
+        def cat(a: np.ndarray | None, b: np.ndarray | None) -> np.ndarray | None:
             return None if a is None or b is None else np.concatenate([a, b])
 
         return Dataset(
@@ -261,15 +263,15 @@ class Dataset:
                                    np.where(self.drift_rows(), "drift", "calib"))
         cols.update(extra or {})
         buf = io.StringIO()
-        for k, v in self.meta.items():
-            buf.write(f"# {k}: {v}\n")
+        for key, text in self.meta.items():
+            buf.write(f"# {key}: {text}\n")
         w = csv.writer(buf, lineterminator="\n")
         w.writerow(cols.keys())
         columns = list(cols.values())
         for i in range(self.n):
             row = []
-            for c in columns:
-                v = c[i]
+            for column in columns:
+                v = column[i]
                 if isinstance(v, (float, np.floating)):
                     row.append(repr(float(v)))
                 elif isinstance(v, (np.integer,)):
@@ -333,7 +335,8 @@ def read_meta(path: str | Path) -> dict[str, str]:
     return meta
 
 
-def _read_rows(path: Path, source: str):
+def _read_rows(path: Path, source: str
+               ) -> tuple[dict[str, str], list[str], int, list[tuple[int, list[str]]]]:
     """Metadata, header, its line number and the data rows as (line_no, fields)."""
     text = read_text(path, DataError, "CSV file", MAX_CSV_BYTES)
     meta: dict[str, str] = {}
@@ -388,7 +391,7 @@ def _check_separator(header: list[str], source: str, line_no: int) -> None:
                             "point (FORMATS.md §1)")
 
 
-def _float(source, line_no, col, text) -> float:
+def _float(source: str, line_no: int, col: str, text: str) -> float:
     try:
         v = float(text)
     except ValueError:
@@ -572,16 +575,17 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
                             "1 nor 2")
         face = face.astype(int)
     for name, (lo, hi, what) in OPTIONAL_RANGES.items():
-        if opt[name] is not None:
-            t.within(name, opt[name], lo, hi, what)
+        given = opt[name]
+        if given is not None:
+            t.within(name, given, lo, hi, what)
 
     dirs = None
     dir_cols = [f"dir{j + 1}" for j in range(N)]
     if t.all_or_none(dir_cols, "direction columns"):
         dirs = np.column_stack([t.numeric(c) for c in dir_cols])
-        bad = ~np.isin(dirs, (-1.0, 0.0, 1.0))
-        if bad.any():
-            r, j = map(int, np.argwhere(bad)[0])
+        wrong = ~np.isin(dirs, (-1.0, 0.0, 1.0))
+        if wrong.any():
+            r, j = map(int, np.argwhere(wrong)[0])
             raise DataError(
                 f"{source}: line {t.lines[r]}, column dir{j + 1}: {dirs[r, j]:g} is not -1, 0 "
                 "or +1"
