@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import re
 from collections.abc import Iterator, Sequence
+from typing import Any
 
 from .addresses import display_address
 from .dbapi import Cursor, upsert_sql
@@ -91,7 +92,7 @@ class PostgresDatabase:
         self._timeout_s = timeout_s
         self.con = self._open()
 
-    def _open(self):
+    def _open(self) -> Any:  # a psycopg.Connection
         import psycopg
 
         options = []
@@ -103,7 +104,8 @@ class PostgresDatabase:
         try:
             return psycopg.connect(self.url, autocommit=True,
                                    connect_timeout=max(1, round(self._timeout_s)),
-                                   application_name="cellcal", **kwargs)
+                                   application_name="cellcal",
+                                   **kwargs)  # type: ignore[arg-type]  # libpq's options: str
         except psycopg.OperationalError as e:
             msg = " ".join(str(e).split())
             if "does not exist" in msg or "authentication" in msg or "role" in msg:
@@ -128,7 +130,7 @@ class PostgresDatabase:
         except psycopg.Error as e:
             raise StoreError(f"{self.address}: {' '.join(str(e).split())}") from e
 
-    def execute(self, sql: str, params: Sequence = ()):
+    def execute(self, sql: str, params: Sequence[Any] = ()) -> Cursor:
         if _BEGIN_IMMEDIATE.match(sql):  # SQLite code taking the write lock
             with self._errors():
                 self.con.execute("BEGIN")
@@ -137,7 +139,7 @@ class PostgresDatabase:
         with self._errors():
             return Cursor(self.con.execute(translate(sql), tuple(params)), self._errors)
 
-    def executemany(self, sql: str, rows) -> None:
+    def executemany(self, sql: str, rows: Sequence[Sequence[Any]]) -> None:
         with self._errors(), self.con.cursor() as cur:
             cur.executemany(translate(sql), rows)
 

@@ -72,9 +72,12 @@ from __future__ import annotations
 import hashlib
 import json
 import time
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from calibration.version import software_version
 
@@ -88,10 +91,13 @@ from .samples import Reading, Sample, Samples
 from .schema import RESERVE_BYTES
 from .summary import RunSummary
 
+if TYPE_CHECKING:
+    from ..plans import Plan
+
 __all__ = ["RunStore", "open_if_exists", "open_store"]
 
 
-def _f(v) -> float | None:
+def _f(v: Any) -> float | None:
     return None if v is None else float(v)
 
 
@@ -99,7 +105,7 @@ def _f(v) -> float | None:
 _COV = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 
-def _cov_cols(cov) -> tuple:
+def _cov_cols(cov: npt.ArrayLike | None) -> tuple[float | None, ...]:
     if cov is None:
         return (None,) * len(_COV)
     c = np.asarray(cov, float)
@@ -115,11 +121,11 @@ def _cov_matrix(rows: list, k: int) -> np.ndarray:
     return out
 
 
-def _json(v) -> str | None:
+def _json(v: Any) -> str | None:
     return None if v is None else json.dumps(v)
 
 
-def open_store(address, *, create: bool = True, read_only: bool = False,
+def open_store(address: str | Path, *, create: bool = True, read_only: bool = False,
                synchronous: str = "FULL") -> RunStore:
     """The run store at ``address``: a SQLite file path or a ``postgresql://`` URL.
 
@@ -131,7 +137,7 @@ def open_store(address, *, create: bool = True, read_only: bool = False,
     return RunStore(address, synchronous, create=create, read_only=read_only)
 
 
-def open_if_exists(address, *, read_only: bool = False,
+def open_if_exists(address: str | Path, *, read_only: bool = False,
                    synchronous: str = "FULL") -> RunStore | None:
     """The existing run store at ``address``, or None when there is none yet: no file at
     the path (or no regular file), or a PostgreSQL database that cannot be opened as a
@@ -197,7 +203,7 @@ class RunStore:
         return self.db.path
 
     @property
-    def con(self):
+    def con(self) -> Any:
         """The driver's connection (sqlite3 or psycopg), for inspection."""
         return self.db.con
 
@@ -213,7 +219,7 @@ class RunStore:
     def __enter__(self) -> RunStore:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     def new_connection(self) -> Database:
@@ -263,7 +269,7 @@ class RunStore:
     # ------------------------------------------------------------------ runs
     def create_run(
         self,
-        plan,
+        plan: Plan,
         context: RunContext | None = None,
         *,
         robot_desc: str | None = None,
@@ -310,7 +316,7 @@ class RunStore:
                  "software, started, stopped, status, reason, frame_json, summary_json, "
                  "context_json, robot_id, robot_identity, tracker_identity, source_run")
 
-    def _row_to_run(self, r) -> Run:
+    def _row_to_run(self, r: Sequence[Any]) -> Run:
         return Run(
             id=r[0], routine=r[1], plan_json=r[2], plan_hash=r[3], n_points=r[4],
             robot_desc=r[5], tracker_desc=r[6], software=r[7], started=r[8], stopped=r[9],
@@ -357,7 +363,7 @@ class RunStore:
         self.db.execute("UPDATE runs SET status=?, reason=?, stopped=? WHERE id=?",
                         (str(status), reason, stopped, run_id))
 
-    def update_run(self, run_id: int, **fields) -> None:
+    def update_run(self, run_id: int, **fields: Any) -> None:
         """Set ``frame`` (a dict), ``summary`` (a :class:`RunSummary`, or a dict of its
         keys), ``robot_identity``/``tracker_identity`` (dicts),
         ``robot_desc``/``tracker_desc``, ``robot_id``, or ``robot_url``/``tracker_url`` (in
@@ -425,7 +431,8 @@ class RunStore:
                   else (float(v) for v in np.asarray(s.quat_wxyz, float))),
                 _f(s.sigma_deg), s.tool_id or None)
 
-    def add_sample(self, run_id: int, s: Sample, rejected=(), revisited=()) -> bool:
+    def add_sample(self, run_id: int, s: Sample, rejected: Iterable[Reading] = (),
+                   revisited: Iterable[tuple[Sample, Iterable[Reading]]] = ()) -> bool:
         """Write one sample in one transaction (the checkpoint).
 
         ``rejected`` are the point's readings that were not accepted (:class:`Reading`),
@@ -462,7 +469,7 @@ class RunStore:
             f"VALUES (?,?,?,{','.join('?' * n)})",
             (run_id, int(r.sample.point_index), r.reason, *self._measured(r.sample)))
 
-    def _replace_sample(self, run_id: int, s: Sample, rejected) -> None:
+    def _replace_sample(self, run_id: int, s: Sample, rejected: Iterable[Reading]) -> None:
         """Replace a point's sample by ``s`` (a re-measurement, taken later) and add the
         readings it rejected; a no-op when the point already holds ``s`` (the same
         commit repeated after a lost connection)."""
@@ -500,10 +507,10 @@ class RunStore:
                FROM samples WHERE run_id=? ORDER BY point_index""", (run_id,)
         ).fetchall()
 
-        def col(k, dtype=float):
+        def col(k: int, dtype: type = float) -> np.ndarray:
             return np.array([np.nan if r[k] is None else r[k] for r in rows], dtype)
 
-        def xyz(k):
+        def xyz(k: int) -> np.ndarray:
             return np.column_stack([col(k), col(k + 1), col(k + 2)]) if rows else np.zeros((0, 3))
 
         q = np.array([json.loads(r[3]) for r in rows], float)

@@ -128,7 +128,7 @@ class Samples:
 
     def sample(self, i: int) -> Sample:
         """Row ``i`` as a :class:`Sample` (NaN columns as None)."""
-        def opt(a):
+        def opt(a: np.ndarray) -> float | None:
             v = float(a[i])
             return None if np.isnan(v) else v
 
