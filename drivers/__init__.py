@@ -22,6 +22,7 @@ Modules
 from __future__ import annotations
 
 import importlib
+from typing import Any
 
 from drivers.errors import (
     BeamBroken,
@@ -82,7 +83,7 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name in _LAZY:
         return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(f"module 'drivers' has no attribute {name!r}")
