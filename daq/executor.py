@@ -619,7 +619,6 @@ class Executor:
         phase[0] = "robot"
         self._q_now = None  # moving: unknown until read back
         self.robot.move_joints(q, speed=o.speed_rad_s, timeout=o.move_timeout_s)
-        self.robot.wait_settled(timeout=o.move_timeout_s)
         jr = self._read_q(phase)
         self._mismatch(self.guard.check_arrival(jr.q, q_cmd=q), "after the joint move")
         return jr
@@ -633,7 +632,6 @@ class Executor:
         phase[0] = "robot"
         self._q_now = None
         self.robot.move_linear(xyz, speed=o.speed_mm_s, timeout=o.move_timeout_s)
-        self.robot.wait_settled(timeout=o.move_timeout_s)
         jr = self._read_q(phase)
         self._mismatch(self.guard.check_arrival(jr.q, xyz=xyz, planned=planned),
                        "after the linear move")
