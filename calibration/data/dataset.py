@@ -66,8 +66,7 @@ class Dataset:
     reflector: np.ndarray | None = None
     face: np.ndarray | None = None
     dirs: np.ndarray | None = None
-    # None (the default): no validation rows; always an array once made (__post_init__)
-    is_valid: np.ndarray = None  # type: ignore[assignment]
+    is_valid: np.ndarray = None  # type: ignore[assignment]  # None: all calib; array once made
     joint_temp: np.ndarray | None = None
     is_drift: np.ndarray | None = None
     quat: np.ndarray | None = None
@@ -75,8 +74,7 @@ class Dataset:
     tool_id: np.ndarray | None = None
     meta: dict[str, str] = field(default_factory=dict)
     source: str = "<arrays>"
-    # None (the default): not read from a file (zeros); always an array once made
-    lines: np.ndarray = None  # type: ignore[assignment]
+    lines: np.ndarray = None  # type: ignore[assignment]  # None: zeros; an array once made
 
     def __post_init__(self) -> None:
         self.q = np.atleast_2d(np.asarray(self.q, float))

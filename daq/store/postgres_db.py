@@ -100,12 +100,11 @@ class PostgresDatabase:
             options.append("-c default_transaction_read_only=on")
         if self._synchronous == "NORMAL":
             options.append("-c synchronous_commit=off")
-        kwargs = {"options": " ".join(options)} if options else {}
+        kwargs: dict[str, Any] = {"options": " ".join(options)} if options else {}
         try:
             return psycopg.connect(self.url, autocommit=True,
                                    connect_timeout=max(1, round(self._timeout_s)),
-                                   application_name="cellcal",
-                                   **kwargs)  # type: ignore[arg-type]  # libpq's options: str
+                                   application_name="cellcal", **kwargs)
         except psycopg.OperationalError as e:
             msg = " ".join(str(e).split())
             if "does not exist" in msg or "authentication" in msg or "role" in msg:
