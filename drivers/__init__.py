@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import importlib
 import logging
+from typing import Any
 
 from drivers.errors import (
     BeamBroken,
@@ -90,7 +91,7 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name in _LAZY:
         return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(f"module 'drivers' has no attribute {name!r}")

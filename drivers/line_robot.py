@@ -107,7 +107,7 @@ class SerialRobot:
     def __enter__(self) -> SerialRobot:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # --------------------------------------------------------------- queries

@@ -123,7 +123,7 @@ class LineTracker:
     def __enter__(self) -> LineTracker:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     @property

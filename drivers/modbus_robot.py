@@ -21,8 +21,9 @@ import contextlib
 import logging
 import struct
 import time
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import ClassVar, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 import yaml
@@ -134,7 +135,7 @@ class RegisterMap(BaseModel):
 
     @model_validator(mode="before")
     @classmethod
-    def _custom_layout_names_its_temperatures(cls, data):
+    def _custom_layout_names_its_temperatures(cls, data: Any) -> Any:
         if isinstance(data, dict) and "joint_temps" not in data and any(
                 k in data for k in _ADDRESS_FIELDS):
             data = {**data, "joint_temps": None}
@@ -232,7 +233,7 @@ class RegisterMap(BaseModel):
             raise ValueError(f"register map {path}: " + "; ".join(parts)) from None
 
     # -------------------------------------------------------- float helpers
-    def pack_floats(self, values) -> list[int]:
+    def pack_floats(self, values: Iterable[float]) -> list[int]:
         """float32 values → registers (two per value, in this map's word order)."""
         out: list[int] = []
         for v in values:
@@ -241,17 +242,17 @@ class RegisterMap(BaseModel):
         return out
 
     @staticmethod
-    def pack_temps(values) -> list[int]:
+    def pack_temps(values: Iterable[float]) -> list[int]:
         """Temperatures (°C) → registers (signed 16 bit, °C × :data:`TEMP_SCALE`)."""
         return [int(np.clip(round(float(v) * TEMP_SCALE), -32768, 32767)) & 0xFFFF
                 for v in values]
 
     @staticmethod
-    def unpack_temps(regs) -> np.ndarray:
+    def unpack_temps(regs: Iterable[int]) -> np.ndarray:
         """Registers (signed 16 bit) → temperatures (°C)."""
         return np.array([(r - 65536 if r >= 32768 else r) / TEMP_SCALE for r in regs], float)
 
-    def unpack_floats(self, regs) -> np.ndarray:
+    def unpack_floats(self, regs: Iterable[int]) -> np.ndarray:
         """Registers (two per value) → float64 array."""
         regs = list(regs)
         out = []
@@ -366,11 +367,12 @@ class ModbusRobot:
     def __enter__(self) -> ModbusRobot:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # ------------------------------------------------------------- plumbing
-    def _call(self, command: str, deadline: float, fn, *args, **kw):
+    def _call(self, command: str, deadline: float, fn: Callable[..., Any], *args: Any,
+              **kw: Any) -> Any:
         """Run one pymodbus request; every failure becomes a typed error."""
         client = self._client
         if client is None:
@@ -423,12 +425,13 @@ class ModbusRobot:
             raise ProtocolError(self._dev, command, f"read {len(regs)} registers, wanted {count}")
         return regs
 
-    def _read_block(self, command: str, deadline: float, *, retry: bool = True) -> dict:
+    def _read_block(self, command: str, deadline: float, *,
+                    retry: bool = True) -> dict[str, Any]:
         lo, hi = self.map.read_span()
         regs = self._read(command, deadline, lo, hi - lo, retry=retry)
         f = self.map.fields()
 
-        def get(name):
+        def get(name: str) -> list[int]:
             a, c = f[name]
             return regs[a - lo : a - lo + c]
 
@@ -442,7 +445,7 @@ class ModbusRobot:
                 self._dev, command, f"stale data: heartbeat stuck at {hb} for {stuck:.1f} s"
             )
         n = self.n_joints or self.map.n_joints
-        blk = {
+        blk: dict[str, Any] = {
             "status": get("status")[0],
             "error_code": get("error_code")[0],
             "heartbeat": hb,
@@ -460,8 +463,8 @@ class ModbusRobot:
                       np.round(blk["tcp"], 4).tolist())
         return blk
 
-    def _client_method(self, name: str):
-        def call(*args, **kw):
+    def _client_method(self, name: str) -> Callable[..., Any]:
+        def call(*args: Any, **kw: Any) -> Any:
             client = self._client
             if client is None:
                 raise ConnectionException("not connected")

@@ -24,6 +24,7 @@ import logging
 import socket
 import threading
 import time
+from collections.abc import Callable
 
 import serial
 
@@ -107,7 +108,7 @@ class LineTransport:
                     with contextlib.suppress(OSError):
                         sock.shutdown(socket.SHUT_RDWR)
                     sock.close()
-                    ser._socket = None
+                    ser._socket = None  # type: ignore[attr-defined]  # socket:// handler's
                     ser.is_open = False
                 with contextlib.suppress(serial.SerialException, OSError):
                     ser.close()
@@ -260,7 +261,9 @@ class LineSession:
     """
 
     def __init__(
-        self, transport: LineTransport, error_map: dict, handshake=None, default_error=None
+        self, transport: LineTransport, error_map: dict[str, type[DriverError]],
+        handshake: Callable[[float], None] | None = None,
+        default_error: type[DriverError] | None = None,
     ) -> None:
         self.t = transport
         self.error_map = error_map

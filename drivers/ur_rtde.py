@@ -37,9 +37,11 @@ import math
 import socket
 import time
 from collections.abc import Callable
+from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
+import numpy.typing as npt
 
 from drivers.errors import (
     CommandRejected,
@@ -80,19 +82,20 @@ RUNTIME_STATES = {0: "STOPPING", 1: "STOPPED", 2: "PLAYING", 3: "PAUSING", 4: "P
                   5: "RESUMING"}
 
 
-def _default_receive(host: str, frequency: float, variables: list[str]):
+# the ur-rtde interfaces are an untyped library's objects: typed Any here
+def _default_receive(host: str, frequency: float, variables: list[str]) -> Any:
     import rtde_receive
 
     return rtde_receive.RTDEReceiveInterface(host, frequency, variables)
 
 
-def _default_control(host: str):
+def _default_control(host: str) -> Any:
     import rtde_control
 
     return rtde_control.RTDEControlInterface(host)
 
 
-def _default_dashboard(host: str):
+def _default_dashboard(host: str) -> Any:
     import dashboard_client
 
     return dashboard_client.DashboardClient(host)
@@ -103,8 +106,17 @@ class _State:
 
     __slots__ = ("q", "qd", "target_q", "tcp_m", "bits", "safety_mode", "robot_mode",
                  "runtime", "rtde_time")
+    q: np.ndarray
+    qd: np.ndarray
+    target_q: np.ndarray
+    tcp_m: np.ndarray
+    bits: int
+    safety_mode: int
+    robot_mode: int
+    runtime: int
+    rtde_time: float
 
-    def __init__(self, **kw) -> None:
+    def __init__(self, **kw: Any) -> None:
         for k, v in kw.items():
             setattr(self, k, v)
 
@@ -207,7 +219,7 @@ class UrRtdeRobot:
         frequency: float = -1.0,
         n_joints: int = 6,
         read_only: bool = False,
-        limits=None,
+        limits: npt.ArrayLike | None = None,
         acceleration: float = 1.4,
         linear_acceleration: float = 1200.0,
         joint_tol: float = 1e-3,
@@ -238,15 +250,15 @@ class UrRtdeRobot:
         self.auto_reupload = bool(auto_reupload)
         self.poll_s = 0.002
         self.refusal_grace_s = 0.2
-        self._rx = None
-        self._ctrl = None
+        self._rx: Any = None
+        self._ctrl: Any = None
         self._last_ts: float | None = None
         self._last_ts_seen = 0.0
         self._target_q: np.ndarray | None = None
         self._target_tcp: np.ndarray | None = None
 
     @classmethod
-    def from_url(cls, url: str, **kw) -> UrRtdeRobot:
+    def from_url(cls, url: str, **kw: Any) -> UrRtdeRobot:
         """Build a driver from ``ur://host[?frequency=..&joints=..&read_only=1&stale=..]``.
 
         Keyword arguments override the query (and pass factories through).
@@ -352,7 +364,7 @@ class UrRtdeRobot:
         self.connect()
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # -- reading ---------------------------------------------------------------------------
@@ -404,7 +416,7 @@ class UrRtdeRobot:
             timestamp=time.time(),
         )
 
-    def _receive(self, command: str):
+    def _receive(self, command: str) -> Any:
         if self._rx is None:
             raise ConnectionLost(self.url, command, "not connected (call connect() first)")
         return self._rx
@@ -472,7 +484,7 @@ class UrRtdeRobot:
 
     # -- motion ----------------------------------------------------------------------------
 
-    def move_joints(self, q, speed: float = 0.5, timeout: float = 60.0) -> None:
+    def move_joints(self, q: npt.ArrayLike, speed: float = 0.5, timeout: float = 60.0) -> None:
         """Joint move to ``q`` (rad); returns once arrived and settled (:meth:`wait_settled`'s
         condition). ``speed`` of the leading joint, rad/s."""
         deadline = time.monotonic() + timeout
@@ -487,7 +499,7 @@ class UrRtdeRobot:
             self._refused("moveJ", deadline)
         self._await_arrival("moveJ", deadline, ctrl)
 
-    def move_linear(self, xyz, speed: float = 100.0, timeout: float = 60.0) -> None:
+    def move_linear(self, xyz: npt.ArrayLike, speed: float = 100.0, timeout: float = 60.0) -> None:
         """Linear TCP move to ``xyz`` (mm, base frame), orientation kept; ``speed`` in mm/s;
         returns once arrived and settled."""
         deadline = time.monotonic() + timeout
@@ -540,7 +552,7 @@ class UrRtdeRobot:
 
     # -- helpers ---------------------------------------------------------------------------
 
-    def _check_joints(self, q, command: str) -> np.ndarray:
+    def _check_joints(self, q: npt.ArrayLike, command: str) -> np.ndarray:
         q = np.asarray(q, float)
         if q.shape != (self.n_joints,) or not np.all(np.isfinite(q)):
             raise CommandRejected(self.url, command,
@@ -552,7 +564,7 @@ class UrRtdeRobot:
                                  f"joint(s) {(bad + 1).tolist()} outside limits: {q.tolist()}")
         return q
 
-    def _control(self, command: str):
+    def _control(self, command: str) -> Any:
         if self.read_only:
             raise NotReady(self.url, command, "opened read-only (no RTDE control interface)")
         if self._ctrl is None:
@@ -561,7 +573,7 @@ class UrRtdeRobot:
             raise ConnectionLost(self.url, command, "RTDE control link is down")
         return self._ctrl
 
-    def _call(self, command: str, fn, *args):
+    def _call(self, command: str, fn: Callable[..., Any], *args: Any) -> Any:
         polled = command in _POLLED
         if not polled and log.isEnabledFor(logging.DEBUG):
             log.debug("%s: > %s%s", self.url, command, _args(args))
@@ -580,7 +592,7 @@ class UrRtdeRobot:
             log.debug("%s: < %s: %r", self.url, command, out)
         return out
 
-    def _ready(self, command: str, deadline: float):
+    def _ready(self, command: str, deadline: float) -> Any:
         """The control interface, once the robot can take a move (or a typed error)."""
         ctrl = self._control(command)
         st = self._sample(command, max(0.0, deadline - time.monotonic()))
@@ -618,12 +630,12 @@ class UrRtdeRobot:
                                   "or outside limits?)")
         raise CommandRejected(self.url, command, "refused by the controller (returned False)")
 
-    def _settled(self, st: _State, ctrl) -> bool:
+    def _settled(self, st: _State, ctrl: Any) -> bool:
         """In position, joint speeds ≈ 0 and (control side) ``isSteady()``."""
         steady = ctrl is None or self._call("isSteady", ctrl.isSteady)
         return bool(steady) and not self._moving(st) and self._in_position(st)
 
-    def _await_arrival(self, command: str, deadline: float, ctrl) -> None:
+    def _await_arrival(self, command: str, deadline: float, ctrl: Any) -> None:
         """Until settled over two fresh samples (as :meth:`wait_settled`); a stop, a refusal
         (the script died) or the deadline (``stopJ`` first) raise."""
         streak = 0
@@ -650,9 +662,9 @@ class UrRtdeRobot:
             time.sleep(self.poll_s)
 
 
-def _args(args: tuple) -> str:
+def _args(args: tuple[Any, ...]) -> str:
     """A call's arguments as the log shows them (lists rounded)."""
-    def one(a):
+    def one(a: Any) -> Any:
         return [round(float(v), 6) for v in a] if isinstance(a, list | tuple) else a
     return "(" + ", ".join(repr(one(a)) for a in args) + ")"
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 import collections
 import logging
 import time
+from typing import Any
 
 import numpy as np
 
@@ -203,7 +204,7 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
     def __enter__(self) -> EmsconTracker:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     @property
@@ -226,7 +227,8 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             self._dirty = True
             raise
 
-    def _next(self, deadline: float, command: str, beam_lost: bool = False):
+    def _next(self, deadline: float, command: str,
+              beam_lost: bool = False) -> codec.Packet | codec.UnknownPacket:
         try:
             packet = self._link.read(deadline, command)
         except (ProtocolError, ConnectionLost):
@@ -241,13 +243,14 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             raise CommandTimeout(self._dev, command, "no answer in time")
         return packet
 
-    def _call(self, packet: codec.Packet, deadline: float, answers: int = 1) -> list:
+    def _call(self, packet: codec.Packet, deadline: float,
+              answers: int = 1) -> list[codec.Packet]:
         """Send a command; return its ``answers`` answer packets (OK status), handling
         unsolicited packets that arrive meanwhile."""
         command = int(packet.command)
         name = name_of(ES_Command, command)
         self._send(packet, name, deadline)
-        out = []
+        out: list[codec.Packet] = []
         while len(out) < answers:
             p = self._next(deadline, name)
             if isinstance(p, codec.AnswerRT | codec.BasicCommandRT) and p.command == command:
@@ -262,7 +265,7 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
                 self._unsolicited(p)
         return out
 
-    def _unsolicited(self, p) -> None:
+    def _unsolicited(self, p: codec.Packet | codec.UnknownPacket) -> None:
         now = time.time()
         if isinstance(p, codec.SystemStatusChangeT):
             change = p.systemStatusChange
@@ -288,7 +291,7 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             self._events.append((now, f"ignored {type(p).__name__}"))
 
     # ------------------------------------------------------------- settings
-    def _wanted(self, key: str, stationary_ms: int | None = None):
+    def _wanted(self, key: str, stationary_ms: int | None = None) -> Any:
         if key == "units":
             return tuple(int(u) for u in DRIVER_UNITS)
         if key == "coords":
@@ -296,13 +299,18 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
         if key == "mode":
             return self._mode
         if key == "stationary":
+            if stationary_ms is None:
+                raise ValueError("the stationary setting needs its time (stationary_ms)")
             return (int(stationary_ms), 0)
         if key == "reflector":
+            if self._want_reflector is None:
+                raise ValueError("no reflector to select (reflector=None)")
             return self._resolve(self._want_reflector).id
         raise KeyError(key)
 
     def _put(self, key: str, deadline: float, stationary_ms: int | None = None) -> None:
         want = self._wanted(key, stationary_ms)
+        packet: codec.Packet
         if key == "units":
             names = ("lenUnitType", "angUnitType", "tempUnitType", "pressUnitType", "humUnitType")
             packet = codec.SetUnitsCT(**dict(zip(names, want, strict=True)))
@@ -319,7 +327,7 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
         self._call(packet, deadline)
         self._confirmed.add(key)
 
-    def _get(self, key: str, deadline: float):
+    def _get(self, key: str, deadline: float) -> Any:
         if key == "units":
             p = self._call(codec.GetUnitsCT(), deadline)[0]
             return (p.lenUnitType, p.angUnitType, p.tempUnitType, p.pressUnitType, p.humUnitType)
@@ -454,7 +462,7 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             else:
                 self._unsolicited(p)
 
-    def _to_measurement(self, p) -> Measurement:
+    def _to_measurement(self, p: codec.Packet) -> Measurement:
         if isinstance(p, ProbeStationaryResultT):
             return self._to_pose(p)
         xyz = np.array([p.dVal1, p.dVal2, p.dVal3], float)
@@ -466,7 +474,8 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             covar = (p.dCovar12, p.dCovar13, p.dCovar23)
         return Measurement(**self._fields(p, xyz, std, covar))
 
-    def _fields(self, p, xyz: np.ndarray, std: np.ndarray, covar=None) -> dict:
+    def _fields(self, p: codec.Packet, xyz: np.ndarray, std: np.ndarray,
+                covar: tuple[float, float, float] | None = None) -> dict[str, Any]:
         """The :class:`Measurement` fields of a result ``p`` (3D or 6D): ``xyz``, ``std``
         (mm), the covariance from ``covar`` (the 12, 13, 23 terms, or None), the air of
         ``p``, the reflector selected and the face."""

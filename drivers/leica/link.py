@@ -38,7 +38,7 @@ class Shown:
 
     __slots__ = ("packet",)
 
-    def __init__(self, packet) -> None:
+    def __init__(self, packet: object) -> None:
         self.packet = packet
 
     def __str__(self) -> str:
@@ -49,7 +49,7 @@ class Shown:
         for k, v in p.fields().items():
             if k in ("lPacketSize", "type"):
                 continue
-            if k in _NAMED:
+            if k in _NAMED and isinstance(v, int):
                 v = name_of(_NAMED[k], v)
             elif isinstance(v, bytes):
                 v = repr(v.decode("utf-16-le", "replace").split("\0", 1)[0])
