@@ -24,6 +24,7 @@ import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 #: the first bytes of every SQLite database file
 SQLITE_MAGIC = b"SQLite format 3\x00"
@@ -161,7 +162,7 @@ def sha256_file(path: str | Path) -> str:
     return h.hexdigest()
 
 
-def json_ready(o):
+def json_ready(o: Any) -> Any:
     """``o`` with every NaN and infinity (in nested dicts, lists and tuples) as None: what
     strict JSON can hold."""
     if isinstance(o, float) and not math.isfinite(o):

@@ -23,6 +23,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -46,7 +47,7 @@ UNCALIBRATED_LABEL = "uncalibrated (best-fit base and tool)"
 ParamsSource = str | Path | tuple[ErrorModel, np.ndarray]
 
 
-def fit_uncalibrated(model: RobotModel, data: Dataset, **kw) -> Fit:
+def fit_uncalibrated(model: RobotModel, data: Dataset, **kw: Any) -> Fit:
     """The nominal robot's accuracy: only the base and tool fitted (see
     :data:`UNCALIBRATED_EFFECTS`); ``kw`` go to :func:`~calibration.fit.identify.identify`."""
     em, _ = for_data(ErrorModel(model, UNCALIBRATED_EFFECTS), data, position_only=True)
@@ -115,7 +116,8 @@ class StagedFit:
     @property
     def added_effect(self) -> str | None:
         """The effect ``improved`` adds to the current model, or None."""
-        return None if self.improved is None else self.diagnosis.best.effect
+        best = self.diagnosis.best  # the effect ``improved`` was fitted with
+        return None if self.improved is None or best is None else best.effect
 
 
 def staged_fit(data: Dataset, model: RobotModel, effects: str = DEFAULT_EFFECTS,
@@ -225,8 +227,11 @@ class AutoStory:
         start = result.start
         steps = [StoryStep(None, start, result.start_heldout_rms_mm,
                            start.error_model.n_params)]
-        steps += [StoryStep(s.effect, s.fit, s.heldout_rms_mm, s.n_params, s.seconds,
-                            s.explanation) for s in result.steps]
+        for s in result.steps:
+            if s.fit is None:
+                raise ValueError(f"auto step {s.effect}: no fit (a recorded step, not a run)")
+            steps.append(StoryStep(s.effect, s.fit, s.heldout_rms_mm, s.n_params, s.seconds,
+                                   s.explanation))
         return cls(steps, result.heldout_method, result.stop_reason,
                    heldout_errors(uncalibrated).rms_mm, notes=list(result.notes))
 

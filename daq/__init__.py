@@ -35,4 +35,12 @@ Modules
     ``cell_session``    one session at the cell: the devices reached, known, checked, held
     ``compensated_robot``  compensated motion from Python: a robot that goes where the
                         nominal targets meant
+
+Logging: each module logs to ``logging.getLogger(__name__)`` (the service's decisions at
+INFO); the package configures no handler but a ``NullHandler`` (the application does:
+``cellcal -v``).
 """
+
+import logging
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())

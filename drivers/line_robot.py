@@ -10,6 +10,7 @@ millimetres at the Python boundary.
 
 from __future__ import annotations
 
+import logging
 import time
 
 import numpy as np
@@ -25,6 +26,8 @@ from drivers.errors import (
 from drivers.protocols import DeviceIdentity, JointReading, RobotStatus
 from drivers.settle import poll_until_settled, poll_until_still, settle_move
 from drivers.transport import LineSession, LineTransport, parse_kv
+
+log = logging.getLogger(__name__)  # the wire at DEBUG (drivers.transport)
 
 #: ERR name → error class
 ROBOT_ERRORS: dict[str, type[DriverError]] = {
@@ -62,7 +65,8 @@ class SerialRobot:
         self.model = self.serial = self.firmware = ""
         self.n_joints = 0
         self._hello_kv: dict[str, str] = {}
-        self._transport = LineTransport(port_url, device=f"robot {url}", baudrate=baudrate)
+        self._transport = LineTransport(port_url, device=f"robot {url}", baudrate=baudrate,
+                                        logger=log)
         self._session = LineSession(self._transport, ROBOT_ERRORS, handshake=self._hello)
 
     @property
@@ -80,6 +84,8 @@ class SerialRobot:
         except (KeyError, ValueError) as e:
             raise ProtocolError(self._dev, "HELLO", f"no joints=N in {tok}") from e
         self._hello_kv = kv
+        log.info("%s: controller %s, serial %s, firmware %s, %d joints", self._dev, self.model,
+                 self.serial, self.firmware, self.n_joints)
 
     def identify(self, timeout: float = 2.0) -> DeviceIdentity:
         """Who the controller said it is in ``HELLO`` (``sim=1 kinematics=NAME`` from a
@@ -101,7 +107,7 @@ class SerialRobot:
     def __enter__(self) -> SerialRobot:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # --------------------------------------------------------------- queries

@@ -459,7 +459,16 @@ class TwoFace(Protocol):
         ...
 
 
-def measure_both_faces(tracker, duration_s: float, timeout: float):
+class _FaceChanging(Protocol):
+    """What :func:`measure_both_faces` asks of a tracker."""
+
+    def measure(self, duration_s: float = 0.5, timeout: float = 10.0) -> Measurement: ...
+
+    def change_face(self, timeout: float = 30.0) -> int: ...
+
+
+def measure_both_faces(tracker: _FaceChanging, duration_s: float,
+                       timeout: float) -> tuple[Measurement, Measurement]:
     """:meth:`TwoFace.measure_faces` for any tracker with ``measure``, ``change_face``
     and measurements that carry their ``face``: measure, change face, measure;
     returns ``(face 1, face 2)``. The tracker stays in the second face."""

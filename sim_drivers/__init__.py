@@ -26,4 +26,11 @@ Modules
     ``abb_controller``     ``SimIrc5``: an ABB controller's state and its RAPID server module
     ``rws_server``         the ABB controller over Robot Web Services 1.0 (digest, JSON)
     ``serve``              ``SimStack``: every server for one cell (``cellcal sim serve``)
+
+Logging: the faults fired and the clients connected at INFO (``cellcal sim serve -v``);
+no handler but a ``NullHandler`` (the application configures them).
 """
+
+import logging
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())

@@ -48,10 +48,13 @@ may also :meth:`FaultInjector.arm` a fault for the next applicable command(s).
 
 from __future__ import annotations
 
+import logging
 import threading
 from dataclasses import dataclass, field
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 #: every fault name the spec language knows
 FAULT_NAMES = ("beam", "slow", "drop", "garbage", "pstop", "modbus", "stale", "blunder",
@@ -191,4 +194,5 @@ class FaultInjector:
                 hit = p > 0 and float(self._rng.random()) < p
             if hit:
                 self.log.append((self.command_index, name))
+                log.info("fault %s fired (command %d)", name, self.command_index)
             return hit

@@ -22,13 +22,16 @@ Lengths mm, angles rad.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..data.dataset import Dataset
 from ..fit.error_model import ErrorModel
 from ..model.inverse import ChainFK, IKResult, solve_ik, solve_ik_multistart
-from ..model.kinematics import run_chain
+from ..model.kinematics import ChainResult, run_chain
+from ..model.robot_model import RobotModel
 
 
 class CalibratedFK:
@@ -53,14 +56,15 @@ class CalibratedFK:
     #: :func:`~calibration.model.inverse.solve_ik` passes the target rows it evaluates
     takes_rows = True
 
-    def __init__(self, error_model: ErrorModel, x: np.ndarray, columns: dict | None = None,
-                 tool: np.ndarray | None = None):
+    def __init__(self, error_model: ErrorModel, x: np.ndarray,
+                 columns: dict[str, Any] | None = None,
+                 tool: np.ndarray | None = None) -> None:
         self.em = error_model
         self.x = np.asarray(x, float)
         self.columns = columns or {}
         self.tool = None if tool is None else np.asarray(tool, float)
 
-    def chain(self, q: np.ndarray, rows: np.ndarray | None = None):
+    def chain(self, q: np.ndarray, rows: np.ndarray | None = None) -> ChainResult:
         """The :class:`~calibration.model.kinematics.ChainResult` of the calibrated robot."""
         em = self.em
         q = np.atleast_2d(np.asarray(q, float))
@@ -78,7 +82,8 @@ class CalibratedFK:
                          c.length_scale, jacobian=False,
                          prismatic=em.model.prismatic_mask())
 
-    def __call__(self, q: np.ndarray, rows: np.ndarray | None = None):
+    def __call__(self, q: np.ndarray, rows: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         r = self.chain(q, rows)
         return r.base_p_tcp, r.base_R_flange, r.dP_dq, r.dR_dq
 
@@ -120,7 +125,7 @@ class Compensation:
     reason: str
 
 
-def nominal_solution(model, target: np.ndarray, q_start: np.ndarray | None = None, *,
+def nominal_solution(model: RobotModel, target: np.ndarray, q_start: np.ndarray | None = None, *,
                      limits: np.ndarray | None = None, n_seeds: int = 24) -> IKResult:
     """Nominal joints for target points: minimum-norm position IK on the nominal model.
 
@@ -248,7 +253,7 @@ class Targets:
     lines: list[int] | None = None
 
 
-def load_targets(path, model) -> Targets:
+def load_targets(path: str | Path, model: RobotModel) -> Targets:
     """Read a targets CSV: ``x, y, z`` (mm, robot base frame) required; optional
     ``pose_id``, ``q1..qN`` (deg, nominal/seed joints, all or none), ``dir1..dirN`` (the
     direction each joint will approach the target from, -1/0/+1, all or none: for a model
@@ -267,7 +272,8 @@ def load_targets(path, model) -> Targets:
         t.within(c, xyz[:, k], -MAX_LENGTH_MM, MAX_LENGTH_MM, PLAUSIBLE_LENGTH)
     q = np.radians(t.joints_deg(model)) if has_q else None
     pose_id = t.ids("pose_id")
-    ctx, columns = CsvContext(N, model), {}
+    ctx = CsvContext(N, model)
+    columns: dict[str, Any] = {}
     for name in ("temp_c", "payload_kg", "dirs", "joint_temp", "t_s"):  # the table's readers
         columns.update(column(name).read_csv(t, ctx, columns))
     columns = {k: v for k, v in columns.items() if v is not None}

@@ -42,14 +42,17 @@ their uncertainty deg, times epoch s, temperatures °C; the CSV writes joints in
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..errors import DataError
 from .orientation_columns import QUAT_COLUMNS, read_quaternions, read_sigma_deg, read_tool_ids
+
+if TYPE_CHECKING:
+    from .dataset import CsvTable, Dataset
 
 #: lengths beyond 1 km are no measurement of a robot cell
 MAX_LENGTH_MM = 1e6
@@ -83,7 +86,7 @@ class Kind:
     def stack(self, values: list) -> Any:
         return np.array([np.nan if v is None else v for v in values], float)
 
-    def column(self, rows: list[Mapping], columns: tuple[str, ...]) -> Any:
+    def column(self, rows: Sequence[Mapping[str, Any]], columns: tuple[str, ...]) -> Any:
         """A run's column straight from its rows (read by name): what ``stack`` makes of
         the decoded values, without a record per row."""
         return self.stack([self.decode(r, columns) for r in rows])
@@ -99,7 +102,7 @@ class Kind:
 class Real(Kind):
     """A float, NULL where not measured (NaN in a run's column)."""
 
-    def column(self, rows, columns):
+    def column(self, rows: Sequence[Mapping[str, Any]], columns: tuple[str, ...]) -> Any:
         return np.array([r[columns[0]] for r in rows], float)  # NULL -> NaN by numpy
 
 
@@ -114,25 +117,25 @@ class Int(Kind):
     zero_is_none: bool = False
     sql = "INTEGER"
 
-    def encode(self, value):
+    def encode(self, value: Any) -> tuple[Any, ...]:
         if value is None or (self.zero_is_none and not value):
             return (None,)
         return (int(value),)
 
-    def decode(self, row, columns):
+    def decode(self, row: Mapping[str, Any], columns: tuple[str, ...]) -> Any:
         v = row[columns[0]]
         if v is None or (self.zero_is_none and not v):
             return self.missing
         return int(v)
 
-    def stack(self, values):
+    def stack(self, values: list[Any]) -> Any:
         return np.array([self.column_missing if v is None else v for v in values], int)
 
-    def unstack(self, column, i):
+    def unstack(self, column: Any, i: int) -> Any:
         v = int(column[i])
         return None if self.zero_is_none and not v else v
 
-    def gather(self, values):
+    def gather(self, values: list[Any]) -> Any:
         return None if any(v is None for v in values) else np.array(values, int)
 
 
@@ -144,22 +147,22 @@ class Text(Kind):
     default: Callable[[Mapping], str] | str | None = None
     sql = "TEXT"
 
-    def encode(self, value):
+    def encode(self, value: Any) -> tuple[Any, ...]:
         return (value or None,)
 
-    def decode(self, row, columns):
+    def decode(self, row: Mapping[str, Any], columns: tuple[str, ...]) -> Any:
         v = row[columns[0]]
         if v:
             return v
         return self.default(row) if callable(self.default) else self.default
 
-    def stack(self, values):
+    def stack(self, values: list[Any]) -> Any:
         return list(values)
 
-    def unstack(self, column, i):
+    def unstack(self, column: Any, i: int) -> Any:
         return column[i]
 
-    def gather(self, values):
+    def gather(self, values: list[Any]) -> Any:
         return None if any(v is None for v in values) else list(values)
 
 
@@ -171,32 +174,32 @@ class Vector(Kind):
     width: int = 3
     nullable: bool = True
 
-    def encode(self, value):
+    def encode(self, value: Any) -> tuple[Any, ...]:
         if value is None:
             return (None,) * self.width
         return tuple(float(v) for v in np.asarray(value, float))
 
-    def decode(self, row, columns):
+    def decode(self, row: Mapping[str, Any], columns: tuple[str, ...]) -> Any:
         values = [row[c] for c in columns]
         if self.nullable and values[0] is None:
             return None
         return np.array(values, float)
 
-    def stack(self, values):
+    def stack(self, values: list[Any]) -> Any:
         if not values:
             return np.zeros((0, self.width))
         return np.array([np.full(self.width, np.nan) if v is None else v for v in values],
                         float)
 
-    def column(self, rows, columns):
+    def column(self, rows: Sequence[Mapping[str, Any]], columns: tuple[str, ...]) -> Any:
         return np.array([[r[c] for c in columns] for r in rows], float).reshape(-1, self.width)
 
-    def unstack(self, column, i):
+    def unstack(self, column: Any, i: int) -> Any:
         if self.nullable and np.isnan(column[i]).any():
             return None
         return column[i].copy()
 
-    def gather(self, values):
+    def gather(self, values: list[Any]) -> Any:
         return None if any(v is None for v in values) else np.array(values, float)
 
 
@@ -210,16 +213,16 @@ class JointList(Kind):
     nullable: bool = True
     sql = "TEXT"
 
-    def encode(self, value):
+    def encode(self, value: Any) -> tuple[Any, ...]:
         if value is None:
             return (None,)
         return (json.dumps([self.dtype(v) for v in np.asarray(value, self.dtype)]),)
 
-    def decode(self, row, columns):
+    def decode(self, row: Mapping[str, Any], columns: tuple[str, ...]) -> Any:
         v = row[columns[0]]
         return None if v is None else np.array(json.loads(v), self.dtype)
 
-    def stack(self, values):
+    def stack(self, values: list[Any]) -> Any:
         if not self.nullable:
             return (np.array(values, self.dtype).reshape(len(values), -1) if values
                     else np.zeros((0, 0)))
@@ -227,10 +230,10 @@ class JointList(Kind):
             return None
         return np.array(values, self.dtype)
 
-    def unstack(self, column, i):
+    def unstack(self, column: Any, i: int) -> Any:
         return None if column is None else column[i].copy()
 
-    def gather(self, values):
+    def gather(self, values: list[Any]) -> Any:
         return None if any(v is None for v in values) else np.array(values, self.dtype)
 
 
@@ -239,20 +242,20 @@ class JsonDoc(Kind):
 
     sql = "TEXT"
 
-    def encode(self, value):
+    def encode(self, value: Any) -> tuple[Any, ...]:
         return (None if value is None else json.dumps(value),)
 
-    def decode(self, row, columns):
+    def decode(self, row: Mapping[str, Any], columns: tuple[str, ...]) -> Any:
         v = row[columns[0]]
         return json.loads(v) if v else None
 
-    def stack(self, values):
+    def stack(self, values: list[Any]) -> Any:
         return list(values)
 
-    def unstack(self, column, i):
+    def unstack(self, column: Any, i: int) -> Any:
         return column[i]
 
-    def gather(self, values):
+    def gather(self, values: list[Any]) -> Any:
         return list(values)
 
 
@@ -264,13 +267,13 @@ class Covariance(Kind):
     """A symmetric (3, 3) matrix stored as its upper triangle in six REAL columns; None
     where the first is NULL (NaN where another is)."""
 
-    def encode(self, value):
+    def encode(self, value: Any) -> tuple[Any, ...]:
         if value is None:
             return (None,) * len(_COV)
         c = np.asarray(value, float)
         return tuple(float(c[i, j]) for i, j in _COV)
 
-    def decode(self, row, columns):
+    def decode(self, row: Mapping[str, Any], columns: tuple[str, ...]) -> Any:
         if row[columns[0]] is None:
             return None
         out = np.full((3, 3), np.nan)
@@ -279,21 +282,21 @@ class Covariance(Kind):
             out[i, j] = out[j, i] = np.nan if v is None else v
         return out
 
-    def stack(self, values):
+    def stack(self, values: list[Any]) -> Any:
         return np.array([np.full((3, 3), np.nan) if v is None else v for v in values],
                         float).reshape(len(values), 3, 3)
 
-    def column(self, rows, columns):
+    def column(self, rows: Sequence[Mapping[str, Any]], columns: tuple[str, ...]) -> Any:
         upper = np.array([[r[c] for c in columns] for r in rows], float).reshape(-1, len(_COV))
         out = np.full((len(rows), 3, 3), np.nan)
         for m, (i, j) in enumerate(_COV):
             out[:, i, j] = out[:, j, i] = upper[:, m]
         return out
 
-    def unstack(self, column, i):
+    def unstack(self, column: Any, i: int) -> Any:
         return None if np.isnan(column[i]).all() else column[i].copy()
 
-    def gather(self, values):
+    def gather(self, values: list[Any]) -> Any:
         return None if any(v is None for v in values) else np.array(values, float)
 
 
@@ -308,20 +311,20 @@ class CsvContext:
     check_limits: bool = True
 
 
-def _line_error(t, r: int, column: str, message: str) -> DataError:
+def _line_error(t: CsvTable, r: int, column: str, message: str) -> DataError:
     return DataError(f"{t.source}: line {t.lines[r]}, column {column}: {message}")
 
 
-def _read_pose_id(t, ctx, got):
+def _read_pose_id(t: CsvTable, ctx: CsvContext, got: dict[str, Any]) -> dict[str, Any]:
     return {"pose_id": t.ids("pose_id")}
 
 
-def _read_q(t, ctx, got):
+def _read_q(t: CsvTable, ctx: CsvContext, got: dict[str, Any]) -> dict[str, Any]:
     model = ctx.n_joints if ctx.model is None else ctx.model
     return {"q": np.radians(t.joints_deg(model, ctx.check_limits))}
 
 
-def _lengths(t, names) -> np.ndarray:
+def _lengths(t: CsvTable, names: list[str]) -> np.ndarray:
     """Columns ``names`` as an (n, len(names)) array of plausible lengths (mm)."""
     v = np.column_stack([t.numeric(c) for c in names])
     for k, c in enumerate(names):
@@ -329,11 +332,11 @@ def _lengths(t, names) -> np.ndarray:
     return v
 
 
-def _read_xyz(t, ctx, got):
+def _read_xyz(t: CsvTable, ctx: CsvContext, got: dict[str, Any]) -> dict[str, Any]:
     return {"tracker_p_smr": _lengths(t, ["x", "y", "z"])}
 
 
-def _read_cmd(t, ctx, got):
+def _read_cmd(t: CsvTable, ctx: CsvContext, got: dict[str, Any]) -> dict[str, Any]:
     names = ["cmd_x", "cmd_y", "cmd_z"]
     if any(c in t for c in names) and not all(c in t for c in names):
         raise t.error("cmd_x, cmd_y, cmd_z must come together")
@@ -345,7 +348,7 @@ def _read_float(name: str, *, rule: tuple[Callable, str] | None = None,
     """A reader of the optional float column ``name``: numeric, then ``rule`` (a test of
     bad values and what they must be), then its plausible range (:data:`OPTIONAL_RANGES`)."""
 
-    def read(t, ctx, got):
+    def read(t: CsvTable, ctx: CsvContext, got: dict[str, Any]) -> dict[str, Any]:
         if name not in t:
             return {name: None}
         v = t.numeric(name)
@@ -360,7 +363,7 @@ def _read_float(name: str, *, rule: tuple[Callable, str] | None = None,
     return read
 
 
-def _read_reflector(t, ctx, got):
+def _read_reflector(t: CsvTable, ctx: CsvContext, got: dict[str, Any]) -> dict[str, Any]:
     if "reflector" not in t:
         return {"reflector": None}
     reflector = np.array(t.text("reflector"), dtype=object)
@@ -369,7 +372,7 @@ def _read_reflector(t, ctx, got):
     return {"reflector": reflector}
 
 
-def _read_face(t, ctx, got):
+def _read_face(t: CsvTable, ctx: CsvContext, got: dict[str, Any]) -> dict[str, Any]:
     if "face" not in t:
         return {"face": None}
     face = t.numeric("face")
@@ -380,7 +383,7 @@ def _read_face(t, ctx, got):
     return {"face": face.astype(int)}
 
 
-def read_dirs(t, ctx, got):
+def read_dirs(t: CsvTable, ctx: CsvContext, got: dict[str, Any]) -> dict[str, Any]:
     """``dir1..dirN`` (all or none), each -1, 0 or +1, as an (n, N) int array."""
     names = [f"dir{j + 1}" for j in range(ctx.n_joints)]
     if not t.all_or_none(names, "direction columns"):
@@ -393,7 +396,7 @@ def read_dirs(t, ctx, got):
     return {"dirs": dirs.astype(int)}
 
 
-def read_joint_temp(t, ctx, got):
+def read_joint_temp(t: CsvTable, ctx: CsvContext, got: dict[str, Any]) -> dict[str, Any]:
     """``joint_temp1..N`` (°C, all or none), shape (n, N); refuses a part, a column beyond
     the model's joints and an implausible temperature."""
     n_joints = ctx.n_joints
@@ -410,19 +413,19 @@ def read_joint_temp(t, ctx, got):
     return {"joint_temp": np.column_stack([t.numeric(c) for c in names])}
 
 
-def _read_quat(t, ctx, got):
+def _read_quat(t: CsvTable, ctx: CsvContext, got: dict[str, Any]) -> dict[str, Any]:
     return {"quat": read_quaternions(t)}
 
 
-def _read_sigma_deg(t, ctx, got):
+def _read_sigma_deg(t: CsvTable, ctx: CsvContext, got: dict[str, Any]) -> dict[str, Any]:
     return {"sigma_deg": read_sigma_deg(t, got.get("quat") is not None)}
 
 
-def _read_tool_id(t, ctx, got):
+def _read_tool_id(t: CsvTable, ctx: CsvContext, got: dict[str, Any]) -> dict[str, Any]:
     return {"tool_id": read_tool_ids(t)}
 
 
-def _read_set(t, ctx, got):
+def _read_set(t: CsvTable, ctx: CsvContext, got: dict[str, Any]) -> dict[str, Any]:
     is_valid, is_drift = np.zeros(len(t), bool), np.zeros(len(t), bool)
     if "set" in t:
         for r, v in enumerate(t.text("set")):
@@ -433,18 +436,18 @@ def _read_set(t, ctx, got):
 
 
 # --------------------------------------------------------------------------- writers
-def _write_q(data) -> dict:
+def _write_q(data: Dataset) -> dict[str, Any]:
     return {f"q{j + 1}": np.degrees(data.q[:, j]) for j in range(data.n_joints)}
 
 
-def _write_set(data) -> dict:
+def _write_set(data: Dataset) -> dict[str, Any]:
     if not (data.is_valid.any() or data.is_drift is not None):
         return {}
     return {"set": np.where(data.is_valid, "valid",
                             np.where(data.drift_rows(), "drift", "calib"))}
 
 
-def _sets_to_dataset(values: list) -> dict:
+def _sets_to_dataset(values: list[Any]) -> dict[str, Any]:
     sets = ["calib" if v is None else v for v in values]
     return {"is_valid": np.array([v == "valid" for v in sets], bool),
             "is_drift": np.array([v == "drift" for v in sets], bool)}
@@ -504,16 +507,16 @@ class Column:
         return out
 
     # ---- the store
-    def encode(self, value) -> tuple:
+    def encode(self, value: Any) -> tuple:
         """A record's value as the values of :attr:`store` (in that order)."""
         return self.kind.encode(value)
 
-    def decode(self, row: Mapping):
+    def decode(self, row: Mapping) -> Any:
         """The record's value from a row read by name (a mapping of column to value)."""
         return self.kind.decode(row, self.store)
 
     # ---- the CSV
-    def write_csv(self, data) -> dict:
+    def write_csv(self, data: Dataset) -> dict:
         """The CSV columns of ``data`` (a Dataset) for this quantity ({} when absent)."""
         if self.write is not None:
             return self.write(data)
@@ -528,7 +531,7 @@ class Column:
             v = np.asarray(v).astype(int)
         return {c: v[:, k] for k, c in enumerate(self.csv_names(data.n_joints))}
 
-    def read_csv(self, table, ctx: CsvContext, got: dict) -> dict:
+    def read_csv(self, table: CsvTable, ctx: CsvContext, got: dict) -> dict:
         """This quantity's Dataset field(s) from a CSV table ({} when it has no reader)."""
         return {} if self.read is None else self.read(table, ctx, got)
 
@@ -685,7 +688,7 @@ def store_columns(columns: tuple[Column, ...]) -> list[str]:
     return [s for c in columns for s in c.store]
 
 
-def encode_row(record, columns: tuple[Column, ...]) -> list:
+def encode_row(record: Any, columns: tuple[Column, ...]) -> list:
     """A record's values for the store columns of ``columns`` (:func:`store_columns`)."""
     return [v for c in columns for v in c.encode(getattr(record, c.name))]
 

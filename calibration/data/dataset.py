@@ -11,8 +11,10 @@ from __future__ import annotations
 import csv
 import io
 import math
-from dataclasses import dataclass, field, fields, replace
+from collections.abc import Sequence
+from dataclasses import Field, dataclass, field, fields, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +41,9 @@ PER_POINT = {"per_point": True}
 PER_POINT_FALSE = {"per_point": True, "absent": False}
 
 
-def _per_point(metadata=PER_POINT):
+def _per_point(metadata: dict[str, Any] = PER_POINT) -> Any:
+    """A per-point field, None by default (typed as its field says: ``is_valid`` and
+    ``lines`` are arrays once a Dataset is made, see ``__post_init__``)."""
     return field(default=None, metadata=metadata)
 
 
@@ -86,7 +90,7 @@ class Dataset:
     reflector: np.ndarray | None = _per_point()
     face: np.ndarray | None = _per_point()
     dirs: np.ndarray | None = _per_point()
-    is_valid: np.ndarray | None = _per_point()
+    is_valid: np.ndarray = _per_point()  # None: no validation row
     joint_temp: np.ndarray | None = _per_point()
     is_drift: np.ndarray | None = _per_point(PER_POINT_FALSE)
     quat: np.ndarray | None = _per_point()
@@ -94,7 +98,7 @@ class Dataset:
     tool_id: np.ndarray | None = _per_point()
     meta: dict[str, str] = field(default_factory=dict)
     source: str = "<arrays>"
-    lines: np.ndarray | None = _per_point()
+    lines: np.ndarray = _per_point()  # None: not read from a file (zeros)
 
     def __post_init__(self) -> None:
         self.q = np.atleast_2d(np.asarray(self.q, float))
@@ -144,11 +148,11 @@ class Dataset:
         """The fields holding one value per point (see :data:`PER_POINT`)."""
         return [f.name for f in fields(cls) if f.metadata.get("per_point")]
 
-    def subset(self, mask_or_index) -> Dataset:
+    def subset(self, mask_or_index: np.ndarray | Sequence[int] | Sequence[bool]) -> Dataset:
         """Rows selected by a boolean mask or an index array (order kept)."""
         idx = np.arange(self.n)[mask_or_index]
 
-        def pick(a):
+        def pick(a: Any) -> Any:  # a per-point field's value: an array, a list or None
             if a is None:
                 return None
             return a[idx] if isinstance(a, np.ndarray) else [a[i] for i in idx.tolist()]
@@ -204,7 +208,7 @@ class Dataset:
     def concat(self, other: Dataset) -> Dataset:
         """This data set followed by ``other`` (columns missing in either become None)."""
 
-        def cat(f, a, b):
+        def cat(f: Field[Any], a: Any, b: Any) -> Any:  # as pick in subset
             if a is None and b is None:
                 return None
             if a is None or b is None:
@@ -229,15 +233,15 @@ class Dataset:
             cols.update(c.write_csv(self))
         cols.update(extra or {})
         buf = io.StringIO()
-        for k, v in self.meta.items():
-            buf.write(f"# {k}: {v}\n")
+        for key, text in self.meta.items():
+            buf.write(f"# {key}: {text}\n")
         w = csv.writer(buf, lineterminator="\n")
         w.writerow(cols.keys())
         columns = list(cols.values())
         for i in range(self.n):
             row = []
-            for c in columns:
-                v = c[i]
+            for column in columns:
+                v = column[i]
                 if isinstance(v, (float, np.floating)):
                     row.append(repr(float(v)))
                 elif isinstance(v, (np.integer,)):
@@ -286,7 +290,8 @@ def read_meta(path: str | Path) -> dict[str, str]:
     return meta
 
 
-def _read_rows(path: Path, source: str):
+def _read_rows(path: Path, source: str
+               ) -> tuple[dict[str, str], list[str], int, list[tuple[int, list[str]]]]:
     """Metadata, header, its line number and the data rows as (line_no, fields)."""
     text = read_text(path, DataError, "CSV file", MAX_CSV_BYTES)
     meta: dict[str, str] = {}
@@ -341,7 +346,7 @@ def _check_separator(header: list[str], source: str, line_no: int) -> None:
                             "point (docs/formats.md §1)")
 
 
-def _float(source, line_no, col, text) -> float:
+def _float(source: str, line_no: int, col: str, text: str) -> float:
     try:
         v = float(text)
     except ValueError:

@@ -29,16 +29,18 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any, cast
 
 import numpy as np
 
 from ..data.dataset import Dataset
 from ..effects import Effect, EffectError, parse_effect
 from ..effects.physical import derive_directions
-from ..effects.table import gcv_smoothing
+from ..effects.table import Table, gcv_smoothing
 from ..fit.identify import Fit, identify
+from ..model.robot_model import RobotModel
 from .diagnosis import ALPHA, MIN_HELDOUT, candidate_names
-from .screening import Screened, kfold_errors, linearise, screen
+from .screening import Linearised, Screened, kfold_errors, linearise, screen
 
 
 @dataclass
@@ -146,9 +148,11 @@ class AutoDiagnosis:
 _PER_TURN = {1: "once", 2: "twice"}
 
 
-def explain_effect(effect: Effect | str, model=None) -> str:
+def explain_effect(effect: Effect | str, model: RobotModel | None = None) -> str:
     """One line of physics for an effect: what it is and where it typically comes from."""
     if isinstance(effect, str):
+        if model is None:
+            raise ValueError(f"explain_effect({effect!r}): an effect's name needs its model")
         effect = parse_effect(effect, model)
     j, fam = effect.joint, effect.family
     if fam == "harmonic":
@@ -162,9 +166,10 @@ def explain_effect(effect: Effect | str, model=None) -> str:
         return (f"a {k}-per-turn periodic error of joint {j} — typical of a strain-wave "
                 "gear's tooth meshing or a cyclic error of the motor-side encoder")
     if fam == "table":
-        lo, hi = effect.knots_deg[0], effect.knots_deg[-1]
+        table = cast(Table, effect)
+        lo, hi = table.knots_deg[0], table.knots_deg[-1]
         return (f"an irregular error of joint {j} that follows its angle (knots every "
-                f"{effect.spacing_deg:g}° from {lo:g}° to {hi:g}°) — local gear or "
+                f"{table.spacing_deg:g}° from {lo:g}° to {hi:g}°) — local gear or "
                 "encoder defects no formula captures")
     texts = {
         "compliance": f"joint {j} yields in proportion to the gravity torque on it — the "
@@ -190,7 +195,8 @@ def explain_effect(effect: Effect | str, model=None) -> str:
 def heldout_errors(fit: Fit, folds: int = 10, seed: int = 0) -> Heldout:
     """Per pose squared error on held-out poses: the validation rows when there are at
     least :data:`MIN_HELDOUT`, else ``folds``-fold cross-validation of the linearised fit."""
-    if fit.valid is not None and fit.valid["n"] >= MIN_HELDOUT:
+    if (fit.valid is not None and fit.valid["n"] >= MIN_HELDOUT
+            and fit.valid_residuals is not None and fit.valid_data is not None):
         return Heldout(np.sum(fit.valid_residuals**2, axis=1), "validation poses",
                        np.asarray(fit.valid_data.pose_id, dtype=object))
     return Heldout(kfold_errors(fit, folds, seed), f"{folds}-fold cross-validation",
@@ -256,11 +262,12 @@ def _parsimonious(tried: list[Tried]) -> Tried:
     return min(equivalent, key=lambda t: (t.screened.edf, t.heldout.sq.mean()))
 
 
-def _retune_tables(fit: Fit, ho: Heldout, data: Dataset, folds: int, seed: int):
+def _retune_tables(fit: Fit, ho: Heldout, data: Dataset, folds: int,
+                   seed: int) -> tuple[Fit, Heldout]:
     """Re-choose the tables' smoothing by GCV at the new fit (what a table should smooth
     changes as other effects take their share) and refit; kept when the held-out error
     does not grow."""
-    tables = [e for e in fit.error_model.effects if hasattr(e, "penalty_matrix")]
+    tables: list[Any] = [e for e in fit.error_model.effects if hasattr(e, "penalty_matrix")]
     before = [e.smoothing for e in tables]
     if not gcv_smoothing(fit, tables):
         return fit, ho
@@ -286,7 +293,8 @@ def _significant(s: Screened, n_screened: int, alpha: float) -> bool:
     return s.edf >= 0.5 and s.log10_p + math.log10(max(n_screened, 1)) < math.log10(alpha)
 
 
-def at_noise_floor(lin, sigma: float | None, alpha: float = ALPHA) -> tuple[bool, float | None]:
+def at_noise_floor(lin: Linearised, sigma: float | None,
+                   alpha: float = ALPHA) -> tuple[bool, float | None]:
     """(at the floor, p-value): the residual is consistent with the instrument's noise."""
     import scipy.special  # here: scipy's import is half of `cellcal calibrate`'s start-up
 
@@ -331,7 +339,9 @@ def auto_diagnose(
         return _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress)
 
 
-def _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress):
+def _auto(fit: Fit, data: Dataset | None, max_steps: int, budget_s: float | None, confirm: int,
+          folds: int, alpha: float, seed: int,
+          progress: Callable[[AutoStep], None] | None) -> AutoDiagnosis:
     t0 = time.perf_counter()
     if data is None:
         data = fit.data if fit.valid_data is None else fit.data.concat(fit.valid_data)

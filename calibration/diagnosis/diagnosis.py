@@ -35,6 +35,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -302,7 +303,7 @@ def diagnose(
         data = replace(data, dirs=derive_directions(data.q),
                        meta={**data.meta, "dirs_derived": "consecutive rows in capture order"})
     fit = screen_for_diagnosis(fit)
-    if fit.outliers.excluded:
+    if fit.outliers is not None and fit.outliers.excluded:  # set by the screening
         data = data.subset(~np.isin(data.pose_id, fit.outliers.ids))
     em = fit.error_model
     calib = data.calib() if data.is_valid.any() else data
@@ -344,7 +345,7 @@ def diagnose(
             C = C[:, np.abs(C).sum(axis=0) > 0]  # knots without data
         Cp = C - Q @ (Q.T @ C)
         norms = np.linalg.norm(Cp, axis=0)
-        keep = norms > 1e-9 * max(np.linalg.norm(C), 1e-300)
+        keep = norms > 1e-9 * max(float(np.linalg.norm(C)), 1e-300)
         if not keep.any():
             screened.append((eff, 0, 0.0, "no effect beyond what the model already absorbs"))
             continue
@@ -386,16 +387,17 @@ def diagnose(
         ))
 
     # one harmonic per joint in the table: the best order (the periodogram keeps them all)
-    periodogram: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    seen: dict[int, tuple[list[int | None], list[float]]] = {}
     best_harmonic: dict[int, Candidate] = {}
     for c in cands:
-        if c.family == "harmonic":
-            orders, frac = periodogram.get(c.joint, ([], []))
-            periodogram[c.joint] = ([*orders, c.order], [*frac, c.explained_fraction])
+        if c.family == "harmonic" and c.joint is not None:  # a harmonic has its joint
+            orders, frac = seen.get(c.joint, ([], []))
+            seen[c.joint] = ([*orders, c.order], [*frac, c.explained_fraction])
             if c.joint not in best_harmonic or c.score > best_harmonic[c.joint].score:
                 best_harmonic[c.joint] = c
-    periodogram = {j: (np.array(o), np.array(f)) for j, (o, f) in periodogram.items()}
-    cands = [c for c in cands if c.family != "harmonic" or best_harmonic.get(c.joint) is c]
+    periodogram = {j: (np.array(o), np.array(f)) for j, (o, f) in seen.items()}
+    cands = [c for c in cands if c.family != "harmonic"
+             or (c.joint is not None and best_harmonic.get(c.joint) is c)]
     # a table only when no single harmonic does the job (parsimony): the p-value ranks
     cands.sort(key=lambda c: (not c.significant, -c.score))
     screen_s = time.perf_counter() - t0
@@ -431,7 +433,8 @@ def _confirm(c: Candidate, fit: Fit, data: Dataset, folds: int, seed: int) -> No
     """Refit with the candidate; judge it on held-out poses."""
     em = fit.error_model
     ext = em.with_effects(c.effect)
-    for e in ext.effects:
+    effects: list[Any] = ext.effects  # tables have a ``smoothing``
+    for e in effects:
         if getattr(e, "smoothing", 0.0) is None:
             e.smoothing = 1.0  # screening only: the final fit chooses it by cross-validation
     refit = identify(ext, data, fit.solver)
@@ -454,7 +457,7 @@ def _confirm(c: Candidate, fit: Fit, data: Dataset, folds: int, seed: int) -> No
 
 
 def where_it_fails(fit: Fit, calib: Dataset, G: np.ndarray, resid: np.ndarray,
-                   periodogram) -> WhereItFails:
+                   periodogram: dict[int, tuple[np.ndarray, np.ndarray]]) -> WhereItFails:
     """Per-pose errors, worst poses, and the residual seen from every joint."""
     err = np.linalg.norm(resid, axis=1)
     worst_idx = np.argsort(-err)[:5]

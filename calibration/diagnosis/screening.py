@@ -11,6 +11,7 @@ smoothing by GCV (:mod:`calibration.diagnosis.table_screening`), the F-test
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -18,7 +19,7 @@ from ..effects import Effect, EffectError
 from ..effects.physical import Harmonic
 from ..effects.table import Table
 from ..fit.identify import Fit
-from .candidate_columns import effect_columns, harmonic_columns
+from .candidate_columns import effect_columns, harmonic_columns, valid_columns
 from .linear_screen import (  # noqa: F401 - _loo, linearise: with screen, this API
     Linearised,
     Screened,
@@ -35,7 +36,7 @@ _BATCH = 64
 
 
 def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = None,
-           table_spacings=TABLE_SPACINGS_DEG, heldout_alpha: float | None = None
+           table_spacings: Sequence[int] = TABLE_SPACINGS_DEG, heldout_alpha: float | None = None
            ) -> list[Screened]:
     """Screen ``effects`` (not in the fit's model) at the linearised fit.
 
@@ -65,13 +66,13 @@ def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = 
                 C, Cv = periodic[id(eff)]
             else:
                 C = effect_columns(eff, lin.calib, lin.bound, lin.G, em, x, lin.P)
-                Cv = (None if lin.valid is None else
-                      effect_columns(eff, lin.valid, lin.bound_v, lin.Gv, em, x, lin.Pv))
+                Cv = valid_columns(eff, lin, em, x, lin.Pv)
         except EffectError as e:
             notes.append(f"{eff.label}: skipped ({e})")
             continue
         groups.setdefault(eff.n_params, []).append((eff, C, Cv))
-    waiting = []  # (index in out, effect, C, Cv): held-out figures still to compute
+    # (index in out, effect, C, Cv): held-out figures still to compute
+    waiting: list[tuple[int, Effect, np.ndarray, np.ndarray | None]] = []
     for items in groups.values():
         _evaluate_all(lin, items, out, heldout=heldout_alpha is None, waiting=waiting)
     if heldout_alpha is not None and waiting:

@@ -138,6 +138,8 @@ def load_effect_file(path: str | Path) -> list[type[Effect]]:
     digest = hashlib.sha256(source).hexdigest()
     mod_name = f"cellcal_user_effect_{path.stem}"
     spec = importlib.util.spec_from_file_location(mod_name, path)
+    if spec is None or spec.loader is None:  # a name Python does not import (no .py)
+        raise EffectError(f"{path}: not a Python file (.py)")
     module = importlib.util.module_from_spec(spec)
     sys.modules[mod_name] = module
     no_bytecode = sys.dont_write_bytecode

@@ -20,11 +20,14 @@ determined by the penalty (:meth:`Table.null_space`).
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..data.dataset import Dataset
+from ..model.robot_model import RobotModel
 from .base import EffectError, JointEffect
 
 #: penalty rows are in mm: a second difference of 1 rad counts like this many mm
@@ -53,8 +56,9 @@ class Table(JointEffect):
     takes_order = True
     summary = "a smooth correction table Δθ(θ) for one joint"
 
-    def __init__(self, model, joint=None, order=None, smoothing: float | None = None,
-                 range_deg: tuple[float, float] | None = None, knots_deg=None):
+    def __init__(self, model: RobotModel, joint: int | None = None, order: int | None = None,
+                 smoothing: float | None = None, range_deg: tuple[float, float] | None = None,
+                 knots_deg: npt.ArrayLike | None = None) -> None:
         super().__init__(model, joint, order)
         spacing = DEFAULT_SPACING_DEG if order is None else int(order)
         if not 2 <= spacing <= 90:
@@ -91,7 +95,7 @@ class Table(JointEffect):
 
     # ---- construction from data or from a params file ---------------------------
     @classmethod
-    def covering(cls, model, joint: int, theta_rad: np.ndarray, spacing_deg: int,
+    def covering(cls, model: RobotModel, joint: int, theta_rad: np.ndarray, spacing_deg: int,
                  smoothing: float | None = None) -> Table:
         """A table whose knots span the angles ``theta_rad`` of joint ``joint`` (and no more)."""
         deg = np.degrees(np.asarray(theta_rad, float))
@@ -124,10 +128,11 @@ class Table(JointEffect):
     def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
         return self.basis(data.q[:, self.joint - 1])
 
-    def delta(self, p, data, B):
+    def delta(self, p: np.ndarray, data: Dataset, B: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
         return B @ p, B
 
-    def pinned(self, B) -> dict[str, str]:
+    def pinned(self, B: np.ndarray) -> dict[str, str]:
         empty = B.sum(axis=0) < 1e-9
         return {
             self.param_names[k]: "no data within this knot's reach (pinned at zero)"
@@ -148,7 +153,7 @@ class Table(JointEffect):
         """The directions the penalty leaves free: constant and linear in θ, (K, 2)."""
         return np.column_stack([np.ones(len(self.knots)), self.knots - self.knots.mean()])
 
-    def typical(self, rng):
+    def typical(self, rng: np.random.Generator) -> np.ndarray:
         # a smooth bump-and-ripple no single harmonic captures
         t = self.knots
         amp = 0.25 / 1000.0
@@ -157,8 +162,8 @@ class Table(JointEffect):
 
 # ---- GCV on a linearised penalised least-squares problem ------------------------------
 def penalised_path(N0: np.ndarray, b: np.ndarray, h: np.ndarray, Q: np.ndarray, r2: float,
-                   omega: np.ndarray, grid=SMOOTHING_GRID, n_obs: int = 0,
-                   trace0: float = 0.0) -> dict:
+                   omega: np.ndarray, grid: npt.ArrayLike = SMOOTHING_GRID, n_obs: int = 0,
+                   trace0: float = 0.0) -> dict[str, Any]:
     """The solution path of c(s) = (N0 + s Ω)⁻¹ b over the weights ``grid``.
 
     The residual sum of squares is ``r2 - 2 h·c + cᵀ Q c`` and the degrees of freedom
@@ -203,7 +208,8 @@ def penalised_path(N0: np.ndarray, b: np.ndarray, h: np.ndarray, Q: np.ndarray, 
             "solve": solve}
 
 
-def choose_smoothing(error_model, data: Dataset, fit_fn, grid=SMOOTHING_GRID) -> None:
+def choose_smoothing(error_model: Any, data: Dataset, fit_fn: Callable[[Any, Dataset], Any],
+                     grid: np.ndarray = SMOOTHING_GRID) -> None:
     """Set the ``smoothing`` of every table (any effect with ``penalty_matrix``) whose
     smoothing is None, by GCV on the problem linearised at one fit.
 
@@ -220,7 +226,8 @@ def choose_smoothing(error_model, data: Dataset, fit_fn, grid=SMOOTHING_GRID) ->
     gcv_smoothing(fit_fn(error_model, data), tables, grid)
 
 
-def gcv_smoothing(fit, tables=None, grid=SMOOTHING_GRID) -> bool:
+def gcv_smoothing(fit: Any, tables: list[Any] | None = None,
+                  grid: np.ndarray = SMOOTHING_GRID) -> bool:
     """Re-choose the smoothing of ``tables`` (default: every table of the fit's model) by
     GCV on the problem linearised at ``fit``, one table after the other, twice round.
     Records ``cv_curve`` on each as (smoothing, GCV RMS mm). Returns True when any
@@ -235,7 +242,7 @@ def gcv_smoothing(fit, tables=None, grid=SMOOTHING_GRID) -> bool:
     X = J[:, :, free].reshape(-1, int(free.sum()))
     y = (fit.data.tracker_p_smr - P).ravel() + X @ x[free]
     XtX, b, y2 = X.T @ X, X.T @ y, float(y @ y)
-    omegas = {}
+    omegas: dict[int, tuple[Any, np.ndarray]] = {}
     for e, sl in zip(em.effects, em.slices, strict=True):
         if hasattr(e, "penalty_matrix"):
             O = np.zeros((em.n_params, em.n_params))

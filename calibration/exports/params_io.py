@@ -66,9 +66,10 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal, cast
 
 import numpy as np
 from pydantic import (
@@ -190,7 +191,7 @@ def effect_file_records(fit: Fit) -> list[dict]:
     return list(out.values())
 
 
-def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto=None,
+def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto: Any = None,
                 capture: CaptureMeta | None = None) -> dict:
     """The params.json mapping of ``fit``; ``auto`` (an
     :class:`~calibration.diagnosis.auto_diagnosis.AutoDiagnosis` whose final fit ``fit`` is) adds
@@ -225,7 +226,8 @@ def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto=None,
     info = solver_summary(fit)
     if info:
         out["solver_info"] = info
-    smoothing = {e.label: e.smoothing for e in em.effects if hasattr(e, "penalty_matrix")}
+    tables: list[Any] = [e for e in em.effects if hasattr(e, "penalty_matrix")]
+    smoothing = {e.label: e.smoothing for e in tables}
     if smoothing:
         out["smoothing"] = smoothing
     if fit.outliers is not None:
@@ -240,7 +242,7 @@ def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto=None,
     return out
 
 
-def auto_steps_json(auto) -> dict:
+def auto_steps_json(auto: Any) -> dict[str, Any]:
     """The ``auto_steps`` record of an :class:`~calibration.diagnosis.auto_diagnosis.AutoDiagnosis`:
     the start model, every step (as in ``diagnose --auto --json``) and why it stopped."""
     return {
@@ -305,7 +307,7 @@ def solver_summary(fit: Fit) -> dict:
     return out
 
 
-def params_json(fit: Fit, effect_files: list[str] | None = None, auto=None,
+def params_json(fit: Fit, effect_files: list[str] | None = None, auto: Any = None,
                 capture: CaptureMeta | None = None) -> str:
     """The text of params.json (NaN and infinities written as null: strict JSON)."""
     return json.dumps(json_ready(fit_to_dict(fit, effect_files, auto, capture)), indent=1,
@@ -313,7 +315,7 @@ def params_json(fit: Fit, effect_files: list[str] | None = None, auto=None,
 
 
 def save_params(fit: Fit, path: str | Path, effect_files: list[str] | None = None,
-                auto=None, capture: CaptureMeta | None = None) -> None:
+                auto: Any = None, capture: CaptureMeta | None = None) -> None:
     """Write params.json atomically (the old file stays whole if writing fails), with
     ``auto``'s steps and ``capture``'s context."""
     write_atomic(path, params_json(fit, effect_files, auto, capture))
@@ -360,7 +362,7 @@ def model_differences(a: RobotModel, b: RobotModel) -> list[str]:
     return [k for k in da if da[k] != db[k]]
 
 
-def params_from_doc(data, source: str = "<params>", *, model: RobotModel | None = None
+def params_from_doc(data: object, source: str = "<params>", *, model: RobotModel | None = None
                     ) -> LoadedParams:
     """A params mapping read strictly (see the module docstring); ``model``: the model the
     caller works with, whose joints and convention the params' model must have."""
@@ -398,16 +400,16 @@ def params_from_doc(data, source: str = "<params>", *, model: RobotModel | None 
     except EffectError as e:
         raise ParamsError(f"{source}: effects: {e}") from None
     names = [row.name for row in doc.parameters]
-    for i, e in enumerate(effects):
-        if hasattr(e, "with_parameter_names"):  # a table: its knots are in the names
-            local = [n[len(e.prefix) + 1 :] for n in names if n.startswith(e.prefix + ".")]
+    for i, eff in enumerate(effects):
+        if hasattr(eff, "with_parameter_names"):  # a table: its knots are in the names
+            local = [n[len(eff.prefix) + 1 :] for n in names if n.startswith(eff.prefix + ".")]
             try:
-                effects[i] = e.with_parameter_names(local)
+                effects[i] = eff.with_parameter_names(local)
             except EffectError as err:
                 raise ParamsError(f"{source}: effects: {err}") from None
-    for e in effects:
-        if e.label in doc.smoothing:
-            e.smoothing = doc.smoothing[e.label]
+    for eff in effects:
+        if eff.label in doc.smoothing:
+            cast(Any, eff).smoothing = doc.smoothing[eff.label]  # a table's
     thermal = check_thermal_record(data.get("thermal"), pmodel.n_joints, source)
     apply_thermal_record(effects, thermal)
     em = ErrorModel(pmodel, effects)
@@ -450,7 +452,7 @@ def read_params(path: str | Path, *, model: RobotModel | None = None) -> LoadedP
     return params_from_doc(_read_json(path), str(path), model=model)
 
 
-def _read_json(path: str | Path):
+def _read_json(path: str | Path) -> Any:
     """The JSON document of a params file, read with the size limit; ParamsError naming
     the file, line and column otherwise."""
     text = read_text(path, ParamsError, "params file", MAX_PARAMS_BYTES)
@@ -473,7 +475,8 @@ def load_params(path: str | Path, *, model: RobotModel | None = None
 
 
 # ---------------------------------------------------------------- zero-point update
-def with_zero_offsets(doc: dict, offsets_rad, source: str = "<params>") -> dict:
+def with_zero_offsets(doc: dict[str, Any], offsets_rad: Sequence[float] | np.ndarray,
+                      source: str = "<params>") -> dict:
     """A params document (as read, unknown keys kept) with joint zero corrections applied:
     each ``geometric.jN.theta`` shifted by offset N (rad; written in degrees), and the
     update recorded in ``history`` as ``{"zero_point": {"offsets_deg": [...]}}``.
@@ -496,7 +499,8 @@ def with_zero_offsets(doc: dict, offsets_rad, source: str = "<params>") -> dict:
     return out
 
 
-def write_zero_update(params_path: str | Path, out: str | Path, offsets_rad) -> None:
+def write_zero_update(params_path: str | Path, out: str | Path,
+                      offsets_rad: Sequence[float] | np.ndarray) -> None:
     """Write ``out`` (atomically): the params file ``params_path`` with the joint zero
     corrections ``offsets_rad`` applied (:func:`with_zero_offsets`)."""
     doc = _read_json(params_path)

@@ -32,6 +32,7 @@ from ..effects import EffectError
 from ..errors import InsufficientData
 from ..model.kinematics import tool_points
 from .error_model import ErrorModel
+from .identifiability import Identifiability
 from .identify import structural_identifiability
 
 #: joints that agree within this (deg) on every axis are the same pose
@@ -91,7 +92,7 @@ def reference_sample(error_model: ErrorModel, calib: Dataset, n: int, seed: int 
     q = rng.uniform(lo, hi, size=(n, calib.n_joints))
     rows = rng.integers(0, calib.n, size=n)
 
-    def pick(a):
+    def pick(a: np.ndarray | None) -> np.ndarray | None:
         return None if a is None else a[rows]
 
     return replace(calib, q=q, tracker_p_smr=tool_points(error_model.model, q),
@@ -144,7 +145,7 @@ def check_for_fit(error_model: ErrorModel, data: Dataset) -> DataVerdict:
     calib_p = prepared.calib() if prepared.is_valid.any() else prepared
     n_ref = max(3 * error_model.n_params, 60)
 
-    def reference(min_span_deg):
+    def reference(min_span_deg: float) -> Identifiability | None:
         try:
             ref = reference_sample(error_model, calib_p, n_ref, min_span_deg=min_span_deg)
             return structural_identifiability(error_model, error_model.prepare(ref))[2]

@@ -23,10 +23,14 @@ table's constant is the joint's zero offset), and the others are free and listed
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..numerics.linalg import qr_pivoted
+
+if TYPE_CHECKING:
+    from .error_model import ErrorModel
 
 #: tiers for breaking exact redundancies: a parameter is only fixed in favour of
 #: parameters of the same or an earlier tier
@@ -113,7 +117,7 @@ def analyse(
     else:
         scaled = np.zeros_like(J, dtype=float)
         scaled[:, live] = J[:, live] / norms[live]
-        Jn = np.linalg.qr(scaled, mode="r") if m > p else scaled
+        Jn = np.asarray(np.linalg.qr(scaled, mode="r")) if m > p else scaled
     free = np.zeros(p, bool)
     basis = np.zeros((Jn.shape[0], 0))
     for tier in sorted(set(tiers[live & ~in_group])):
@@ -147,8 +151,8 @@ def analyse(
                 f"{free_names[i]} ({coef[i, c]:+.2f})" for i in order if abs(coef[i, c]) > 0.05
             ]
             fixed[names[k]] = "redundant with " + (", ".join(parts) if parts else "the others")
-    for k, why in held.items():
-        fixed[names[k]] = why
+    for key, why in held.items():
+        fixed[names[key]] = why
     cond = obs = float("nan")
     plain = free & ~in_group
     if plain.any():
@@ -158,8 +162,8 @@ def analyse(
         ss = np.linalg.svd(Jn[:, plain] * phys, compute_uv=False)
         npose = n_poses if n_poses else max(m // 3, 1)
         obs = float(np.exp(np.mean(np.log(np.maximum(ss, 1e-300)))) / np.sqrt(npose))
-    order = {n: i for i, n in enumerate(names)}
-    fixed = dict(sorted(fixed.items(), key=lambda kv: order[kv[0]]))
+    position = {n: i for i, n in enumerate(names)}
+    fixed = dict(sorted(fixed.items(), key=lambda kv: position[kv[0]]))
     pen_names = [names[k] for k in np.flatnonzero(free & in_group)]
     return Identifiability(free, list(names), fixed, cond, obs, pen_names)
 
@@ -174,7 +178,8 @@ def _normal_factor(normal: np.ndarray, norms: np.ndarray, live: np.ndarray) -> n
     return np.sqrt(np.clip(w, 0.0, None))[:, None] * V.T
 
 
-def _penalised_group(Jn, norms, idx, null, basis, rtol) -> dict[int, str]:
+def _penalised_group(Jn: np.ndarray, norms: np.ndarray, idx: np.ndarray, null: np.ndarray,
+                     basis: np.ndarray, rtol: float) -> dict[int, str]:
     """Parameters of one penalised group to hold at their start: one per direction of the
     penalty's null space that the data (beyond the parameters kept so far) cannot
     determine. The first is the parameter with the strongest column (a table's best
@@ -197,11 +202,12 @@ def _penalised_group(Jn, norms, idx, null, basis, rtol) -> dict[int, str]:
     return {int(idx[k]): why for k in picks}
 
 
-def penalised_groups(error_model) -> list[tuple[np.ndarray, np.ndarray]]:
+def penalised_groups(error_model: ErrorModel) -> list[tuple[np.ndarray, np.ndarray]]:
     """The penalised groups of an error model for :func:`analyse`: every effect with a
     ``null_space()`` (the directions its penalty leaves free)."""
     groups = []
-    for e, sl in zip(error_model.effects, error_model.slices, strict=True):
+    effects: list[Any] = error_model.effects  # the penalised ones have ``null_space``
+    for e, sl in zip(effects, error_model.slices, strict=True):
         if hasattr(e, "null_space"):
             groups.append((np.arange(sl.start, sl.stop), np.asarray(e.null_space(), float)))
     return groups

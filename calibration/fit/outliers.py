@@ -54,12 +54,17 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from ..numerics.chi3 import chi3_isf
 from .leverage import residual_factors, residuals_on, studentised_norms
 from .leverage import studentise as studentise
+
+if TYPE_CHECKING:
+    from ..data.dataset import Dataset
+    from .identify import Fit
 
 #: median and MAD of the chi distribution with 3 degrees of freedom
 CHI3_MEDIAN = chi3_isf(0.5)  # chi(3).median()
@@ -212,7 +217,7 @@ def beam_angles(residuals: np.ndarray, xyz: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(c, 0.0, 1.0)))
 
 
-def point_sigmas(data) -> tuple[np.ndarray | None, float | None]:
+def point_sigmas(data: Dataset) -> tuple[np.ndarray | None, float | None]:
     """(per-point sigma (n,) or None, RMS sigma or None) of a :class:`Dataset`."""
     if data.sigma_mm is not None:
         return np.asarray(data.sigma_mm, float), data.sigma()
@@ -221,7 +226,7 @@ def point_sigmas(data) -> tuple[np.ndarray | None, float | None]:
 
 
 def find_blunders(
-    fit_or_residuals,
+    fit_or_residuals: Fit | np.ndarray,
     sigma: float | np.ndarray | None = None,
     *,
     xyz: np.ndarray | None = None,
@@ -254,7 +259,7 @@ def find_blunders(
     BlunderScreen (``mode`` "test"); nothing is refitted.
     """
     if hasattr(fit_or_residuals, "residuals"):
-        fit = fit_or_residuals
+        fit = cast("Fit", fit_or_residuals)
         d = fit.data
         residuals = fit.residuals
         xyz = d.tracker_p_smr if xyz is None else xyz
@@ -281,7 +286,7 @@ def find_blunders(
     scale = max(scale, 1e-9 / float(np.mean(s)))  # noise-free synthetic data
     k = threshold(n, alpha)
     beyond = u > k * scale
-    thr_mm = k * scale * (sigma_rms if known else 1.0)
+    thr_mm = k * scale * (sigma_rms if sigma_rms is not None else 1.0)  # known, n > 0
     limit = max(1, int(math.floor(max_fraction * n + 1e-9)))
     clean = int(beyond.sum()) <= limit
     out = np.flatnonzero(beyond if named is None else named) if clean else np.zeros(0, int)
@@ -299,7 +304,8 @@ def find_blunders(
                          float(thr_mm), clean, max_fraction=max_fraction, u=u, beyond=beyond)
 
 
-def screen_fit(fit, mode: str, refit: Callable, **test_kw):
+def screen_fit(fit: Fit, mode: str, refit: Callable[[Dataset, np.ndarray], Fit],
+               **test_kw: Any) -> Fit:
     """Find the blunders of ``fit`` by the exclusion loop (see the module docstring).
 
     Parameters
@@ -321,7 +327,8 @@ def screen_fit(fit, mode: str, refit: Callable, **test_kw):
         return fit
     full = fit.data
     sig = point_sigmas(full)[0]
-    kw = {"xyz": full.tracker_p_smr, "pose_id": full.pose_id, "lines": full.lines, **test_kw}
+    kw: dict[str, Any] = {"xyz": full.tracker_p_smr, "pose_id": full.pose_id,
+                          "lines": full.lines, **test_kw}
     out = np.zeros(full.n, bool)
     seen = {out.tobytes()}
     current, rounds, settled, trial = fit, 0, True, False

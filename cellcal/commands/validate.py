@@ -64,6 +64,13 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from ..logs import RunLog
+
+    with RunLog(args) as run_log:
+        return _run(args, run_log)
+
+
+def _run(args, run_log) -> int:
     from presentation.run_outcome import outcome_exit_code, outcome_lines
     from presentation.validation_text import validation_lines, validation_summary
 
@@ -77,6 +84,7 @@ def run(args) -> int:
     capture_args = CaptureArgs.from_args(args, model="(the calibration's)")
 
     def started(run_id: int, _done: int) -> None:
+        run_log.open(capture_args.db, run_id)
         if not args.json:
             print(f"run {run_id}: validate, plan stored", file=sys.stderr)
 
@@ -92,7 +100,8 @@ def run(args) -> int:
     summary = out.get("summary") or {}
     if args.json:
         print_json({**out, **validation_summary(summary, done.valid_rms_mm, done.n_waypoints,
-                                                done.notes)})
+                                                done.notes),
+                    "log": None if run_log.path is None else str(run_log.path)})
     else:
         print("\n".join(outcome_lines(out)
                         + validation_lines(summary, done.valid_rms_mm, done.notes)))

@@ -9,4 +9,5 @@ Modules
     ``program_flags``  the flags of a robot program (compensate --program, validate)
     ``sim_ports``      the simulated cell's default ports and their flags
     ``values``         comma-separated numbers
+    ``log_flags``      the logging flags every command takes (-v, --log-level, --log-file)
 """

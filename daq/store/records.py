@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import NamedTuple
+from typing import NamedTuple, TypeVar, overload
 
 from ..run_context import RunContext
 from .summary import RunSummary
@@ -85,9 +85,22 @@ class Interruption(NamedTuple):
     message: str
 
 
-def known(enum: type[StrEnum], value: str | None):
+_E = TypeVar("_E", bound=StrEnum)
+
+
+@overload
+def known(enum: type[_E], value: str) -> _E | str: ...
+
+
+@overload
+def known(enum: type[_E], value: None) -> None: ...
+
+
+def known(enum: type[_E], value: str | None) -> _E | str | None:
     """``value`` as a member of ``enum``, or as given when it is none (an older or newer
     cellcal's string, None)."""
+    if value is None:
+        return None
     try:
         return enum(value)
     except ValueError:
@@ -113,7 +126,7 @@ class Run:
     software: str | None
     started: float | None
     stopped: float | None
-    status: RunStatus
+    status: RunStatus | str  # a plain string for a status this cellcal does not know
     reason: str | None
     frame: dict | None
     summary: RunSummary | None

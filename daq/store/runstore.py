@@ -72,7 +72,9 @@ from __future__ import annotations
 import hashlib
 import json
 import time
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from calibration.data.columns import (
     READING_COLUMNS,
@@ -93,14 +95,17 @@ from .samples import Reading, Sample, Samples
 from .schema import RESERVE_BYTES
 from .summary import RunSummary
 
+if TYPE_CHECKING:
+    from ..plans import Plan
+
 __all__ = ["RunStore", "open_if_exists", "open_store"]
 
 
-def _json(v) -> str | None:
+def _json(v: Any) -> str | None:
     return None if v is None else json.dumps(v)
 
 
-def open_store(address, *, create: bool = True, read_only: bool = False,
+def open_store(address: str | Path, *, create: bool = True, read_only: bool = False,
                synchronous: str = "FULL") -> RunStore:
     """The run store at ``address``: a SQLite file path or a ``postgresql://`` URL.
 
@@ -112,7 +117,7 @@ def open_store(address, *, create: bool = True, read_only: bool = False,
     return RunStore(address, synchronous, create=create, read_only=read_only)
 
 
-def open_if_exists(address, *, read_only: bool = False,
+def open_if_exists(address: str | Path, *, read_only: bool = False,
                    synchronous: str = "FULL") -> RunStore | None:
     """The existing run store at ``address``, or None when there is none yet: no file at
     the path (or no regular file), or a PostgreSQL database that cannot be opened as a
@@ -178,7 +183,7 @@ class RunStore:
         return self.db.path
 
     @property
-    def con(self):
+    def con(self) -> Any:
         """The driver's connection (sqlite3 or psycopg), for inspection."""
         return self.db.con
 
@@ -194,7 +199,7 @@ class RunStore:
     def __enter__(self) -> RunStore:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     def new_connection(self) -> Database:
@@ -244,7 +249,7 @@ class RunStore:
     # ------------------------------------------------------------------ runs
     def create_run(
         self,
-        plan,
+        plan: Plan,
         context: RunContext | None = None,
         *,
         robot_desc: str | None = None,
@@ -291,7 +296,7 @@ class RunStore:
                  "software, started, stopped, status, reason, frame_json, summary_json, "
                  "context_json, robot_id, robot_identity, tracker_identity, source_run")
 
-    def _row_to_run(self, r) -> Run:
+    def _row_to_run(self, r: Sequence[Any]) -> Run:
         return Run(
             id=r[0], routine=r[1], plan_json=r[2], plan_hash=r[3], n_points=r[4],
             robot_desc=r[5], tracker_desc=r[6], software=r[7], started=r[8], stopped=r[9],
@@ -338,7 +343,7 @@ class RunStore:
         self.db.execute("UPDATE runs SET status=?, reason=?, stopped=? WHERE id=?",
                         (str(status), reason, stopped, run_id))
 
-    def update_run(self, run_id: int, **fields) -> None:
+    def update_run(self, run_id: int, **fields: Any) -> None:
         """Set ``frame`` (a dict), ``summary`` (a :class:`RunSummary`, or a dict of its
         keys), ``robot_identity``/``tracker_identity`` (dicts),
         ``robot_desc``/``tracker_desc``, ``robot_id``, or ``robot_url``/``tracker_url`` (in
@@ -390,7 +395,8 @@ class RunStore:
     #: the columns a sample and a rejected reading share (besides ``point_index``)
     _MEASURED = tuple(c for c in READING_COLUMNS if c.name != "point_index")
 
-    def add_sample(self, run_id: int, s: Sample, rejected=(), revisited=()) -> bool:
+    def add_sample(self, run_id: int, s: Sample, rejected: Iterable[Reading] = (),
+                   revisited: Iterable[tuple[Sample, Iterable[Reading]]] = ()) -> bool:
         """Write one sample in one transaction (the checkpoint).
 
         ``rejected`` are the point's readings that were not accepted (:class:`Reading`),
@@ -424,7 +430,7 @@ class RunStore:
             f"VALUES (?,?,{','.join('?' * len(cols))})",
             (run_id, r.reason, *encode_row(r.sample, READING_COLUMNS)))
 
-    def _replace_sample(self, run_id: int, s: Sample, rejected) -> None:
+    def _replace_sample(self, run_id: int, s: Sample, rejected: Iterable[Reading]) -> None:
         """Replace a point's sample by ``s`` (a re-measurement, taken later) and add the
         readings it rejected; a no-op when the point already holds ``s`` (the same
         commit repeated after a lost connection)."""

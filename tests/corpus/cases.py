@@ -632,6 +632,7 @@ def build_cases() -> list[Case]:
             c.mode, c.slow = "subprocess", True
 
     cases += _seam_cases(good_cap)
+    cases += _log_cases(good_cap)
 
     # ---- process-level: stdout without a reader, a store only readable
     cases.append(Case("runs", "broken_pipe", ["runs", "--db", "cell.db", "--json"], 0, "",
@@ -681,7 +682,7 @@ def _seam_cases(good_cap: list[str]) -> list[Case]:
         Case("capture", "seam:mostly_skipped",
              ["capture", "poses", "--count", "4", "--seed", "3", *blind, "--no-visibility",
               "--measure-s", "0.01"], 3, r"incomplete.*4 of 4 planned points missing",
-             creates=("new.db",), stores=True),
+             creates=("new.db", "new.db.run1.log"), stores=True),
         Case("resume", "seam:meteo_nan", ["resume", "--db", "cell.db", "--meteo", "20,nan,45"],
              2, r"--meteo.*finite"),
         Case("compensate", "seam:joints_contradict_target",
@@ -702,6 +703,32 @@ def _seam_cases(good_cap: list[str]) -> list[Case]:
                             f"{re.escape(flag)}.*finite"))
     out += _number_cases("compensate", ["compensate", "targets.csv", "--params", "params.json"],
                          [("--joints-tolerance-mm", ["0", "-1", "nan", "inf", "x"])])
+    return out
+
+
+def _log_cases(good_cap: list[str]) -> list[Case]:
+    """The logging flags every command takes: a bad level, a log file that is an input, a
+    store, a folder or in no folder (refused before the command runs: nothing written)."""
+    out = [Case(cmd, f"log:level={v}", [*argv, "--log-level", v], 2,
+                r"--log-level.*not a log level.*DEBUG, INFO, WARNING, ERROR, CRITICAL")
+           for cmd, argv in (("runs", ["runs", "--db", "cell.db"]), ("models", ["models"]),
+                             ("capture", good_cap))
+           for v in ("LOUD", "", "10", "warn")]
+    out.append(Case("models", "log:level_before_command", ["--log-level", "x", "models"], 2,
+                    r"--log-level.*not a log level"))
+    not_a_log = r"--log-file.*not a cellcal log"
+    for name, target, msg, setup in (
+            ("is_data", "good.csv", not_a_log, []), ("is_store", "cell.db", not_a_log, []),
+            ("is_params", "params.json", not_a_log, []),
+            ("directory", "adir", r"--log-file.*directory", [mkdir("adir")]),
+            ("no_folder", "nofolder/x.log", r"--log-file.*no such folder", [])):
+        out.append(Case("calibrate", f"log:file_{name}",
+                        ["calibrate", "good.csv", "--model", "ur5", "--log-file", target], 2,
+                        msg, setup))
+    out.append(Case("capture", "log:file_is_store", [*good_cap, "--log-file", "cell.db"], 2,
+                    not_a_log))
+    out.append(Case("models", "log:file_ok", ["models", "-v", "--log-file", "m.log"], 0, "",
+                    creates=("m.log",)))
     return out
 
 
