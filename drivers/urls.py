@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any, Literal, Protocol
 from drivers import url_parts as parts
 
 if TYPE_CHECKING:  # the driver modules load when their URL is opened
+    from drivers.abb.driver import AbbRwsRobot
     from drivers.leica.driver import EmsconTracker
     from drivers.line_robot import SerialRobot
     from drivers.line_tracker import LineTracker
@@ -206,7 +207,7 @@ def _open_emscon(url: str, kind: Kind, /, **kw: Any) -> EmsconTracker:
     return EmsconTracker(url, a["host"], a["port"], **kw)
 
 
-def _open_abb(url: str, kind: Kind, /, **kw):
+def _open_abb(url: str, kind: Kind, /, **kw: Any) -> AbbRwsRobot:
     from drivers.abb.driver import AbbRwsRobot
 
     return AbbRwsRobot.from_url(url, **kw)

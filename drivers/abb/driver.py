@@ -43,8 +43,10 @@ import logging
 import math
 import time
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from drivers.errors import (
     CommandRejected,
@@ -110,7 +112,8 @@ class AbbRwsRobot:
                  user: str = C.DEFAULT_USER, password: str = C.DEFAULT_PASSWORD,
                  n_joints: int = 6, task: str = C.TASK, module: str = C.MODULE,
                  mechunit: str = C.MECHUNIT, tool: str = "tool0", wobj: str = "wobj0",
-                 read_only: bool = False, restart_rapid: bool = True, limits=None,
+                 read_only: bool = False, restart_rapid: bool = True,
+                 limits: npt.ArrayLike | None = None,
                  poll_s: float = 0.02) -> None:
         if not 1 <= n_joints <= 6:
             raise ValueError(f"n_joints must be 1..6, got {n_joints}")
@@ -133,7 +136,7 @@ class AbbRwsRobot:
         self._refused = ""  # why the last connect failed, until one succeeds
 
     @classmethod
-    def from_url(cls, url: str, **kw) -> AbbRwsRobot:
+    def from_url(cls, url: str, **kw: Any) -> AbbRwsRobot:
         """The driver of an ``abb://`` URL (query: ``joints``, ``task``, ``module``,
         ``mechunit``, ``tool``, ``wobj``, ``read_only``); keyword arguments override it."""
         from urllib.parse import unquote
@@ -178,7 +181,8 @@ class AbbRwsRobot:
             raise CommandRejected(self.url, command, words)
         raise ProtocolError(self.url, command, words)
 
-    def _get(self, path: str, timeout: float, command: str = "", retry: bool = False):
+    def _get(self, path: str, timeout: float, command: str = "",
+             retry: bool = False) -> dict | None:
         command = command or "GET " + path.split("?")[0]
         try:
             return self._request("GET", path, None, timeout, command)
@@ -187,11 +191,12 @@ class AbbRwsRobot:
                 raise
             return self._request("GET", path, None, timeout, command)  # once more
 
-    def _post(self, path: str, form: dict | None, timeout: float, command: str = ""):
+    def _post(self, path: str, form: dict | None, timeout: float,
+              command: str = "") -> dict | None:
         return self._request("POST", path, form or {}, timeout,
                              command or "POST " + path.split("?")[0])
 
-    def _field(self, doc, key: str, command: str) -> str:
+    def _field(self, doc: dict | None, key: str, command: str) -> str:
         try:
             return C.field(doc, key)
         except KeyError as e:
@@ -281,7 +286,7 @@ class AbbRwsRobot:
     def __enter__(self) -> AbbRwsRobot:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     def _lost(self) -> None:
@@ -514,7 +519,7 @@ def _left(deadline: float) -> float:
     return max(deadline - time.monotonic(), 0.01)
 
 
-def _maybe(doc, key: str) -> str:
+def _maybe(doc: dict | None, key: str) -> str:
     try:
         return C.field(doc, key)
     except KeyError:

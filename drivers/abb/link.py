@@ -141,7 +141,8 @@ class RwsLink:
             parts.append(f'opaque="{ch["opaque"]}"')
         return "Digest " + ", ".join(parts)
 
-    def _send(self, method: str, uri: str, body: bytes | None, timeout: float, command: str):
+    def _send(self, method: str, uri: str, body: bytes | None, timeout: float,
+              command: str) -> tuple[http.client.HTTPResponse, bytes]:
         if self._conn is None or time.monotonic() - self._last_use > self.idle_s:
             self.open(timeout)
         conn = self._conn
