@@ -401,6 +401,7 @@ def build_cases() -> list[Case]:
                            [("--max-steps", ["0"]), ("--budget-s", ["nan", "-1"])])
     # a params.json recording a user effect: loading it needs --effect-file, same hash
     cases += _effect_record_cases()
+    cases += _check_cases(csv_m, params_v, model_v)
 
     # ---- zero: postures CSV, model, params, replay, store
     post_v = I.csv_variants("postures.csv", measurement=False, cols=("q4", "q2", "q3"))
@@ -803,6 +804,69 @@ def _effect_record_cases() -> list[Case]:
         Case("compensate", "effect_record:ok", [*argv, "--effect-file", "effect.py"], 0, "",
              [write("pe.json", make)]),
     ]
+
+
+#: ``check`` evaluates the given model on any number of poses (no fit): data too few or too
+#: alike to calibrate, or all marked valid, are checked; radians are still refused
+CHECK_CSV = {**BAD_FILE_CSV, "one_pose": (0, ""), "five_poses": (0, ""),
+             "eight_poses": (0, ""), "identical_100": (0, ""), "all_valid": (0, "")}
+
+
+def _without_base(ws: Path) -> str:
+    """params.json without its base effect (and its parameters): a calibration in the
+    robot's own frame."""
+    import json
+
+    d = json.loads((ws / "params.json").read_text())
+    d["effects"] = [e for e in d["effects"] if e != "base"]
+    d["parameters"] = [p for p in d["parameters"] if not p["name"].startswith("base.")]
+    return json.dumps(d, indent=1)
+
+
+def _check_cases(csv_m, params_v, model_v) -> list[Case]:
+    """``check``: the new poses' CSV, the params.json, the model, effect files, numbers,
+    the run store of ``--db`` and the flags that need another."""
+    argv = ["check", "{DATA}", "--params", "params.json", "--model", "ur5"]
+    good = ["check", "good.csv", "--params", "params.json", "--model", "ur5"]
+    cases = _file_cases("check", argv, "{DATA}", csv_m, CHECK_CSV, src="good.csv")
+    cases += _path_cases("check", argv, "{DATA}", "good.csv")
+    cases += _special_file_cases("check", argv, "{DATA}")
+    pargv = ["check", "good.csv", "--model", "ur5", "--params", "{PARAMS}"]
+    cases += _file_cases("check", pargv, "{PARAMS}", params_v, PARAMS, src="params.json")
+    cases += _path_cases("check", pargv, "{PARAMS}", "params.json")[:3]
+    margv = ["check", "good.csv", "--params", "params.json", "--model", "{MODEL}"]
+    cases += _file_cases("check", margv, "{MODEL}", model_v, MODEL | {"seven_joints": (
+        2, r"q7|joints")}, src="model.yaml")
+    cases += _path_cases("check", margv, "{MODEL}", "model.yaml")[:3]
+    for name, body in I.effect_file_variants().items():
+        fname = f"e_{name}.py"
+        cases.append(Case("check", f"effect_file:{name}", [*good, "--effect-file", fname], 2,
+                          EFFECT_FILE[name], [write(fname, body)]))
+    cases += _number_cases("check", good, [
+        ("--sigma", ["nan", "-1", "0", "inf", "abc"]),
+        ("--tolerance-mm", ["0", "-1", "nan", "inf", "abc"])])
+    cases += _store_cases("check", [*good, "--db", "{DB}", "--robot-id", "R1"], ok=False,
+                          skip=("missing", "empty"))
+    cases += [
+        Case("check", "robot_id_without_db", [*good, "--robot-id", "R1"], 2,
+             r"--robot-id needs --db"),
+        Case("check", "db_without_robot", [*good, "--db", "new.db"], 2,
+             r"good\.csv.*name no robot.*--robot-id"),
+        Case("check", "no_params", ["check", "good.csv", "--model", "ur5"], 2, r"--params"),
+        Case("check", "refit_base_without_base",
+             ["check", "good.csv", "--params", "nobase.json", "--refit-base"], 2,
+             r"--refit-base.*nobase\.json.*no base effect", [write("nobase.json", _without_base)]),
+        Case("check", "refit_base_one_pose", ["check", "x_one_pose.csv", "--params",
+                                              "params.json", "--model", "ur5", "--refit-base"],
+             3, r"x_one_pose\.csv.*at least three points",
+             [write("x_one_pose.csv", csv_m["one_pose"])]),
+        Case("check", "ok_tolerance_met", [*good, "--tolerance-mm", "1000"], 0, ""),
+        Case("check", "tolerance_exceeded", [*good, "--tolerance-mm", "0.001"], 1,
+             r"BEYOND"),
+        Case("check", "ok_recorded", [*good, "--db", "new.db", "--robot-id", "R1"], 0, "",
+             creates=("new.db",)),
+    ]
+    return cases
 
 
 # --------------------------------------------------------------------------- running
