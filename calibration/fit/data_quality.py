@@ -90,16 +90,12 @@ def reference_sample(error_model: ErrorModel, calib: Dataset, n: int, seed: int 
         hi = np.minimum(np.maximum(hi, mid + half), lim[:, 1])
     q = rng.uniform(lo, hi, size=(n, calib.n_joints))
     rows = rng.integers(0, calib.n, size=n)
-
-    def pick(a):
-        return None if a is None else a[rows]
-
-    return replace(calib, q=q, tracker_p_smr=tool_points(error_model.model, q),
-                   pose_id=[f"r{i}" for i in range(n)], cmd=None, temp_c=pick(calib.temp_c),
-                   t_s=pick(calib.t_s), payload_kg=pick(calib.payload_kg),
-                   sigma_mm=pick(calib.sigma_mm), dirs=pick(calib.dirs),
-                   is_valid=np.zeros(n, bool), lines=np.zeros(n, int),
-                   source="reference sample")
+    # every per-row column resampled (Dataset.subset), then the poses replaced: a column
+    # left at the data's length (joint temperatures, orientations) would make the sample
+    # inconsistent, and the checks that use it silently skipped
+    return replace(calib.subset(rows), q=q, tracker_p_smr=tool_points(error_model.model, q),
+                   pose_id=[f"r{i}" for i in range(n)], cmd=None, is_valid=np.zeros(n, bool),
+                   lines=np.zeros(n, int), source="reference sample")
 
 
 #: families whose every parameter the poses must determine (the core of every model)

@@ -19,11 +19,11 @@ from sim_drivers.rtde_server import IDLE_JOINT_TEMP_C, RtdeSimServer
 from tests.sim_drivers.rtde_helpers import loopback_host
 
 
-def _cell(thermal: str | None) -> SimCell:
+def _cell(thermal: str | None, joint_temps: bool = True) -> SimCell:
     truth = ModelTruth.from_spec("ur10e", None, 2)
     if thermal:
         truth = truth.with_thermal(2)
-    cell = SimCell(truth, seed=2, thermal=thermal)
+    cell = SimCell(truth, seed=2, thermal=thermal, joint_temps=joint_temps)
     if thermal:
         cell.command_move_joints(cell.robot_state().q + 0.5, 0.1)  # 5 s of work
         cell.advance(600.0)  # and ten minutes powered
@@ -78,7 +78,7 @@ def test_rtde_with_the_real_ur_rtde_client(warming):
 
 
 def test_controllers_without_temperatures_refuse():
-    cell = _cell(None)
+    cell = _cell(None, joint_temps=False)  # a controller that reports none
     for server, refusal in ((RobotLineServer, "BAD_COMMAND"),
                             (ModbusRobotServer, "exception 2")):
         with server(cell) as srv:
@@ -97,7 +97,7 @@ def test_controllers_without_temperatures_refuse():
     try:
         robot = UrRtdeRobot.from_url(server.url + "?read_only=1")
         robot.connect(5.0)
-        try:  # a UR always streams them: a cell without a thermal model says 30 °C
+        try:  # a UR always streams them: a cell that reports none says 30 °C
             assert robot.joint_temperatures() == (IDLE_JOINT_TEMP_C,) * 6
         finally:
             robot.close()
