@@ -31,6 +31,7 @@ from daq.sight import frame_from_store
 
 from ..errors import UsageError
 from ..programs import compensate as program_filter
+from ..programs.targets import ProgramError
 from ..request import Request
 from .capture import CaptureArgs, capture
 from .program_inputs import program_options
@@ -66,6 +67,10 @@ class Validation:
 def _waypoints_of_program(request: ValidateRequest, em, x, variants):
     dialect = program_filter.language_of(request.program, request.language)
     program = program_filter.read_program(request.program, dialect)
+    if program.compensated_at is not None:  # its "compensated" variant: compensated twice
+        raise ProgramError(f"{request.program}: line {program.compensated_at}: this program "
+                           "was compensated already (a 'cellcal:' comment); validate the "
+                           "original: it runs it as written and compensated")
     options = program_options(em, frames=request.frames, start_deg=request.start,
                               temp_c=request.temp_c, payload_kg=request.payload_kg)
     solved = program_filter.solve(program, dialect, em, x, options,

@@ -136,10 +136,9 @@ def validate_cases(prog) -> list[Case]:
         Case("validate", "variants:twice", [*new, "--variants", "compensated,compensated"], 2,
              r"--variants", [prog]),
     ]
-    for name, (body, msg) in PROGRAMS.items():
-        if name != "compensated_already":
-            cases.append(Case("validate", f"program:{name}", val, 2, msg,
-                              [write("prog.script", body)]))
+    for name, (body, msg) in PROGRAMS.items():  # a compensated one too (issue 36: its
+        cases.append(Case("validate", f"program:{name}", val, 2, msg,  # "compensated" variant
+                          [write("prog.script", body)]))  # would be compensated twice)
     cases += _number_cases("validate", val, [("--temp-c", ["nan"])])
     cases[-1].setup.insert(0, prog)
     return cases
