@@ -402,6 +402,7 @@ def build_cases() -> list[Case]:
     # a params.json recording a user effect: loading it needs --effect-file, same hash
     cases += _effect_record_cases()
     cases += _check_cases(csv_m, params_v, model_v)
+    cases += _issue36_cases()
 
     # ---- zero: postures CSV, model, params, replay, store
     post_v = I.csv_variants("postures.csv", measurement=False, cols=("q4", "q2", "q3"))
@@ -867,6 +868,44 @@ def _check_cases(csv_m, params_v, model_v) -> list[Case]:
              creates=("new.db",)),
     ]
     return cases
+
+
+def _one_joint_with_temps(ws: Path) -> str:
+    """good.csv with only joint 1 moving (a rank-deficient design) and the joints'
+    temperatures of a controller that reports them (``joint_temp1..6``)."""
+    lines = (ws / "good.csv").read_text().splitlines()
+    meta = [ln for ln in lines if ln.startswith("#")]
+    head, *rows = [ln for ln in lines if not ln.startswith("#")]
+    cols = head.split(",")
+    first = rows[0].split(",")
+    out = [head + "," + ",".join(f"joint_temp{j}" for j in range(1, 7))]
+    for row in rows:
+        f = row.split(",")
+        for c in ("q2", "q3", "q4", "q5", "q6"):
+            f[cols.index(c)] = first[cols.index(c)]
+        out.append(",".join(f) + ",20.5,21,21.5,22,22.5,23")
+    return "\n".join(meta + out) + "\n"
+
+
+def _issue36_cases() -> list[Case]:
+    """Issue 36's seams: a rank-deficient capture with joint temperatures (its data check
+    was skipped), a params.json naming the model of data that name none, a compensated
+    program given to validate (program_cases)."""
+    return [
+        Case("calibrate", "seam:rank_deficient_with_joint_temps",
+             ["calibrate", "rank.csv", "--model", "ur5"], 3, r"rank\.csv.*rank-deficient design",
+             [write("rank.csv", _one_joint_with_temps)]),
+        Case("diagnose", "seam:rank_deficient_with_joint_temps",
+             ["diagnose", "rank.csv", "--model", "ur5"], 3, r"rank\.csv.*rank-deficient design",
+             [write("rank.csv", _one_joint_with_temps)]),
+        Case("calibrate", "seam:params_name_the_model",
+             ["calibrate", "good.csv", "--params", "params.json"], 0, ""),
+        Case("diagnose", "seam:params_name_the_model",
+             ["diagnose", "good.csv", "--params", "params.json", "--top", "3"], 0, "",
+             slow=True),
+        Case("check", "seam:params_name_the_model", ["check", "good.csv", "--params",
+                                                     "params.json"], 0, ""),
+    ]
 
 
 # --------------------------------------------------------------------------- running
