@@ -118,11 +118,20 @@ def _design_broken(error_model: ErrorModel, lost: list[int], free_ref: np.ndarra
     return False
 
 
+def refuse_radians(data: Dataset, model) -> None:
+    """InsufficientData (exit 3) when ``data``'s joints look like radians
+    (:func:`looks_like_radians`) for ``model``."""
+    if looks_like_radians(data.q, model.limits_rad()):
+        raise InsufficientData(
+            f"{data.source}: every joint value lies within ±{RADIANS_MAX:.2f}: they look like "
+            f"radians, but q1..q{model.n_joints} are degrees (docs/formats.md §1); convert "
+            "them (deg = rad × 180/π) and run again")
+
+
 def check_for_fit(error_model: ErrorModel, data: Dataset) -> DataVerdict:
     """Raise :class:`InsufficientData` when ``data`` cannot identify ``error_model`` (see the
     module docstring); else what was found (with notes on marginal data)."""
     src = data.source
-    n_joints = error_model.model.n_joints
     if data.n and bool(np.all(data.is_valid)):
         raise InsufficientData(
             f"{src}: no calibration poses: all {data.n} rows are set=valid (validation); "
@@ -130,11 +139,7 @@ def check_for_fit(error_model: ErrorModel, data: Dataset) -> DataVerdict:
     calib = data.calib() if data.is_valid.any() else data
     if calib.n == 0:
         raise InsufficientData(f"{src}: no calibration poses")
-    if looks_like_radians(calib.q, error_model.model.limits_rad()):
-        raise InsufficientData(
-            f"{src}: every joint value lies within ±{RADIANS_MAX:.2f}: they look like radians, "
-            f"but q1..q{n_joints} are degrees (FORMATS.md §1); convert them "
-            "(deg = rad × 180/π) and run again")
+    refuse_radians(calib, error_model.model)
     n_distinct = distinct_poses(calib.q)
     prepared = error_model.prepare(data)
     calib_p = prepared.calib() if prepared.is_valid.any() else prepared

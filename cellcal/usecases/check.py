@@ -20,8 +20,7 @@ import numpy as np
 from pydantic import Field
 
 from calibration.data.capture_meta import CaptureMeta
-from calibration.errors import InsufficientData
-from calibration.fit.data_quality import RADIANS_MAX, looks_like_radians
+from calibration.fit.data_quality import refuse_radians
 from calibration.fit.model_check import FrameVerdict, ModelCheck, base_effect, check_model
 from calibration.fit.model_check import frame_change as compare_frames
 
@@ -103,11 +102,7 @@ def check(request: CheckRequest, *, on_note: Callable[[str], None] | None = None
     data = load_csv(request.data, em.model)
     if request.sigma is not None:
         data = data.with_tracker_sigma(request.sigma)
-    if looks_like_radians(data.q, em.model.limits_rad()):
-        raise InsufficientData(
-            f"{data.source}: every joint value lies within ±{RADIANS_MAX:.2f}: they look like "
-            f"radians, but q1..q{em.model.n_joints} are degrees (FORMATS.md §1); convert them "
-            "(deg = rad × 180/π) and run again")
+    refuse_radians(data, em.model)
     calibration = capture_of(doc)
     notes += _tool_notes(calibration, data.capture, request.params)
     frame = compare_frames(calibration, data.capture)

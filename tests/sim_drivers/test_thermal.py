@@ -88,12 +88,15 @@ def test_sim_url_thermal_option():
     inprocess.reset_cells()
     try:
         robot = open_robot("sim://robot?model=ur10e&seed=8&thermal=cold")
+        robot.connect()
         assert isinstance(robot, JointTemperatures)
         assert robot.joint_temperatures() == (20.0,) * 6
         plain = open_robot("sim://robot?model=ur10e&seed=9")
+        plain.connect()
         assert plain.joint_temperatures() == (20.0,) * 6  # the air's, constant
         inprocess.get_cell("quiet", 9, "ur10e", joint_temps=False)
         quiet = open_robot("sim://robot?name=quiet&seed=9")
+        quiet.connect()
         with pytest.raises(CommandRejected, match="no joint temperatures"):
             quiet.joint_temperatures()
         with pytest.raises(ValueError, match="thermal=hot: expected cold or warm"):
