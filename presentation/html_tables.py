@@ -204,6 +204,7 @@ def blunders_section(screens: list[tuple[str, BlunderScreen]],
     verdict = html.escape(screens[-1][1].message("fit", list_points=False))
     if not named:
         return head + f'<p id="blunders-none">{verdict}</p>' + ref
+    verdict += _earlier_sentence(screens, named)
     everywhere = [label for label, _ in screens]
     rows = []
     for pid, b in named.items():
@@ -226,6 +227,25 @@ def blunders_section(screens: list[tuple[str, BlunderScreen]],
         "<tr><th>pose</th><th>line</th><th>residual, mm</th><th>× threshold</th>"
         "<th>beam</th><th>angle to beam, °</th><th>left out of</th></tr>"
         f"{''.join(rows)}</table></div>{ref}")
+
+
+def _earlier_sentence(screens: list[tuple[str, BlunderScreen]], named: dict) -> str:
+    """The verdict is the last screen's (the fit the diagnosis looks at); the table lists
+    every screen's blunders. A pose only an earlier fit named is said to be so, so that the
+    sentence and the table agree (``No measurement is out of line`` above a table that
+    lists one would contradict it)."""
+    last = screens[-1][1]
+    last_ids = {b.pose_id for b in last.blunders}
+    earlier = [pid for pid in named if pid not in last_ids]
+    if not earlier:
+        return ""
+    who = sorted({label for label, sc in screens[:-1] for b in sc.blunders
+                  if b.pose_id in earlier}, key=[label for label, _ in screens].index)
+    it = "it" if len(earlier) == 1 else "them"
+    return html.escape(
+        f" The table also lists {', '.join(earlier)}: only the fit of {' and of '.join(who)} "
+        f"left {it} out (out of line with a model that still lacked an effect); the last "
+        f"fit keeps {it}.")
 
 
 def _value_std(value: float, std: float | None) -> tuple[str, str]:

@@ -15,6 +15,7 @@ from calibration.diagnosis.orientation_blindness import Blindness
 from calibration.diagnosis.orientation_view import orientation_view
 from calibration.exports.params_io import params_by_name, solver_summary
 from calibration.fit.identify import Fit
+from calibration.fit.model_check import ModelCheck
 from calibration.fit.uncertainty import MonteCarlo, correlations
 from calibration.zero_point import ZeroResult, assess
 
@@ -94,12 +95,18 @@ def orientation_summary(fit: Fit) -> dict | None:
     return {**view.to_json(), "noise_floor_deg": orientation_floor_deg(fit)}
 
 
-def diagnosis_summary(diag: Diagnosis) -> dict:
+def diagnosis_summary(diag: Diagnosis, given: ModelCheck | None = None,
+                      params: str | None = None) -> dict:
     """The ``diagnose --json`` object: :meth:`Diagnosis.to_json` and, when the data have
     orientations, an ``orientation`` object beside it: :func:`orientation_summary` with
     the flange axes ranked (largest RMS first) and the error rows of the calibration and
-    validation poses (rms, mean, max, deg)."""
+    validation poses (rms, mean, max, deg). With ``--params``, ``given``: the given
+    model's own error on the calibration poses, nothing refitted (``rms_mm`` is then of a
+    refit: ``refitted`` true)."""
     out = diag.to_json()
+    if given is not None:
+        out["given"] = {"params_file": params, **given.stats}
+        out["refitted"] = True
     orientation = orientation_summary(diag.fit)
     if orientation is not None:
         axes = sorted(orientation["axis_rms_deg"].items(), key=lambda kv: -kv[1])

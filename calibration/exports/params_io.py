@@ -285,10 +285,32 @@ def read_outliers(source: str | Path | dict) -> list[dict]:
     return list(out) if isinstance(out, list) else []
 
 
-def capture_of(path: str | Path) -> CaptureMeta:
-    """The ``capture`` metadata of a params.json (empty when it has none)."""
+def read_stats(source: str | Path | dict) -> dict:
+    """The ``stats`` of a params.json (a path or its mapping): its calibration's own error
+    on its calibration rows (``calib``) and validation rows (``valid``, when it had some),
+    each as :func:`~calibration.fit.identify.error_stats` wrote it; {} when absent."""
+    data = source if isinstance(source, dict) else _read_json(source)
+    out = data.get("stats") if isinstance(data, dict) else None
+    if not isinstance(out, dict):
+        return {}
+    return {k: v for k, v in out.items() if k in ("calib", "valid") and isinstance(v, dict)}
+
+
+def read_document(path: str | Path) -> dict:
+    """The JSON document of a params.json as read (the size limit, UTF-8, JSON syntax:
+    ParamsError naming the file otherwise); :func:`read_params` checks its contents."""
+    data = _read_json(path)
+    if not isinstance(data, dict):
+        raise ParamsError(f"{path}: not a cellcal params file (a JSON object expected)")
+    return data
+
+
+def capture_of(path: str | Path | dict) -> CaptureMeta:
+    """The ``capture`` metadata of a params.json (a path or its mapping; empty when it has
+    none or it is malformed)."""
     try:  # read as the parameters are (size limit, UTF-8); ParamsError is a ValueError
-        return CaptureMeta.from_json(_read_json(path).get("capture"))
+        doc = path if isinstance(path, dict) else _read_json(path)
+        return CaptureMeta.from_json(doc.get("capture"))
     except (ValueError, TypeError, AttributeError):
         return CaptureMeta()
 
@@ -509,6 +531,7 @@ def write_zero_update(params_path: str | Path, out: str | Path,
 
 
 __all__ = ["FORMAT", "VERSION", "LoadedParams", "ParamsError", "auto_steps_json", "capture_of",
-           "fit_to_dict", "load_params", "params_by_name", "params_from_dict", "params_json",
-           "read_auto_steps", "read_outliers", "read_params", "save_params", "solver_summary",
-           "with_zero_offsets", "write_zero_update"]
+           "fit_to_dict", "load_params", "params_by_name", "params_from_dict",
+           "params_from_doc", "params_json", "read_auto_steps", "read_document", "read_outliers",
+           "read_params", "read_stats", "save_params", "solver_summary", "with_zero_offsets",
+           "write_zero_update"]

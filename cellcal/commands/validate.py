@@ -77,7 +77,7 @@ def _run(args, run_log) -> int:
     from ..usecases.capture import CaptureArgs
     from ..usecases.validate import ValidateRequest, validate
     from .capture import print_dry_run
-    from .common import print_json
+    from .common import print_json, print_note
     from .run_outcome import with_progress
 
     request = ValidateRequest.from_args(args)
@@ -95,6 +95,8 @@ def _run(args, run_log) -> int:
         return failed
     if done.result.outcome is None:
         print_dry_run(done.result, args.json)
+        for note in done.notes:  # what will not run, the thermal state, the frame
+            print_note(note)
         return 0
     out = done.result.outcome.to_json()
     summary = out.get("summary") or {}

@@ -23,6 +23,7 @@ import numpy as np
 from calibration.compensation.controller_joints import ControllerJoints, controller_joints
 from calibration.compensation.pose_compensation import neighbour_seeds
 from calibration.files import read_input, write_atomic
+from calibration.fit.thermal_state import target_state
 
 from . import krl, urscript
 from .poses import T_to_krl, T_to_ur, krl_to_T, ur_to_T
@@ -64,6 +65,9 @@ class Options:
     payload_kg: float | None = None
     tools: dict[int, tuple] = field(default_factory=dict)
     bases: dict[int, tuple] = field(default_factory=dict)
+    #: the calibration's thermal record (params.json ``thermal``): a program gives no joint
+    #: temperatures nor times, so a drift effect is compensated at its warm state
+    thermal: dict | None = None
 
 
 def language_of(path: str | Path, language: str | None = None) -> Dialect:
@@ -128,6 +132,9 @@ class Solved:
     measured: np.ndarray
     joints: ControllerJoints | None
     refusals: list[Refusal]
+    #: the thermal state compensated for (:func:`calibration.fit.thermal_state.target_state`),
+    #: None for a model without drift effects
+    thermal: dict | None = None
 
 
 def solve(program: Program, dialect: Dialect, error_model, x, options: Options, *,
@@ -168,10 +175,13 @@ def solve(program: Program, dialect: Dialect, error_model, x, options: Options, 
     payload = [t.payload_kg if t.payload_kg is not None else options.payload_kg for t in use]
     if any(p is not None for p in payload):
         columns["payload_kg"] = np.array([0.0 if p is None else p for p in payload])
+    # a drift effect's joint temperatures and time: the calibration's warm state (a program
+    # runs on a robot that has warmed up), as for a targets CSV without them
+    columns, thermal = target_state(error_model, options.thermal, columns, n)
     cj = controller_joints(error_model, x, joints, pose=pose, is_pose=is_pose,
                            flange_T_tcp=tcp, measured=measured, columns=columns,
                            geometric=geometric)
-    return Solved(use, base, tcp, measured, cj, refusals)
+    return Solved(use, base, tcp, measured, cj, refusals, thermal)
 
 
 def tcp_notes(solved: Solved, model) -> list[str]:
@@ -235,8 +245,13 @@ def compensate_program(path: str | Path, error_model, x, out: str | Path, *,
     solved = solve(program, dialect, error_model, x, options or Options())
     new, rows, refused = corrections(solved, dialect)
     refusals = sorted(program.refusals + refused, key=lambda r: r.line)
+    notes = program.notes + tcp_notes(solved, error_model.model)
+    if solved.thermal is not None:
+        from presentation.thermal_text import state_line
+
+        notes.append(f"thermal: {state_line(solved.thermal)}")
     report = ProgramReport(str(path), str(out), dialect.name, len(program.targets), rows,
-                           refusals, program.notes + tcp_notes(solved, error_model.model))
+                           refusals, notes)
     if not refusals or allow_partial:
         text = dialect.rewrite(program, new)
         write_atomic(out, text.encode("utf-8", "surrogateescape"))

@@ -73,7 +73,8 @@ def compensate_program(request: ProgramRequest) -> ProgramReport:
     loaded = read_params(request.params)
     em, x = loaded.error_model, loaded.values
     options = program_options(em, frames=request.frames, start_deg=request.start,
-                              temp_c=request.temp_c, payload_kg=request.payload_kg)
+                              temp_c=request.temp_c, payload_kg=request.payload_kg,
+                              thermal=loaded.thermal)
     return program_filter.compensate_program(
         request.program, em, x, request.out, allow_partial=request.allow_partial,
         language=dialect.name, options=options)

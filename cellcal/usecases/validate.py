@@ -27,10 +27,12 @@ from calibration.compensation.controller_joints import controller_joints
 from calibration.compensation.pose_compensation import NominalTcpFK, as_poses
 from calibration.effects import load_effect_file
 from calibration.exports.params_io import read_params
+from calibration.fit.thermal_state import target_state
 from daq.sight import frame_from_store
 
 from ..errors import UsageError
 from ..programs import compensate as program_filter
+from ..programs.targets import ProgramError
 from ..request import Request
 from .capture import CaptureArgs, capture
 from .program_inputs import program_options
@@ -63,14 +65,20 @@ class Validation:
     notes: list[str] = field(default_factory=list)
 
 
-def _waypoints_of_program(request: ValidateRequest, em, x, variants):
+def _waypoints_of_program(request: ValidateRequest, em, x, variants, thermal):
     dialect = program_filter.language_of(request.program, request.language)
     program = program_filter.read_program(request.program, dialect)
+    if program.compensated_at is not None:  # its "compensated" variant: compensated twice
+        raise ProgramError(f"{request.program}: line {program.compensated_at}: this program "
+                           "was compensated already (a 'cellcal:' comment); validate the "
+                           "original: it runs it as written and compensated")
     options = program_options(em, frames=request.frames, start_deg=request.start,
-                              temp_c=request.temp_c, payload_kg=request.payload_kg)
+                              temp_c=request.temp_c, payload_kg=request.payload_kg,
+                              thermal=thermal)
     solved = program_filter.solve(program, dialect, em, x, options,
                                   geometric="geometric" in variants)
     notes = [f"not run: {r}" for r in program.refusals + solved.refusals]
+    notes += _thermal_notes(solved.thermal)
     if solved.joints is None:
         return [], notes
     labels = [f"L{t.line}" + (f".{k}" if sum(u.line == t.line for u in solved.targets) > 1
@@ -91,18 +99,28 @@ def _smr_targets(em, x, target, tcp, measured) -> np.ndarray:
                     flange[:, :3, :3] @ p_smr + flange[:, :3, 3])
 
 
-def _waypoints_of_csv(request: ValidateRequest, em, x, variants):
+def _waypoints_of_csv(request: ValidateRequest, em, x, variants, thermal):
     t = load_targets(request.targets, em.model)
     if t.q is None:
         raise UsageError(f"{request.targets}: validate needs q1..q{em.model.n_joints} (the "
                          "nominal joints of each target: where the controller's solution is)")
     r = NominalTcpFK(em.model, em.model.tool_mm()).chain(t.q)
     pose = as_poses(t.base_p_tcp, r.base_R_flange)
+    columns, state = target_state(em, thermal, t.columns, len(t.q))
     cj = controller_joints(em, x, t.q, pose=pose, is_pose=np.ones(len(t.q), bool),
-                           measured=True, columns=t.columns,
+                           measured=True, columns=columns,
                            geometric="geometric" in variants)
     return _rows(cj, list(t.pose_id), [None] * len(t.q), variants,
-                 cj.compensation.target[:, :3, 3]), []
+                 cj.compensation.target[:, :3, 3]), _thermal_notes(state)
+
+
+def _thermal_notes(state: dict | None) -> list[str]:
+    """The thermal state compensated for (a model with drift effects), as a note."""
+    if state is None:
+        return []
+    from presentation.thermal_text import state_line
+
+    return [f"thermal: compensated for {state_line(state)}"]
 
 
 def _rows(cj, labels, lines, variants, smr) -> list[dict]:
@@ -138,7 +156,7 @@ def validate(request: ValidateRequest, capture_args: CaptureArgs, **run_options
                          "frame` into it first, or give --frame-run RUN")
     variants = capture_args.params["variants"]
     rows, notes = (_waypoints_of_program if request.program else _waypoints_of_csv)(
-        request, em, x, variants)
+        request, em, x, variants, loaded.thermal)
     notes += [f"not run: {w['label']}: a controller variant does not reach it"
               for w in rows if not w["reached"]]
     rows = [{k: v for k, v in w.items() if k != "reached"} for w in rows if w["reached"]]

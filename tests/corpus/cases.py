@@ -401,6 +401,8 @@ def build_cases() -> list[Case]:
                            [("--max-steps", ["0"]), ("--budget-s", ["nan", "-1"])])
     # a params.json recording a user effect: loading it needs --effect-file, same hash
     cases += _effect_record_cases()
+    cases += _check_cases(csv_m, params_v, model_v)
+    cases += _issue36_cases()
 
     # ---- zero: postures CSV, model, params, replay, store
     post_v = I.csv_variants("postures.csv", measurement=False, cols=("q4", "q2", "q3"))
@@ -829,6 +831,107 @@ def _effect_record_cases() -> list[Case]:
              r"sha256|changed|differs", [write("pe.json", make), changed]),
         Case("compensate", "effect_record:ok", [*argv, "--effect-file", "effect.py"], 0, "",
              [write("pe.json", make)]),
+    ]
+
+
+#: ``check`` evaluates the given model on any number of poses (no fit): data too few or too
+#: alike to calibrate, or all marked valid, are checked; radians are still refused
+CHECK_CSV = {**BAD_FILE_CSV, "one_pose": (0, ""), "five_poses": (0, ""),
+             "eight_poses": (0, ""), "identical_100": (0, ""), "all_valid": (0, "")}
+
+
+def _without_base(ws: Path) -> str:
+    """params.json without its base effect (and its parameters): a calibration in the
+    robot's own frame."""
+    import json
+
+    d = json.loads((ws / "params.json").read_text())
+    d["effects"] = [e for e in d["effects"] if e != "base"]
+    d["parameters"] = [p for p in d["parameters"] if not p["name"].startswith("base.")]
+    return json.dumps(d, indent=1)
+
+
+def _check_cases(csv_m, params_v, model_v) -> list[Case]:
+    """``check``: the new poses' CSV, the params.json, the model, effect files, numbers,
+    the run store of ``--db`` and the flags that need another."""
+    argv = ["check", "{DATA}", "--params", "params.json", "--model", "ur5"]
+    good = ["check", "good.csv", "--params", "params.json", "--model", "ur5"]
+    cases = _file_cases("check", argv, "{DATA}", csv_m, CHECK_CSV, src="good.csv")
+    cases += _path_cases("check", argv, "{DATA}", "good.csv")
+    cases += _special_file_cases("check", argv, "{DATA}")
+    pargv = ["check", "good.csv", "--model", "ur5", "--params", "{PARAMS}"]
+    cases += _file_cases("check", pargv, "{PARAMS}", params_v, PARAMS, src="params.json")
+    cases += _path_cases("check", pargv, "{PARAMS}", "params.json")[:3]
+    margv = ["check", "good.csv", "--params", "params.json", "--model", "{MODEL}"]
+    cases += _file_cases("check", margv, "{MODEL}", model_v, MODEL | {"seven_joints": (
+        2, r"q7|joints")}, src="model.yaml")
+    cases += _path_cases("check", margv, "{MODEL}", "model.yaml")[:3]
+    for name, body in I.effect_file_variants().items():
+        fname = f"e_{name}.py"
+        cases.append(Case("check", f"effect_file:{name}", [*good, "--effect-file", fname], 2,
+                          EFFECT_FILE[name], [write(fname, body)]))
+    cases += _number_cases("check", good, [
+        ("--sigma", ["nan", "-1", "0", "inf", "abc"]),
+        ("--tolerance-mm", ["0", "-1", "nan", "inf", "abc"])])
+    cases += _store_cases("check", [*good, "--db", "{DB}", "--robot-id", "R1"], ok=False,
+                          skip=("missing", "empty"))
+    cases += [
+        Case("check", "robot_id_without_db", [*good, "--robot-id", "R1"], 2,
+             r"--robot-id needs --db"),
+        Case("check", "db_without_robot", [*good, "--db", "new.db"], 2,
+             r"good\.csv.*name no robot.*--robot-id"),
+        Case("check", "no_params", ["check", "good.csv", "--model", "ur5"], 2, r"--params"),
+        Case("check", "refit_base_without_base",
+             ["check", "good.csv", "--params", "nobase.json", "--refit-base"], 2,
+             r"--refit-base.*nobase\.json.*no base effect", [write("nobase.json", _without_base)]),
+        Case("check", "refit_base_one_pose", ["check", "x_one_pose.csv", "--params",
+                                              "params.json", "--model", "ur5", "--refit-base"],
+             3, r"x_one_pose\.csv.*at least three points",
+             [write("x_one_pose.csv", csv_m["one_pose"])]),
+        Case("check", "ok_tolerance_met", [*good, "--tolerance-mm", "1000"], 0, ""),
+        Case("check", "tolerance_exceeded", [*good, "--tolerance-mm", "0.001"], 1,
+             r"BEYOND"),
+        Case("check", "ok_recorded", [*good, "--db", "new.db", "--robot-id", "R1"], 0, "",
+             creates=("new.db",)),
+    ]
+    return cases
+
+
+def _one_joint_with_temps(ws: Path) -> str:
+    """good.csv with only joint 1 moving (a rank-deficient design) and the joints'
+    temperatures of a controller that reports them (``joint_temp1..6``)."""
+    lines = (ws / "good.csv").read_text().splitlines()
+    meta = [ln for ln in lines if ln.startswith("#")]
+    head, *rows = [ln for ln in lines if not ln.startswith("#")]
+    cols = head.split(",")
+    first = rows[0].split(",")
+    out = [head + "," + ",".join(f"joint_temp{j}" for j in range(1, 7))]
+    for row in rows:
+        f = row.split(",")
+        for c in ("q2", "q3", "q4", "q5", "q6"):
+            f[cols.index(c)] = first[cols.index(c)]
+        out.append(",".join(f) + ",20.5,21,21.5,22,22.5,23")
+    return "\n".join(meta + out) + "\n"
+
+
+def _issue36_cases() -> list[Case]:
+    """Issue 36's seams: a rank-deficient capture with joint temperatures (its data check
+    was skipped), a params.json naming the model of data that name none, a compensated
+    program given to validate (program_cases)."""
+    return [
+        Case("calibrate", "seam:rank_deficient_with_joint_temps",
+             ["calibrate", "rank.csv", "--model", "ur5"], 3, r"rank\.csv.*rank-deficient design",
+             [write("rank.csv", _one_joint_with_temps)]),
+        Case("diagnose", "seam:rank_deficient_with_joint_temps",
+             ["diagnose", "rank.csv", "--model", "ur5"], 3, r"rank\.csv.*rank-deficient design",
+             [write("rank.csv", _one_joint_with_temps)]),
+        Case("calibrate", "seam:params_name_the_model",
+             ["calibrate", "good.csv", "--params", "params.json"], 0, ""),
+        Case("diagnose", "seam:params_name_the_model",
+             ["diagnose", "good.csv", "--params", "params.json", "--top", "3"], 0, "",
+             slow=True),
+        Case("check", "seam:params_name_the_model", ["check", "good.csv", "--params",
+                                                     "params.json"], 0, ""),
     ]
 
 

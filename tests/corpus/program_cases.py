@@ -76,6 +76,11 @@ def program_cases() -> list[Case]:
         Case("compensate", "program:thermal_without_temp", [*comp[:2], "thermal.json",
                                                            *comp[3:]], 2, r"--temp-c",
              [prog, write("thermal.json", _thermal_params)], creates=made),
+        # issue 36: a program gives no joint temperatures: the calibration's warm state
+        Case("compensate", "seam:program_at_the_warm_state", [*comp[:2], "warm.json",
+                                                              *comp[3:]], 0,
+             r"thermal: joints 24\.0–27\.5 °C: the calibration's warm state",
+             [prog, write("warm.json", _warm_params)], creates=made),
     ]
     cases += _number_cases("compensate", comp, [
         ("--temp-c", ["nan", "inf"]), ("--payload-kg", ["nan", "-1"]),
@@ -114,6 +119,20 @@ def _thermal_params(ws) -> str:
     return json.dumps(doc)
 
 
+def _warm_params(ws) -> str:
+    """params.json with thermal growth over the joints' temperatures and the warm state it
+    was fitted against (the workspace's, one effect and the ``thermal`` record more)."""
+    import json
+
+    doc = json.loads((ws / "params.json").read_text())
+    doc["effects"] = [*doc["effects"], "thermal_growth"]
+    doc["parameters"].append({"name": "thermal_growth.k", "value": 1.5e-5, "std": 1e-6,
+                              "unit": "1/K", "identifiable": True, "weak": None})
+    doc["thermal"] = {"version": 1, "temp_ref_c": 20.0,
+                      "warm_state": {"joint_temp_c": [26.0, 27.5, 27.0, 25.0, 24.5, 24.0]}}
+    return json.dumps(doc)
+
+
 def validate_cases(prog) -> list[Case]:
     """``validate``: refused before any device is opened (no robot moves in the corpus)."""
     devices = ["--robot", "socket://127.0.0.1:9", "--tracker", "tracker+tcp://127.0.0.1:9"]
@@ -136,10 +155,9 @@ def validate_cases(prog) -> list[Case]:
         Case("validate", "variants:twice", [*new, "--variants", "compensated,compensated"], 2,
              r"--variants", [prog]),
     ]
-    for name, (body, msg) in PROGRAMS.items():
-        if name != "compensated_already":
-            cases.append(Case("validate", f"program:{name}", val, 2, msg,
-                              [write("prog.script", body)]))
+    for name, (body, msg) in PROGRAMS.items():  # a compensated one too (issue 36: its
+        cases.append(Case("validate", f"program:{name}", val, 2, msg,  # "compensated" variant
+                          [write("prog.script", body)]))  # would be compensated twice)
     cases += _number_cases("validate", val, [("--temp-c", ["nan"])])
     cases[-1].setup.insert(0, prog)
     return cases
