@@ -31,6 +31,7 @@ from .diagnosis.auto_diagnosis import AutoDiagnosis, auto_diagnose, explain_effe
 from .diagnosis.diagnosis import Diagnosis, diagnose
 from .effects import DEFAULT_EFFECTS
 from .exports.params_io import ParamsError, read_auto_steps, read_params
+from .fit.envelope import identify_supported
 from .fit.error_model import ErrorModel
 from .fit.full_pose import for_data
 from .fit.identify import Fit, fit_at, identify
@@ -71,7 +72,9 @@ def current_fit(model: RobotModel, data: Dataset, effects: str = DEFAULT_EFFECTS
     through.
     """
     if params is None:
-        return identify(ErrorModel(model, effects), data, solver)
+        fit, notes = identify_supported(ErrorModel(model, effects), data, solver)
+        fit.notes.extend(notes)
+        return fit
     notes: list[str] = []
     if isinstance(params, (str, Path)):
         loaded = read_params(params, model=model)
