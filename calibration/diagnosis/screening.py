@@ -108,29 +108,146 @@ def kfold_errors(fit: Fit, folds: int = 10, seed: int = 0) -> np.ndarray:
     """Squared 3-D error (mm²) of every calibration pose when predicted by the fit refitted
     without its fold (``folds`` folds, poses assigned at random with ``seed``), on the
     problem linearised at the fit (penalties included), shape (n,)."""
-    import scipy.linalg  # here: scipy's import is half of `cellcal calibrate`'s start-up
-
-    em, x, free = fit.error_model, fit.values, fit.free
-    calib = fit.data
-    n, m = calib.n, int(free.sum())
-    P, J = em.evaluate(x, em.bind(calib), jacobian=True)
-    X = J[:, :, free].reshape(n, 3, m)
-    r = calib.tracker_p_smr - P
-    A = np.einsum("nim,nik->mk", X, X)
-    b = np.einsum("nim,ni->m", X, r)
-    pen = em.penalty(x)
-    if pen is not None:
-        Pf = pen[1][:, free]
-        A = A + Pf.T @ Pf
-        b = b - Pf.T @ pen[0]
+    lp = _LinearProblem(fit)
+    n = lp.n
     fold_of = np.random.default_rng(seed).permutation(n) % max(2, min(folds, n))
     sq = np.zeros(n)
     for f in np.unique(fold_of):
         te = fold_of == f
-        Xt, rt = X[te].reshape(-1, m), r[te].ravel()
-        Af, bf = A - Xt.T @ Xt, b - Xt.T @ rt
+        sq[te] = lp.heldout_sq(te)
+    return sq
+
+
+#: the share of the calibration poses at each end of a joint's range that a range-blocked
+#: fold leaves out (:func:`blocked_errors`)
+BLOCK_SHARE = 0.1
+#: a joint whose calibration angles span less than this (deg) has no range-blocked folds
+MIN_BLOCK_SPAN_DEG = 10.0
+
+
+def range_blocks(data, share: float = BLOCK_SHARE) -> list[tuple[str, np.ndarray]]:
+    """The range-blocked folds of ``data``'s rows: for each joint whose angles span at least
+    :data:`MIN_BLOCK_SPAN_DEG`, the ``share`` of the poses at the low end of its range and
+    the ``share`` at the high end, as (name ``q2<`` / ``q2>``, (n,) bool)."""
+    out = []
+    deg = np.degrees(data.q)
+    for j in range(deg.shape[1]):
+        t = deg[:, j]
+        if np.ptp(t) < MIN_BLOCK_SPAN_DEG:
+            continue
+        lo, hi = np.quantile(t, [share, 1.0 - share])
+        out += [(f"q{j + 1}<", t <= lo), (f"q{j + 1}>", t >= hi)]
+    return out
+
+
+def blocked_errors(fit: Fit, share: float = BLOCK_SHARE) -> tuple[np.ndarray, np.ndarray]:
+    """Squared 3-D error (mm²) of the calibration poses at either end of each joint's range
+    when predicted by the fit refitted without them (:func:`range_blocks`), on the problem
+    linearised at the fit: what the model does just beyond the angles it was fitted to.
+
+    In a fold, every table holds only the knots the remaining poses support
+    (``Table.knot_support``), its value beyond them that of its last supported knot, as a
+    table fitted to those poses would (the knots beyond are tied to it). Returns (squared
+    errors, labels ``"<pose_id>|q2>"``), one per pose and fold that holds it out."""
+    lp = _LinearProblem(fit)
+    sq, labels = [], []
+    ids = np.asarray(fit.data.pose_id, dtype=object)
+    for name, te in range_blocks(fit.data, share):
+        if te.all() or not te.any():
+            continue
+        sq.append(lp.heldout_sq(te, tie=True))
+        labels.append(np.array([f"{p}|{name}" for p in ids[te]], dtype=object))
+    if not sq:
+        return np.zeros(0), np.zeros(0, dtype=object)
+    return np.concatenate(sq), np.concatenate(labels)
+
+
+class _LinearProblem:
+    """A fit's calibration problem linearised at its parameters (penalties included): the
+    normal equations ``A δ = b`` over the free parameters, from which a fold's refit is
+    ``A - X_tᵀ X_t``, ``b - X_tᵀ r_t``."""
+
+    def __init__(self, fit: Fit):
+        em, x, free = fit.error_model, fit.values, fit.free
+        calib = fit.data
+        self.fit, self.n, self.m = fit, calib.n, int(free.sum())
+        P, J = em.evaluate(x, em.bind(calib), jacobian=True)
+        self.X = J[:, :, free].reshape(self.n, 3, self.m)
+        self.r = calib.tracker_p_smr - P
+        self.A = np.einsum("nim,nik->mk", self.X, self.X)
+        self.b = np.einsum("nim,ni->m", self.X, self.r)
+        pen = em.penalty(x)
+        if pen is not None:
+            Pf = pen[1][:, free]
+            self.A = self.A + Pf.T @ Pf
+            self.b = self.b - Pf.T @ pen[0]
+
+    def heldout_sq(self, te: np.ndarray, tie: bool = False) -> np.ndarray:
+        """Squared errors of the poses ``te`` predicted by the refit without them; ``tie``:
+        the tables' unsupported end knots tied to their last supported one."""
+        import scipy.linalg  # here: scipy's import is half of `cellcal calibrate`'s start-up
+
+        m = self.m
+        Xt, rt = self.X[te].reshape(-1, m), self.r[te].ravel()
+        Af, bf = self.A - Xt.T @ Xt, self.b - Xt.T @ rt
+        T, c = self._ties(~te) if tie else (None, None)
+        if T is not None:
+            Af, bf = T.T @ Af @ T, T.T @ (bf - Af @ c)
         d = np.sqrt(np.maximum(np.diag(Af), 1e-300))
         L = cholesky_nudged(Af / np.outer(d, d))
         delta = scipy.linalg.cho_solve((L, True), bf / d, check_finite=False) / d
-        sq[te] = np.sum((rt - Xt @ delta).reshape(-1, 3) ** 2, axis=1)
-    return sq
+        if T is not None:
+            delta = T @ delta + c
+        return np.sum((rt - Xt @ delta).reshape(-1, 3) ** 2, axis=1)
+
+    def _ties(self, keep: np.ndarray):
+        """(T (m, m'), c (m,)): the free parameters' step δ = T δ' + c under which each
+        table is constant beyond the knots the poses ``keep`` support (every knot beyond
+        ends at its edge knot's value; where one of them is held, at the held value). None
+        when no knot is tied."""
+        fit = self.fit
+        em, x, free = fit.error_model, fit.values, fit.free
+        pos = np.cumsum(free) - 1  # full index -> free column
+        keep_col = free.copy()
+        T_rows: dict[int, int] = {}  # free column of a tied knot -> leader's full index
+        c = np.zeros(len(x))
+        tied = False
+        for e, sl in zip(em.effects, em.slices, strict=True):
+            if not hasattr(e, "knot_support"):
+                continue
+            ok = e.knot_support(fit.data.q[keep, e.joint - 1])
+            idx = np.flatnonzero(ok)
+            if idx.size == 0:
+                continue
+            K = e.n_params
+            for edge, beyond in ((idx[0], range(0, idx[0])), (idx[-1], range(idx[-1] + 1, K))):
+                group = [sl.start + k for k in beyond]
+                if not group:
+                    continue
+                tied = True
+                lead = sl.start + int(edge)
+                members = [lead, *group]
+                held = [k for k in members if not free[k]]
+                if held:  # the group ends at the held value: its free members are set
+                    for k in members:
+                        if free[k]:
+                            c[k] = x[held[0]] - x[k]
+                            keep_col[k] = False
+                else:
+                    for k in group:
+                        c[k] = x[lead] - x[k]
+                        keep_col[k] = False
+                        T_rows[k] = lead
+        if not tied:
+            return None, None
+        cols = np.flatnonzero(keep_col)  # full indices of the remaining free parameters
+        col_of = {k: i for i, k in enumerate(cols)}
+        T = np.zeros((self.m, cols.size))
+        for k in cols:
+            T[pos[k], col_of[k]] = 1.0
+        for k, lead in T_rows.items():
+            if lead in col_of:
+                T[pos[k], col_of[lead]] = 1.0
+            else:  # the leader is set itself (held by the other end's group)
+                c[k] += c[lead]
+        return T, c[free]

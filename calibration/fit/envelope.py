@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..errors import ParamsError
+from ..errors import OutsideEnvelope, ParamsError
 from .error_model import ErrorModel
 from .identify import error_stats, identify
 
@@ -193,17 +193,50 @@ class Envelope:
 
     def lines(self) -> list[str]:
         """The envelope in words, one quantity a line (deg, °C, s)."""
-        out = ["joints    " + ", ".join(f"q{j + 1} {lo:.1f}..{hi:.1f}"
-                                        for j, (lo, hi) in enumerate(self.joints_deg))
-               + " deg"]
+        out = [", ".join(f"q{j + 1} {lo:.1f}..{hi:.1f}"
+                         for j, (lo, hi) in enumerate(self.joints_deg)) + " deg"]
         if self.temp_c is not None:
-            out.append(f"temp_c    {self.temp_c[0]:.1f}..{self.temp_c[1]:.1f} °C")
+            out.append(f"temp_c {self.temp_c[0]:.1f}..{self.temp_c[1]:.1f} °C")
         if self.joint_temp_c is not None:
-            out.append("joint_temp " + ", ".join(f"{lo:.1f}..{hi:.1f}"
-                                                 for lo, hi in self.joint_temp_c) + " °C")
+            out.append(", ".join(f"joint_temp{j + 1} {lo:.1f}..{hi:.1f}"
+                                 for j, (lo, hi) in enumerate(self.joint_temp_c)) + " °C")
         if self.t_s is not None:
-            out.append(f"t_s       {self.t_s[1] - self.t_s[0]:.0f} s of capture")
+            out.append(f"t_s {self.t_s[0]:.0f}..{self.t_s[1]:.0f} s "
+                       f"({self.t_s[1] - self.t_s[0]:.0f} s of capture)")
         return out
+
+
+#: the per-pose quantities of a target an envelope checks (as in Targets.columns)
+_CHECKED = ("temp_c", "joint_temp", "t_s")
+
+
+def outside_envelope(envelope: Envelope | None, q: np.ndarray, columns: dict | None = None
+                     ) -> list[list[str]]:
+    """Per target, the quantities beyond ``envelope`` (``q2``, ``joint_temp3``, ``t_s``...;
+    empty inside): the joints ``q`` (rad, (n, N): those the robot will be sent) and the
+    thermal state the targets give (``columns``); all empty without an envelope."""
+    if envelope is None:
+        return [[] for _ in range(len(q))]
+    cols = {k: v for k, v in (columns or {}).items() if k in _CHECKED}
+    return envelope.outside_names(q, cols)
+
+
+def refuse_outside(outside: list[list[str]], labels: list[str], what: str, source: str
+                   ) -> None:
+    """Strict range: refuse (:class:`~calibration.errors.OutsideEnvelope`, exit 3) when any
+    target lies beyond the envelope, naming them (``labels``: one per target; ``what``:
+    "targets", "waypoints"; ``source``: the file)."""
+    bad = [i for i, names in enumerate(outside) if names]
+    if not bad:
+        return
+    rows = [f"{labels[i]}: {', '.join(outside[i])}" for i in bad[:10]]
+    more = f"; and {len(bad) - 10} more" if len(bad) > 10 else ""
+    raise OutsideEnvelope(
+        f"{source}: {len(bad)} of {len(outside)} {what} lie beyond the calibrated envelope "
+        f"(the ranges the calibration data covered): {'; '.join(rows)}{more}. Refused "
+        "(--strict-range): calibrate with data that cover them, or leave --strict-range out "
+        "to compensate them with the calibration held at its edge (flagged in "
+        "outside_range)")
 
 
 def data_columns(data: Dataset) -> dict:
