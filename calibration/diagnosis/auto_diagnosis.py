@@ -46,7 +46,14 @@ from ..effects.physical import derive_directions
 from ..effects.table import gcv_smoothing
 from ..fit.identify import Fit, identify
 from .diagnosis import ALPHA, MIN_HELDOUT, candidate_names
-from .screening import Screened, blocked_errors, kfold_errors, linearise, screen
+from .screening import (
+    Screened,
+    blocked_errors,
+    kfold_with,
+    linear_problem,
+    linearise,
+    screen,
+)
 
 
 @dataclass
@@ -223,14 +230,16 @@ def heldout_errors(fit: Fit, folds: int = 10, seed: int = 0, blocked: bool = Tru
     least :data:`MIN_HELDOUT`, else ``folds``-fold cross-validation of the linearised fit;
     with ``blocked`` also the range-blocked folds'
     (:func:`~calibration.diagnosis.screening.blocked_errors`)."""
+    lp = None
     if fit.valid is not None and fit.valid["n"] >= MIN_HELDOUT:
         ho = Heldout(np.sum(fit.valid_residuals**2, axis=1), "validation poses",
                      np.asarray(fit.valid_data.pose_id, dtype=object))
     else:
-        ho = Heldout(kfold_errors(fit, folds, seed), f"{folds}-fold cross-validation",
+        lp = linear_problem(fit)
+        ho = Heldout(kfold_with(lp, folds, seed), f"{folds}-fold cross-validation",
                      np.asarray(fit.data.pose_id, dtype=object))
     if blocked:
-        sq, labels = blocked_errors(fit)
+        sq, labels = blocked_errors(fit, lp=lp)
         if sq.size:
             ho.blocked = Heldout(sq, "range-blocked folds", labels)
     return ho

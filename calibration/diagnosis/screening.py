@@ -108,7 +108,11 @@ def kfold_errors(fit: Fit, folds: int = 10, seed: int = 0) -> np.ndarray:
     """Squared 3-D error (mm²) of every calibration pose when predicted by the fit refitted
     without its fold (``folds`` folds, poses assigned at random with ``seed``), on the
     problem linearised at the fit (penalties included), shape (n,)."""
-    lp = _LinearProblem(fit)
+    return kfold_with(_LinearProblem(fit), folds, seed)
+
+
+def kfold_with(lp: _LinearProblem, folds: int = 10, seed: int = 0) -> np.ndarray:
+    """:func:`kfold_errors` of a linearised fit (shared with :func:`blocked_errors`)."""
     n = lp.n
     fold_of = np.random.default_rng(seed).permutation(n) % max(2, min(folds, n))
     sq = np.zeros(n)
@@ -140,7 +144,8 @@ def range_blocks(data, share: float = BLOCK_SHARE) -> list[tuple[str, np.ndarray
     return out
 
 
-def blocked_errors(fit: Fit, share: float = BLOCK_SHARE) -> tuple[np.ndarray, np.ndarray]:
+def blocked_errors(fit: Fit, share: float = BLOCK_SHARE, lp: _LinearProblem | None = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
     """Squared 3-D error (mm²) of the calibration poses at either end of each joint's range
     when predicted by the fit refitted without them (:func:`range_blocks`), on the problem
     linearised at the fit: what the model does just beyond the angles it was fitted to.
@@ -148,8 +153,9 @@ def blocked_errors(fit: Fit, share: float = BLOCK_SHARE) -> tuple[np.ndarray, np
     In a fold, every table holds only the knots the remaining poses support
     (``Table.knot_support``), its value beyond them that of its last supported knot, as a
     table fitted to those poses would (the knots beyond are tied to it). Returns (squared
-    errors, labels ``"<pose_id>|q2>"``), one per pose and fold that holds it out."""
-    lp = _LinearProblem(fit)
+    errors, labels ``"<pose_id>|q2>"``), one per pose and fold that holds it out. ``lp``:
+    the fit linearised already (:func:`linear_problem`)."""
+    lp = _LinearProblem(fit, blas=True) if lp is None else lp
     sq, labels = [], []
     ids = np.asarray(fit.data.pose_id, dtype=object)
     for name, te in range_blocks(fit.data, share):
@@ -162,20 +168,32 @@ def blocked_errors(fit: Fit, share: float = BLOCK_SHARE) -> tuple[np.ndarray, np
     return np.concatenate(sq), np.concatenate(labels)
 
 
+def linear_problem(fit: Fit) -> _LinearProblem:
+    """``fit``'s calibration problem linearised (for :func:`kfold_with` and
+    :func:`blocked_errors` on one evaluation)."""
+    return _LinearProblem(fit)
+
+
 class _LinearProblem:
     """A fit's calibration problem linearised at its parameters (penalties included): the
     normal equations ``A δ = b`` over the free parameters, from which a fold's refit is
-    ``A - X_tᵀ X_t``, ``b - X_tᵀ r_t``."""
+    ``A - X_tᵀ X_t``, ``b - X_tᵀ r_t``. ``blas``: XᵀX as one matrix product (the k-fold
+    errors keep the per-pose sum they always had, to the last bit)."""
 
-    def __init__(self, fit: Fit):
+    def __init__(self, fit: Fit, blas: bool = False):
         em, x, free = fit.error_model, fit.values, fit.free
         calib = fit.data
         self.fit, self.n, self.m = fit, calib.n, int(free.sum())
         P, J = em.evaluate(x, em.bind(calib), jacobian=True)
         self.X = J[:, :, free].reshape(self.n, 3, self.m)
         self.r = calib.tracker_p_smr - P
-        self.A = np.einsum("nim,nik->mk", self.X, self.X)
-        self.b = np.einsum("nim,ni->m", self.X, self.r)
+        if blas:
+            X2 = self.X.reshape(-1, self.m)
+            self.A = X2.T @ X2
+            self.b = X2.T @ self.r.ravel()
+        else:
+            self.A = np.einsum("nim,nik->mk", self.X, self.X)
+            self.b = np.einsum("nim,ni->m", self.X, self.r)
         pen = em.penalty(x)
         if pen is not None:
             Pf = pen[1][:, free]
@@ -191,8 +209,13 @@ class _LinearProblem:
         Xt, rt = self.X[te].reshape(-1, m), self.r[te].ravel()
         Af, bf = self.A - Xt.T @ Xt, self.b - Xt.T @ rt
         T, c = self._ties(~te) if tie else (None, None)
-        if T is not None:
-            Af, bf = T.T @ Af @ T, T.T @ (bf - Af @ c)
+        if T is not None:  # T is a 0/1 matrix, one 1 a row at most: a sparse product
+            import scipy.sparse
+
+            Ts = scipy.sparse.csr_matrix(T)
+            bf = Ts.T @ (bf - Af @ c)
+            Af = Ts.T @ (Ts.T @ Af).T
+            Af = 0.5 * (Af + Af.T)
         d = np.sqrt(np.maximum(np.diag(Af), 1e-300))
         L = cholesky_nudged(Af / np.outer(d, d))
         delta = scipy.linalg.cho_solve((L, True), bf / d, check_finite=False) / d
