@@ -195,10 +195,20 @@ class _LinearProblem:
             self.A = np.einsum("nim,nik->mk", self.X, self.X)
             self.b = np.einsum("nim,ni->m", self.X, self.r)
         pen = em.penalty(x)
+        #: the penalty rows (value, Jacobian over the free parameters) and, per effect
+        #: index, the slice of its rows
+        self.pen, self.pen_rows = None, {}
         if pen is not None:
             Pf = pen[1][:, free]
             self.A = self.A + Pf.T @ Pf
             self.b = self.b - Pf.T @ pen[0]
+            self.pen = (pen[0], Pf)
+            k = 0
+            for i, (e, sl) in enumerate(zip(em.effects, em.slices, strict=True)):
+                if hasattr(e, "penalty"):
+                    rows = e.penalty(np.asarray(x, float)[sl])[0].size
+                    self.pen_rows[i] = slice(k, k + rows)
+                    k += rows
 
     def heldout_sq(self, te: np.ndarray, tie: bool = False) -> np.ndarray:
         """Squared errors of the poses ``te`` predicted by the refit without them; ``tie``:
@@ -208,10 +218,13 @@ class _LinearProblem:
         m = self.m
         Xt, rt = self.X[te].reshape(-1, m), self.r[te].ravel()
         Af, bf = self.A - Xt.T @ Xt, self.b - Xt.T @ rt
-        T, c = self._ties(~te) if tie else (None, None)
+        T, c, drop = self._ties(~te) if tie else (None, None, None)
         if T is not None:  # T is a 0/1 matrix, one 1 a row at most: a sparse product
             import scipy.sparse
 
+            if drop is not None and drop.size:  # smoothness rows beyond the edge: none
+                v, Pf = self.pen[0][drop], self.pen[1][drop]
+                Af, bf = Af - Pf.T @ Pf, bf + Pf.T @ v
             Ts = scipy.sparse.csr_matrix(T)
             bf = Ts.T @ (bf - Af @ c)
             Af = Ts.T @ (Ts.T @ Af).T
@@ -224,10 +237,12 @@ class _LinearProblem:
         return np.sum((rt - Xt @ delta).reshape(-1, 3) ** 2, axis=1)
 
     def _ties(self, keep: np.ndarray):
-        """(T (m, m'), c (m,)): the free parameters' step δ = T δ' + c under which each
-        table is constant beyond the knots the poses ``keep`` support (every knot beyond
-        ends at its edge knot's value; where one of them is held, at the held value). None
-        when no knot is tied."""
+        """(T (m, m'), c (m,), penalty rows to drop): the free parameters' step
+        δ = T δ' + c under which each table is constant beyond the knots the poses
+        ``keep`` support (every knot beyond ends at its edge knot's value; where one of
+        them is held, at the held value), and the smoothness rows that reach beyond the
+        edge knot (a table fitted to those poses ends there: it has none). None when no
+        knot is tied."""
         fit = self.fit
         em, x, free = fit.error_model, fit.values, fit.free
         pos = np.cumsum(free) - 1  # full index -> free column
@@ -235,7 +250,8 @@ class _LinearProblem:
         T_rows: dict[int, int] = {}  # free column of a tied knot -> leader's full index
         c = np.zeros(len(x))
         tied = False
-        for e, sl in zip(em.effects, em.slices, strict=True):
+        drop: list[int] = []
+        for i_e, (e, sl) in enumerate(zip(em.effects, em.slices, strict=True)):
             if not hasattr(e, "knot_support"):
                 continue
             ok = e.knot_support(fit.data.q[keep, e.joint - 1])
@@ -243,6 +259,10 @@ class _LinearProblem:
             if idx.size == 0:
                 continue
             K = e.n_params
+            rows = self.pen_rows.get(i_e)
+            if rows is not None:  # row r of a second difference spans knots r..r+2
+                r = np.arange(rows.stop - rows.start)
+                drop += list(rows.start + r[(r < idx[0]) | (r + 2 > idx[-1])])
             for edge, beyond in ((idx[0], range(0, idx[0])), (idx[-1], range(idx[-1] + 1, K))):
                 group = [sl.start + k for k in beyond]
                 if not group:
@@ -262,7 +282,7 @@ class _LinearProblem:
                         keep_col[k] = False
                         T_rows[k] = lead
         if not tied:
-            return None, None
+            return None, None, None
         cols = np.flatnonzero(keep_col)  # full indices of the remaining free parameters
         col_of = {k: i for i, k in enumerate(cols)}
         T = np.zeros((self.m, cols.size))
@@ -273,4 +293,4 @@ class _LinearProblem:
                 T[pos[k], col_of[lead]] = 1.0
             else:  # the leader is set itself (held by the other end's group)
                 c[k] += c[lead]
-        return T, c[free]
+        return T, c[free], np.array(drop, int)

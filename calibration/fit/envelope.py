@@ -277,7 +277,7 @@ def supported_model(error_model: ErrorModel, calib: Dataset) -> tuple[ErrorModel
             continue
         changed = True
         if getattr(e, "explicit_range", False):
-            notes.append(f"{e.label}: its knots are cut to {new.knots_deg[0]:g}..."
+            notes.append(f"{e.label}: its knots are cut to {new.knots_deg[0]:g}.."
                          f"{new.knots_deg[-1]:g} deg, the range the calibration data support "
                          "(the table holds its edge value beyond)")
         effects[i] = new
