@@ -141,6 +141,13 @@ def _fit(request: CalibrateRequest, on_note) -> tuple[Fit, Fit, list[str]]:
         for k, name in enumerate(start.error_model.names):
             if name in em.names:
                 x0[em.index(name)] = start.values[k]
+        # a table of the same name keeps the smoothing it was fitted with (the model
+        # diagnose --auto --out wrote is the model calibrate fits)
+        smoothing = {e.label: e.smoothing for e in start.error_model.effects
+                     if hasattr(e, "penalty_matrix")}
+        for e in em.effects:
+            if hasattr(e, "penalty_matrix") and e.smoothing is None and e.label in smoothing:
+                e.smoothing = smoothing[e.label]
     for n in notes if on_note is not None else ():
         on_note(n)
     opts = {}
