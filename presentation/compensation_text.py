@@ -101,11 +101,12 @@ def compensation_text(model: RobotModel, capture: CaptureMeta, targets_file: str
              f"correction of the Cartesian targets: mean {fmt(c.correction_mm.mean())} mm, "
              f"max {fmt(c.correction_mm.max())} mm"]
     bad = [(p, names) for p, names in zip(t.pose_id, outside or [], strict=False) if names]
-    if outside is not None:
+    if outside is not None and not bad:
+        lines.append("envelope  every target inside the calibrated envelope")
+    elif bad:
         lines.append(f"envelope  {len(bad)} of {len(outside)} targets beyond the calibrated "
-                     "envelope" + (": " + "; ".join(f"{p} ({', '.join(n)})" for p, n in bad[:10])
-                                   + (f"; and {len(bad) - 10} more" if len(bad) > 10 else "")
-                                   if bad else ""))
+                     "envelope: " + "; ".join(f"{p} ({', '.join(n)})" for p, n in bad[:10])
+                     + (f"; and {len(bad) - 10} more" if len(bad) > 10 else ""))
     lines += [f"note      {note}" for note in notes]
     return "\n".join(lines)
 
