@@ -218,61 +218,61 @@ class _LinearProblem:
         m = self.m
         Xt, rt = self.X[te].reshape(-1, m), self.r[te].ravel()
         Af, bf = self.A - Xt.T @ Xt, self.b - Xt.T @ rt
-        T, c, drop = self._ties(~te) if tie else (None, None, None)
-        if T is not None:  # T is a 0/1 matrix, one 1 a row at most: a sparse product
-            import scipy.sparse
-
-            if drop is not None and drop.size:  # smoothness rows beyond the edge: none
+        ties = self._ties(~te) if tie else None
+        if ties is not None:
+            own, tied, c, drop = ties
+            if drop.size:  # smoothness rows beyond the edge: a table ending there has none
                 v, Pf = self.pen[0][drop], self.pen[1][drop]
                 Af, bf = Af - Pf.T @ Pf, bf + Pf.T @ v
-            Ts = scipy.sparse.csr_matrix(T)
-            bf = Ts.T @ (bf - Af @ c)
-            Af = Ts.T @ (Ts.T @ Af).T
+            # δ = T δ' + c, T one 1 a row at most: Tᵀ M sums the tied rows into their
+            # leader's
+            bf = _fold(bf - Af @ c, own, tied)
+            Af = _fold(_fold(Af, own, tied).T, own, tied)
             Af = 0.5 * (Af + Af.T)
         d = np.sqrt(np.maximum(np.diag(Af), 1e-300))
         L = cholesky_nudged(Af / np.outer(d, d))
         delta = scipy.linalg.cho_solve((L, True), bf / d, check_finite=False) / d
-        if T is not None:
-            delta = T @ delta + c
+        if ties is not None:
+            full = c.copy()
+            full[own] += delta
+            for k, col in tied:
+                full[k] += delta[col]
+            delta = full
         return np.sum((rt - Xt @ delta).reshape(-1, 3) ** 2, axis=1)
 
     def _ties(self, keep: np.ndarray):
-        """(T (m, m'), c (m,), penalty rows to drop): the free parameters' step
-        δ = T δ' + c under which each table is constant beyond the knots the poses
-        ``keep`` support (every knot beyond ends at its edge knot's value; where one of
-        them is held, at the held value), and the smoothness rows that reach beyond the
-        edge knot (a table fitted to those poses ends there: it has none). None when no
-        knot is tied."""
+        """The free parameters' step δ = T δ' + c under which each table is constant
+        beyond the knots the poses ``keep`` support (every knot beyond ends at its edge
+        knot's value; where one of them is held, at the held value), as (``own``: the free
+        columns that stay, in δ' order; ``tied``: (free column, column of δ' it follows)
+        pairs; c (m,); the smoothness rows that reach beyond the edge knot, which a table
+        fitted to those poses does not have). None when no knot is tied."""
         fit = self.fit
         em, x, free = fit.error_model, fit.values, fit.free
         pos = np.cumsum(free) - 1  # full index -> free column
         keep_col = free.copy()
-        T_rows: dict[int, int] = {}  # free column of a tied knot -> leader's full index
+        follows: dict[int, int] = {}  # full index of a tied knot -> its leader's
         c = np.zeros(len(x))
-        tied = False
         drop: list[int] = []
         for i_e, (e, sl) in enumerate(zip(em.effects, em.slices, strict=True)):
             if not hasattr(e, "knot_support"):
                 continue
-            ok = e.knot_support(fit.data.q[keep, e.joint - 1])
-            idx = np.flatnonzero(ok)
+            idx = np.flatnonzero(e.knot_support(fit.data.q[keep, e.joint - 1]))
             if idx.size == 0:
                 continue
-            K = e.n_params
             rows = self.pen_rows.get(i_e)
-            if rows is not None:  # row r of a second difference spans knots r..r+2
-                r = np.arange(rows.stop - rows.start)
+            if rows is not None and (idx[0] > 0 or idx[-1] < e.n_params - 1):
+                r = np.arange(rows.stop - rows.start)  # row r spans knots r..r+2
                 drop += list(rows.start + r[(r < idx[0]) | (r + 2 > idx[-1])])
-            for edge, beyond in ((idx[0], range(0, idx[0])), (idx[-1], range(idx[-1] + 1, K))):
+            for edge, beyond in ((idx[0], range(0, idx[0])),
+                                 (idx[-1], range(idx[-1] + 1, e.n_params))):
                 group = [sl.start + k for k in beyond]
                 if not group:
                     continue
-                tied = True
                 lead = sl.start + int(edge)
-                members = [lead, *group]
-                held = [k for k in members if not free[k]]
+                held = [k for k in (lead, *group) if not free[k]]
                 if held:  # the group ends at the held value: its free members are set
-                    for k in members:
+                    for k in (lead, *group):
                         if free[k]:
                             c[k] = x[held[0]] - x[k]
                             keep_col[k] = False
@@ -280,17 +280,24 @@ class _LinearProblem:
                     for k in group:
                         c[k] = x[lead] - x[k]
                         keep_col[k] = False
-                        T_rows[k] = lead
-        if not tied:
-            return None, None, None
-        cols = np.flatnonzero(keep_col)  # full indices of the remaining free parameters
-        col_of = {k: i for i, k in enumerate(cols)}
-        T = np.zeros((self.m, cols.size))
-        for k in cols:
-            T[pos[k], col_of[k]] = 1.0
-        for k, lead in T_rows.items():
+                        follows[k] = lead
+        if (keep_col == free).all() and not (c != 0).any():
+            return None
+        cols = np.flatnonzero(keep_col)  # full indices of the free parameters that stay
+        col_of = {int(k): i for i, k in enumerate(cols)}
+        tied = []
+        for k, lead in follows.items():
             if lead in col_of:
-                T[pos[k], col_of[lead]] = 1.0
+                tied.append((int(pos[k]), col_of[lead]))
             else:  # the leader is set itself (held by the other end's group)
                 c[k] += c[lead]
-        return T, c[free], np.array(drop, int)
+        return pos[cols], tied, c[free], np.array(drop, int)
+
+
+def _fold(M: np.ndarray, own: np.ndarray, tied: list[tuple[int, int]]) -> np.ndarray:
+    """Tᵀ M for the 0/1 matrix T of a fold's ties (:meth:`_LinearProblem._ties`): the rows
+    ``own`` in order, each tied row added to the row of the column it follows."""
+    out = M[own].copy()
+    for k, col in tied:
+        out[col] += M[k]
+    return out
