@@ -13,5 +13,7 @@ uncertainty           correlations, Monte-Carlo re-identification, position unce
 orientation_residuals orientation residuals of a 6-DoF target, weighted by their uncertainty
 data_quality          data too poor to identify a model: refused (InsufficientData), not fitted
 thermal_state         the thermal state of a calibration and of a compensation
+envelope              the calibrated envelope (what lies beyond it); tables over their
+                      supported knots (identify_supported)
 simulate              synthetic measurements with a known truth
 """
