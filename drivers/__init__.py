@@ -17,6 +17,7 @@ Modules
     ``line_tracker``  a laser tracker over TCP or serial, line protocol
     ``modbus_robot``  a PLC-style robot controller over Modbus TCP
     ``ur_rtde``       Universal Robots over ur-rtde
+    ``leica/``        Leica laser trackers over the emScon TPI (see its package)
 """
 
 from __future__ import annotations

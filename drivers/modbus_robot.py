@@ -41,7 +41,7 @@ from drivers.errors import (
     ProtocolError,
 )
 from drivers.protocols import DeviceIdentity, JointReading, RobotStatus
-from drivers.settle import poll_until_settled
+from drivers.settle import poll_until_settled, poll_until_still, settle_move
 
 # pymodbus reports every failure through logging as well as by its return
 # values; we turn those into exceptions, so keep its lines out of stderr unless
@@ -533,14 +533,10 @@ class ModbusRobot:
             return LimitError(self._dev, name, f"{e.detail}, error code {err} LIMIT")
         return CommandRejected(self._dev, name, f"{e.detail}, error code {err}")
 
-    def move_joints(
-        self, q: np.ndarray, speed: float = 0.5, timeout: float = 60.0, *, wait: bool = False
-    ) -> None:
-        """Start a joint move to ``q`` (rad, shape (n_joints,)) at ``speed`` rad/s.
-
-        Returns when the controller acknowledged the command; ``wait=True`` also
-        waits until settled.
-        """
+    def move_joints(self, q: np.ndarray, speed: float = 0.5, timeout: float = 60.0) -> None:
+        """Joint move to ``q`` (rad, shape (n_joints,)) at ``speed`` rad/s: the command, its
+        acknowledgement, then the status block until settled; returns once the robot has
+        arrived and settled within ``timeout`` (else STOP and CommandTimeout)."""
         deadline = time.monotonic() + timeout
         q = np.asarray(q, float)
         if q.shape != (self.n_joints,):
@@ -556,13 +552,11 @@ class ModbusRobot:
             self._command("move_joints", CMD_MOVE_JOINTS, cmd_deadline)
         except CommandRejected as e:
             raise self._refine(e, "move_joints", cmd_deadline) from e
-        if wait:
-            self.wait_settled(max(deadline - time.monotonic(), 0.0))
+        settle_move(self.wait_settled, self.stop, self._dev, "move_joints", deadline)
 
-    def move_linear(
-        self, xyz: np.ndarray, speed: float = 100.0, timeout: float = 60.0, *, wait: bool = False
-    ) -> None:
-        """Start a linear TCP move to ``xyz`` (mm, base frame, shape (3,)) at ``speed`` mm/s."""
+    def move_linear(self, xyz: np.ndarray, speed: float = 100.0, timeout: float = 60.0) -> None:
+        """Linear TCP move to ``xyz`` (mm, base frame, shape (3,)) at ``speed`` mm/s; returns
+        once settled (as :meth:`move_joints`)."""
         deadline = time.monotonic() + timeout
         xyz = np.asarray(xyz, float)
         if xyz.shape != (3,):
@@ -574,16 +568,18 @@ class ModbusRobot:
             self._command("move_linear", CMD_MOVE_LINEAR, cmd_deadline)
         except CommandRejected as e:
             raise self._refine(e, "move_linear", cmd_deadline) from e
-        if wait:
-            self.wait_settled(max(deadline - time.monotonic(), 0.0))
+        settle_move(self.wait_settled, self.stop, self._dev, "move_linear", deadline)
 
     def wait_settled(self, timeout: float = 30.0) -> None:
         """Poll the status block until in position and steady; raise on stops or faults."""
         poll_until_settled(lambda t: self.status(timeout=t), self._dev, timeout, self.poll_s)
 
     def stop(self, timeout: float = 2.0) -> None:
-        """Command STOP."""
-        self._command("stop", CMD_STOP, time.monotonic() + timeout)
+        """Command STOP, then poll the status block until the robot stands still."""
+        deadline = time.monotonic() + timeout
+        self._command("stop", CMD_STOP, deadline)
+        poll_until_still(lambda t: self.status(timeout=t), self._dev, "stop", deadline,
+                         self.poll_s)
 
     def clear_protective_stop(self, timeout: float = 2.0) -> None:
         """Command CLEAR_FAULT (clears a protective stop or fault)."""

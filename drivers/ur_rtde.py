@@ -375,7 +375,7 @@ class UrRtdeRobot:
 
     def _receive(self, command: str):
         if self._rx is None:
-            raise NotReady(self.url, command, "not connected (call connect() first)")
+            raise ConnectionLost(self.url, command, "not connected (call connect() first)")
         return self._rx
 
     def _sample(self, command: str, timeout: float) -> _State:
@@ -439,7 +439,8 @@ class UrRtdeRobot:
     # -- motion ----------------------------------------------------------------------------
 
     def move_joints(self, q, speed: float = 0.5, timeout: float = 60.0) -> None:
-        """Joint move to ``q`` (rad); returns on arrival. ``speed`` of the leading joint, rad/s."""
+        """Joint move to ``q`` (rad); returns once arrived and settled (:meth:`wait_settled`'s
+        condition). ``speed`` of the leading joint, rad/s."""
         deadline = time.monotonic() + timeout
         q = self._check_joints(q, "moveJ")
         _check_speed(self.url, "moveJ", speed)
@@ -453,7 +454,8 @@ class UrRtdeRobot:
         self._await_arrival("moveJ", deadline, ctrl)
 
     def move_linear(self, xyz, speed: float = 100.0, timeout: float = 60.0) -> None:
-        """Linear TCP move to ``xyz`` (mm, base frame), orientation kept; ``speed`` in mm/s."""
+        """Linear TCP move to ``xyz`` (mm, base frame), orientation kept; ``speed`` in mm/s;
+        returns once arrived and settled."""
         deadline = time.monotonic() + timeout
         xyz = np.asarray(xyz, float)
         if xyz.shape != (3,) or not np.all(np.isfinite(xyz)):
@@ -477,8 +479,7 @@ class UrRtdeRobot:
         while True:
             st = self._sample("wait_settled", max(0.0, deadline - time.monotonic()))
             self._raise_if_stopped(st, "wait_settled")
-            steady = ctrl is None or self._call("isSteady", ctrl.isSteady)
-            if steady and not self._moving(st) and self._in_position(st):
+            if self._settled(st, ctrl):
                 streak += 1
                 if streak >= 2:
                     return
@@ -521,7 +522,7 @@ class UrRtdeRobot:
         if self.read_only:
             raise NotReady(self.url, command, "opened read-only (no RTDE control interface)")
         if self._ctrl is None:
-            raise NotReady(self.url, command, "not connected (call connect() first)")
+            raise ConnectionLost(self.url, command, "not connected (call connect() first)")
         if not self._call("isConnected", self._ctrl.isConnected):
             raise ConnectionLost(self.url, command, "RTDE control link is down")
         return self._ctrl
@@ -574,17 +575,30 @@ class UrRtdeRobot:
                                   "or outside limits?)")
         raise CommandRejected(self.url, command, "refused by the controller (returned False)")
 
+    def _settled(self, st: _State, ctrl) -> bool:
+        """In position, joint speeds ≈ 0 and (control side) ``isSteady()``."""
+        steady = ctrl is None or self._call("isSteady", ctrl.isSteady)
+        return bool(steady) and not self._moving(st) and self._in_position(st)
+
     def _await_arrival(self, command: str, deadline: float, ctrl) -> None:
+        """Until settled over two fresh samples (as :meth:`wait_settled`); a stop, a refusal
+        (the script died) or the deadline (``stopJ`` first) raise."""
+        streak = 0
         while True:
             st = self._sample(command, max(0.0, deadline - time.monotonic()))
             self._raise_if_stopped(st, command)
-            if not self._moving(st) and self._in_position(st):
-                return
-            if not self._call("isProgramRunning", ctrl.isProgramRunning):
-                self._refused(command, deadline)
+            if self._settled(st, ctrl):
+                streak += 1
+                if streak >= 2:
+                    return
+            else:
+                streak = 0
+                if not self._call("isProgramRunning", ctrl.isProgramRunning):
+                    self._refused(command, deadline)
             if time.monotonic() >= deadline:
                 with contextlib.suppress(DriverError):
                     self._call("stopJ", ctrl.stopJ, 2.0, False)
+                self._target_q = self._target_tcp = None  # stopped short: no target now
                 raise CommandTimeout(self.url, command,
                                      "target not reached within timeout; robot stopped")
             time.sleep(self.poll_s)

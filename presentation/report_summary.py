@@ -59,7 +59,7 @@ def _steps(story: AutoStory) -> dict:
 
 
 def _outliers(rep: Report) -> list[dict]:
-    """The blunders any shown fit left out (FORMATS.md §4 ``outliers`` entries)."""
+    """The blunders any shown fit left out (docs/formats.md §4 ``outliers`` entries)."""
     seen, out = set(), []
     for sc in [s.fit.outliers for s in rep.stages] + [rep.diagnosis.outliers]:
         for o in (sc.to_json() if sc is not None else []):

@@ -23,7 +23,8 @@ slow      any line server: the reply is held back ``delay`` seconds (longer
 drop      TCP servers: the server closes the connection instead of replying
           (ignored on a pty; the Modbus server drops the connection too)
 garbage   line servers: a line of random non-protocol bytes instead of the reply
-pstop     robot servers: a move command triggers a protective stop
+pstop     robot servers (and FakeRTDEControl, the in-process robot): a move command
+          triggers a protective stop
 modbus    Modbus server: the request gets exception response 4
           (SERVER_DEVICE_FAILURE)
 stale     Modbus server: the heartbeat register stops counting for that read

@@ -139,9 +139,9 @@ class ModbusRobotServer:
         return self
 
     def stop(self) -> None:
-        """Stop serving, close connections and join the thread."""
+        """Stop serving, close connections and join the thread (idempotent)."""
         self._stopping = True
-        if self._loop is not None and self._stop is not None:
+        if self._thread is not None and self._loop is not None and self._stop is not None:
             self._loop.call_soon_threadsafe(self._stop.set)
         if self._thread is not None:
             self._thread.join(10.0)

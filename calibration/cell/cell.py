@@ -197,7 +197,7 @@ def cell_from_dict(data, source: str = "<cell>") -> CellSpec:
 
 
 def load_cell(path: str | Path) -> CellSpec:
-    """Read a cell YAML file (FORMATS.md §7)."""
+    """Read a cell YAML file (docs/formats.md §7)."""
     from ..files import read_text
     from ..model.robot_model import parse_yaml
 

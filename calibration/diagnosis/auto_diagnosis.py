@@ -155,7 +155,7 @@ class AutoDiagnosis:
         return list(self.fit.error_model.labels)
 
     def to_json(self, params_file: str | None = None) -> dict:
-        """The ``diagnose --auto --json`` object (FORMATS.md §4)."""
+        """The ``diagnose --auto --json`` object (docs/formats.md §4)."""
         return {
             "model": self.start.error_model.model.name,
             "start_effects": list(self.start.error_model.labels),

@@ -137,7 +137,7 @@ def check_for_fit(error_model: ErrorModel, data: Dataset) -> DataVerdict:
     if looks_like_radians(calib.q, error_model.model.limits_rad()):
         raise InsufficientData(
             f"{src}: every joint value lies within ±{RADIANS_MAX:.2f}: they look like radians, "
-            f"but q1..q{n_joints} are degrees (FORMATS.md §1); convert them "
+            f"but q1..q{n_joints} are degrees (docs/formats.md §1); convert them "
             "(deg = rad × 180/π) and run again")
     n_distinct = distinct_poses(calib.q)
     prepared = error_model.prepare(data)

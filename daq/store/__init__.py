@@ -19,7 +19,11 @@ Modules
     ``errors``       ``StoreError``, ``StoreUnavailable``, ``StoreFull``
     ``addresses``    which backend an address names, and how it is printed
     ``dialect``      the two databases behind one small interface (``Database``,
-                     ``connect``); ``sqlite_db``, ``postgres_db`` and ``dbapi`` below it
+                     ``connect``)
+    ``sqlite_db``    a run store file: the SQLite side of ``dialect``
+    ``postgres_db``  a run store in a PostgreSQL database: the server side of ``dialect``
+    ``dbapi``        what both databases share below ``dialect``: a cursor turning driver
+                     errors into the store's, the upsert statement
     ``schema``       the SQL schema and its upgrades, a checked registry of versions
     ``migration``    a store brought to today's schema as it is opened
     ``open_checks``  opening a file as a store: refusing what is not one, read-only

@@ -73,6 +73,7 @@ STATUS_ERRORS: dict[int, type[DriverError]] = {
     **{code: CommandRejected for code in range(2, 11)},
     **{code: CommandRejected for code in range(12, 23, 2)},  # ParameterNOutOfRangeNOK
     RS.ES_RS_WrongCurrentReflector: CommandRejected,
+    RS.ES_RS_MeteoDataOutOfRange: CommandRejected,  # set_environment out of range
     RS.ES_RS_NoTrackerConnected: NotReady,
     RS.ES_RS_TrackerNotInitialized: NotReady,
     RS.ES_RS_MeasurementStatusNotReady: BeamBroken,

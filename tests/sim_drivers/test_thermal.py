@@ -78,9 +78,11 @@ def test_sim_url_thermal_option():
     inprocess.reset_cells()
     try:
         robot = open_robot("sim://robot?model=ur10e&seed=8&thermal=cold")
+        robot.connect()
         assert isinstance(robot, JointTemperatures)
         assert robot.joint_temperatures() == (20.0,) * 6
         plain = open_robot("sim://robot?model=ur10e&seed=9")
+        plain.connect()
         with pytest.raises(CommandRejected, match="no joint temperatures"):
             plain.joint_temperatures()
         with pytest.raises(ValueError, match="thermal=hot: expected cold or warm"):
