@@ -94,8 +94,10 @@ def auto_header(fit: Fit, given: ModelCheck | None = None, params: str | None = 
 
 def auto_step_line(number: int, step: AutoStep) -> str:
     """One accepted step, as it happens (``number`` from 1)."""
-    return (f"step {number:>2}  {step.effect:<14} held-out RMS {step.heldout_rms_mm:.4f} mm  "
-            f"({step.seconds:.1f} s)")
+    beyond = ("" if step.blocked_rms_mm is None
+              else f", range-blocked {step.blocked_rms_mm:.4f} mm")
+    return (f"step {number:>2}  {step.effect:<14} held-out RMS {step.heldout_rms_mm:.4f} mm"
+            f"{beyond}  ({step.seconds:.1f} s)")
 
 
 def auto_text(result: AutoDiagnosis, out: str | None) -> str:
@@ -103,13 +105,16 @@ def auto_text(result: AutoDiagnosis, out: str | None) -> str:
     the params.json written)."""
     start = result.start
     rows = [[" 0 (start) " + ",".join(start.error_model.labels), "",
-             fmt(start.calib["rms_mm"], 4), fmt(result.start_heldout_rms_mm, 4), ""]]
+             fmt(start.calib["rms_mm"], 4), fmt(result.start_heldout_rms_mm, 4),
+             fmt(result.start_blocked_rms_mm, 4), ""]]
     for i, s in enumerate(result.steps, 1):
         rows.append([f"{i:>2} {s.effect}", str(s.n_params), fmt(s.calib_rms_mm, 4),
-                     fmt(s.heldout_rms_mm, 4), f"{s.seconds:.1f}"])
+                     fmt(s.heldout_rms_mm, 4), fmt(s.blocked_rms_mm, 4), f"{s.seconds:.1f}"])
     lines = [table(rows, ["step, effect added", "params", "calib rms mm", "held-out rms mm",
-                          "time s"]),
-             f"held-out error: {result.heldout_method}"]
+                          "range-blocked rms mm", "time s"]),
+             f"held-out error: {result.heldout_method}; range-blocked: the tenth of the "
+             "poses at either end of each joint's range, predicted by the model refitted "
+             "without them (what it does beyond the data)"]
     if result.steps:
         lines.append("")
         lines += [f"{i:>2}. {s.effect}: {s.explanation}" for i, s in enumerate(result.steps, 1)]

@@ -14,6 +14,7 @@ from calibration.diagnosis.diagnosis import Diagnosis
 from calibration.diagnosis.orientation_blindness import Blindness
 from calibration.diagnosis.orientation_view import orientation_view
 from calibration.exports.params_io import params_by_name, solver_summary
+from calibration.fit.envelope import Envelope, split_stats
 from calibration.fit.identify import Fit
 from calibration.fit.model_check import ModelCheck
 from calibration.fit.uncertainty import MonteCarlo, correlations
@@ -57,6 +58,18 @@ def fit_summary(fit: Fit) -> dict:
     return out
 
 
+def envelope_summary(fit: Fit) -> dict:
+    """``envelope`` (the ranges the calibration rows covered, as params.json records them)
+    and, with validation rows, ``valid_inside`` and ``valid_outside`` (their statistics
+    inside and beyond it; ``valid_outside.by_quantity``: poses beyond it per quantity)."""
+    env = Envelope.of_fit(fit)
+    out: dict = {"envelope": env.to_json()}
+    if fit.valid is not None:
+        split = split_stats(env, fit.valid_data, fit.valid_residuals)
+        out["valid_inside"], out["valid_outside"] = split["inside"], split["outside"]
+    return out
+
+
 def calibration_summary(fit: Fit, baseline: Fit, *, params_file: str | None,
                         mc: MonteCarlo | None = None, ridge_plot: str | None = None,
                         blindness: Blindness | None = None) -> dict:
@@ -72,6 +85,7 @@ def calibration_summary(fit: Fit, baseline: Fit, *, params_file: str | None,
     if fit.outliers:
         out["outlier_check"] = fit.outliers.check_json()
     out["uncalibrated"] = {"calib": baseline.calib, "valid": baseline.valid}
+    out.update(envelope_summary(fit))
     out["strongest_correlations"] = correlations(fit)["strongest"]
     info = solver_summary(fit)
     if info:

@@ -14,5 +14,7 @@ orientation_residuals orientation residuals of a 6-DoF target, weighted by their
 data_quality          data too poor to identify a model: refused (InsufficientData), not fitted
 model_check           a given model's error on new poses, as calibrated (only the base refitted)
 thermal_state         the thermal state of a calibration and of a compensation
+envelope              the calibrated envelope (what lies beyond it); tables over their
+                      supported knots (identify_supported)
 simulate              synthetic measurements with a known truth
 """

@@ -4,6 +4,8 @@ by :mod:`cellcal.commands.compensate`; the work is
 
 from __future__ import annotations
 
+import sys
+
 from ..flags.program_flags import add_program_flags
 from .common import print_json
 
@@ -45,7 +47,12 @@ def run_program(args) -> int:
         given = [f for a, f in _PROGRAM_ONLY if getattr(args, a) not in (None, False)]
         raise UsageError(f"{', '.join(given)}: only with --program")
     refuse_other_flags(args)
+    from presentation.compensation_text import outside_warning
+
     report = compensate_program(ProgramRequest.from_args(args))
+    warning = outside_warning(report.outside, where="the report (outside_range)")
+    if warning:
+        print(warning, file=sys.stderr)
     if args.json:
         print_json(report.to_json())
     else:

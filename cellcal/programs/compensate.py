@@ -23,6 +23,7 @@ import numpy as np
 from calibration.compensation.controller_joints import ControllerJoints, controller_joints
 from calibration.compensation.pose_compensation import neighbour_seeds
 from calibration.files import read_input, write_atomic
+from calibration.fit.envelope import Envelope, outside_envelope, refuse_outside
 from calibration.fit.thermal_state import target_state
 
 from . import krl, urscript
@@ -205,10 +206,22 @@ def tcp_notes(solved: Solved, model) -> list[str]:
     return notes
 
 
-def corrections(solved: Solved, dialect: Dialect
+def solved_outside(solved: Solved, envelope: Envelope | None, options: Options
+                   ) -> list[list[str]]:
+    """Per solved target, the quantities beyond the calibrated envelope: the joints the
+    robot is sent and the air temperature the program is compensated for (``--temp-c``)."""
+    if solved.joints is None:
+        return []
+    q = solved.joints.compensation.q
+    columns = {} if options.temp_c is None else {"temp_c": np.full(len(q), options.temp_c)}
+    return outside_envelope(envelope, q, columns)
+
+
+def corrections(solved: Solved, dialect: Dialect, outside: list[list[str]] | None = None
                 ) -> tuple[dict[int, Correction], list[dict], list[Refusal]]:
     """The new values of a solved program's targets; (corrections, report rows, refusals:
-    the solved ones' and those the calibrated robot cannot reach)."""
+    the solved ones' and those the calibrated robot cannot reach). ``outside``: per solved
+    target, what lies beyond the calibrated envelope (in the rows)."""
     refusals = list(solved.refusals)
     out, rows = {}, []
     if solved.joints is None:
@@ -224,26 +237,34 @@ def corrections(solved: Solved, dialect: Dialect
         else:
             values = tuple(float(v) for v in c.q[i] / dialect.joint_unit)
         out[t.index] = Correction(values, float(c.correction_mm[i]))
-        rows.append(target_row(t, c, i))
+        rows.append(target_row(t, c, i, outside[i] if outside else None))
     return out, rows, refusals
 
 
 def compensate_program(path: str | Path, error_model, x, out: str | Path, *,
                        allow_partial: bool = False, language: str | None = None,
-                       options: Options | None = None) -> ProgramReport:
+                       options: Options | None = None, envelope: Envelope | None = None,
+                       strict_range: bool = False) -> ProgramReport:
     """Read the program at ``path``, compensate it with the calibration ``(error_model,
     x)`` (e.g. :func:`calibration.exports.params_io.read_params`), write it to ``out`` atomically
     and report. Nothing is written when a target cannot be compensated, unless
     ``allow_partial`` (those targets stay as they were and are listed); a program a
-    previous compensation wrote is refused (it would be compensated twice)."""
+    previous compensation wrote is refused (it would be compensated twice). Targets
+    beyond the calibration's ``envelope`` are named in the report (``outside_range``);
+    with ``strict_range`` they are refused (OutsideEnvelope, exit 3; nothing written)."""
     dialect = language_of(path, language)
     program = read_program(path, dialect)
     if program.compensated_at is not None:
         raise ProgramError(f"{path}: line {program.compensated_at}: this program was "
                            "compensated already (a 'cellcal:' comment); compensate the "
                            "original")
-    solved = solve(program, dialect, error_model, x, options or Options())
-    new, rows, refused = corrections(solved, dialect)
+    options = options or Options()
+    solved = solve(program, dialect, error_model, x, options)
+    outside = solved_outside(solved, envelope, options)
+    if strict_range:
+        refuse_outside(outside, [f"line {t.line}" for t in solved.targets], "targets",
+                       str(path))
+    new, rows, refused = corrections(solved, dialect, outside)
     refusals = sorted(program.refusals + refused, key=lambda r: r.line)
     notes = program.notes + tcp_notes(solved, error_model.model)
     if solved.thermal is not None:

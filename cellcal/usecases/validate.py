@@ -27,6 +27,7 @@ from calibration.compensation.controller_joints import controller_joints
 from calibration.compensation.pose_compensation import NominalTcpFK, as_poses
 from calibration.effects import load_effect_file
 from calibration.exports.params_io import read_params
+from calibration.fit.envelope import outside_envelope, refuse_outside
 from calibration.fit.thermal_state import target_state
 from daq.sight import frame_from_store
 
@@ -36,6 +37,7 @@ from ..programs.targets import ProgramError
 from ..request import Request
 from .capture import CaptureArgs, capture
 from .program_inputs import program_options
+from .target_checks import no_envelope_note
 
 
 class ValidateRequest(Request):
@@ -50,19 +52,22 @@ class ValidateRequest(Request):
     start: str | None = Field(None, alias="--start")
     temp_c: float | None = Field(None, alias="--temp-c")
     payload_kg: float | None = Field(None, alias="--payload-kg")
+    strict_range: bool = Field(False, alias="--strict-range")
 
 
 @dataclass
 class Validation:
     """What :func:`validate` did: the capture (a
     :class:`~cellcal.usecases.capture.CaptureResult`), the calibration's validation RMS
-    (None when params.json has none), the waypoints planned and notes (waypoints left out,
-    the frame used)."""
+    (None when params.json has none), the waypoints planned, notes (waypoints left out,
+    the frame used) and the waypoints beyond the calibrated envelope (``outside_range``:
+    ``{"label": "L12", "outside_range": ["q2"]}`` each)."""
 
     result: Any
     valid_rms_mm: float | None
     n_waypoints: int
     notes: list[str] = field(default_factory=list)
+    outside_range: list[dict] = field(default_factory=list)
 
 
 def _waypoints_of_program(request: ValidateRequest, em, x, variants, thermal):
@@ -163,6 +168,20 @@ def validate(request: ValidateRequest, capture_args: CaptureArgs, **run_options
     if not rows:
         raise UsageError(f"{request.program or request.targets}: no waypoint to run"
                          + (f" ({'; '.join(notes)})" if notes else ""))
+    outside = waypoints_outside(loaded.envelope, rows, request.temp_c)
+    if request.strict_range:
+        if loaded.envelope is None:
+            raise UsageError(f"--strict-range: {no_envelope_note(request.params)}")
+        refuse_outside(outside, [w["label"] for w in rows], "waypoints",
+                       request.program or request.targets)
+    if loaded.envelope is None:
+        notes.append(no_envelope_note(request.params))
+    beyond = [(w["label"], names) for w, names in zip(rows, outside, strict=True) if names]
+    if beyond:
+        notes.append(f"{len(beyond)} of {len(rows)} waypoints lie beyond the calibrated "
+                     "envelope (the calibration did not measure there): "
+                     + "; ".join(f"{lab} ({', '.join(n)})" for lab, n in beyond[:10])
+                     + (f"; and {len(beyond) - 10} more" if len(beyond) > 10 else ""))
     frame, note = _eval_frame(em, x, frame_T, frame_run, rows)
     notes.append(note)
     source = {"program" if request.program else "targets": request.program or request.targets,
@@ -172,7 +191,24 @@ def validate(request: ValidateRequest, capture_args: CaptureArgs, **run_options
         "model": em.model.name, "tool_mm": tuple(em.model.tool_mm())})
     result = capture(args, model=em.model, **run_options)
     valid = (loaded_stats(request.params) or {}).get("rms_mm")
-    return Validation(result, valid, len(rows), notes)
+    return Validation(result, valid, len(rows), notes,
+                      [{"label": lab, "outside_range": n} for lab, n in beyond])
+
+
+def waypoints_outside(envelope, rows: list[dict], temp_c: float | None) -> list[list[str]]:
+    """Per waypoint, the quantities beyond the calibrated envelope in any variant's joints
+    (and the air temperature ``--temp-c``), in the envelope's order."""
+    if not rows:
+        return []
+    per = [set() for _ in rows]
+    order: list[str] = []
+    columns = {} if temp_c is None else {"temp_c": np.full(len(rows), float(temp_c))}
+    for v in rows[0]["joints_deg"]:
+        q = np.radians([w["joints_deg"][v] for w in rows])
+        for i, names in enumerate(outside_envelope(envelope, q, columns)):
+            per[i].update(names)
+            order += [n for n in names if n not in order]
+    return [[n for n in order if n in p] for p in per]
 
 
 def _eval_frame(em, x, frame_T, frame_run, rows) -> tuple[dict | None, str]:

@@ -364,6 +364,7 @@ def build_cases() -> list[Case]:
                          creates=("comp.csv",))[:3]
     gcomp = ["compensate", "targets.csv", "--params", "params.json"]
     cases += _thermal_compensate_cases()
+    cases += _envelope_cases()
     cases += _number_cases("compensate", gcomp, [
         ("--start", ["nan,0,0,0,0,0", "1,2,3", "a,b,c,d,e,f", "1e400,0,0,0,0,0"])])
     cases += _out_cases("compensate", gcomp, [
@@ -732,6 +733,60 @@ def _log_cases(good_cap: list[str]) -> list[Case]:
     out.append(Case("models", "log:file_ok", ["models", "-v", "--log-file", "m.log"], 0, "",
                     creates=("m.log",)))
     return out
+def narrowed_params(ws: Path) -> str:
+    """The workspace's params.json with joint 2's calibrated range cut to [0, 0.1] deg:
+    every target (and program target) lies beyond it."""
+    doc = json.loads((ws / "params.json").read_text())
+    doc["envelope"]["joints_deg"][1] = [0.0, 0.1]
+    return json.dumps(doc)
+
+
+def _envelope_cases() -> list[Case]:
+    """Issue 34: targets beyond the calibrated envelope (warned; refused with
+    --strict-range, exit 3), a params.json without the envelope or with a bad one, a
+    table's knot range in its name."""
+    def params(change):
+        def make(ws):
+            d = json.loads((ws / "params.json").read_text())
+            change(d)
+            return json.dumps(d)
+        return make
+
+    def env(**kw):
+        return lambda d: d["envelope"].update(kw)
+
+    argv = ["compensate", "targets.csv", "--params", "p.json", "--out", "comp.csv"]
+    narrow = write("p.json", narrowed_params)
+    cases = [
+        Case("compensate", "envelope:outside_warned", argv, 0,
+             r"warning: \d+ of \d+ targets lie beyond the calibrated envelope \(q2",
+             [narrow], creates=("comp.csv",)),
+        Case("compensate", "envelope:strict_outside", [*argv, "--strict-range"], 3,
+             r"beyond the calibrated envelope.*q2.*--strict-range", [narrow]),
+        Case("compensate", "envelope:strict_without_record", [*argv, "--strict-range"], 2,
+             r"records no calibrated envelope",
+             [write("p.json", params(lambda d: d.pop("envelope")))]),
+    ]
+    bad = {
+        "not_object": (lambda d: d.update(envelope="wide"), r"envelope: not an object"),
+        "newer": (env(version=99), r"envelope\.version"),
+        "reversed": (env(joints_deg=[[1, 0]] * 6), r"envelope\.joints_deg\.0"),
+        "short": (env(joints_deg=[[0, 1]] * 5), r"envelope\.joints_deg.*6 ranges"),
+        "nan": (env(t_s=[0, float("nan")]), r"envelope\.t_s"),
+        "no_joints": (lambda d: d["envelope"].pop("joints_deg"), r"joints_deg missing"),
+    }
+    cases += [Case("compensate", f"envelope:{name}", argv, 2, msg,
+                   [write("p.json", params(change))])
+              for name, (change, msg) in bad.items()]
+    cal = ["calibrate", "good.csv", "--model", "ur5", "--effects"]
+    for name, effect, msg in (("not_knots", "table5:2@-3..40", r"multiples of 5"),
+                              ("reversed", "table:2@40..-30", r"LO < HI"),
+                              ("too_short", "table:2@0..10", r"at least 20"),
+                              ("formula", "compliance:2@0..10", r"takes no range"),
+                              ("text", "table:2@a..b", r"@LO\.\.HI")):
+        cases.append(Case("calibrate", f"effects:table_range_{name}",
+                          [*cal, f"geometric,base,tool,{effect}"], 2, msg))
+    return cases
 
 
 def _thermal_compensate_cases() -> list[Case]:
