@@ -76,7 +76,7 @@ def current_fit(model: RobotModel, data: Dataset, effects: str = DEFAULT_EFFECTS
         fit, notes = identify_supported(ErrorModel(model, effects), data, solver)
         fit.notes.extend(notes)
         return fit
-    notes: list[str] = []
+    notes = []
     if isinstance(params, (str, Path)):
         loaded = read_params(params, model=model)
         em, x, notes = loaded.error_model, loaded.values, loaded.notes

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..data.dataset import Dataset
 from ..effects import Effect, EffectError
 from ..effects.physical import Harmonic
 from ..effects.table import Table
@@ -128,9 +129,11 @@ def kfold_with(lp: _LinearProblem, folds: int = 10, seed: int = 0) -> np.ndarray
 BLOCK_SHARE = 0.1
 #: a joint whose calibration angles span less than this (deg) has no range-blocked folds
 MIN_BLOCK_SPAN_DEG = 10.0
+#: the ties of a range-blocked fold (own, tied, c, drop: see ``_ties``)
+_Ties = tuple[np.ndarray, list[tuple[int, int]], np.ndarray, np.ndarray]
 
 
-def range_blocks(data, share: float = BLOCK_SHARE) -> list[tuple[str, np.ndarray]]:
+def range_blocks(data: Dataset, share: float = BLOCK_SHARE) -> list[tuple[str, np.ndarray]]:
     """The range-blocked folds of ``data``'s rows: for each joint whose angles span at least
     :data:`MIN_BLOCK_SPAN_DEG`, the ``share`` of the poses at the low end of its range and
     the ``share`` at the high end, as (name ``q2<`` / ``q2>``, (n,) bool)."""
@@ -223,6 +226,7 @@ class _LinearProblem:
         if ties is not None:
             own, tied, c, drop = ties
             if drop.size:  # smoothness rows beyond the edge: a table ending there has none
+                assert self.pen is not None  # rows to drop are penalty rows
                 v, Pf = self.pen[0][drop], self.pen[1][drop]
                 Af, bf = Af - Pf.T @ Pf, bf + Pf.T @ v
             # δ = T δ' + c, T one 1 a row at most: Tᵀ M sums the tied rows into their
@@ -241,7 +245,7 @@ class _LinearProblem:
             delta = full
         return np.sum((rt - Xt @ delta).reshape(-1, 3) ** 2, axis=1)
 
-    def _ties(self, keep: np.ndarray):
+    def _ties(self, keep: np.ndarray) -> _Ties | None:
         """The free parameters' step δ = T δ' + c under which each table is constant
         beyond the knots the poses ``keep`` support (every knot beyond ends at its edge
         knot's value; where one of them is held, at the held value), as (``own``: the free
@@ -256,7 +260,7 @@ class _LinearProblem:
         c = np.zeros(len(x))
         drop: list[int] = []
         for i_e, (e, sl) in enumerate(zip(em.effects, em.slices, strict=True)):
-            if not hasattr(e, "knot_support"):
+            if not isinstance(e, Table):
                 continue
             idx = np.flatnonzero(e.knot_support(fit.data.q[keep, e.joint - 1]))
             if idx.size == 0:

@@ -23,6 +23,7 @@ import inspect
 import re
 import sys
 from pathlib import Path
+from typing import Any
 
 from ..files import check_regular_file
 from ..model.robot_model import RobotModel
@@ -118,7 +119,9 @@ def parse_effect(name: str, model: RobotModel) -> Effect:
     if not r or not float(r["lo"]) < float(r["hi"]):
         raise EffectError(f"bad range in {name!r}: expected @LO..HI in degrees, LO < HI "
                           "(e.g. table2:2@-186..-126)")
-    return cls(*args, range_deg=(float(r["lo"]), float(r["hi"])), explicit_range=True)
+    # a family that takes a range (a table) takes these keywords
+    ranged: Any = cls
+    return ranged(*args, range_deg=(float(r["lo"]), float(r["hi"])), explicit_range=True)
 
 
 def parse_effects(spec: str | list[str], model: RobotModel) -> list[Effect]:

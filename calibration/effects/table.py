@@ -138,7 +138,7 @@ class Table(JointEffect):
         return cls(model, joint, spacing_deg, smoothing, range_deg=(deg.min(), deg.max()))
 
     @classmethod
-    def supported(cls, model, joint: int, theta_rad: np.ndarray, spacing_deg: int,
+    def supported(cls, model: RobotModel, joint: int, theta_rad: np.ndarray, spacing_deg: int,
                   smoothing: float | None = None) -> Table:
         """:meth:`covering`, then only the knots the angles support
         (:meth:`supported_knots`): what the automatic diagnosis adds."""

@@ -24,13 +24,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ..data.dataset import Dataset
+from ..effects.table import Table
 from ..errors import OutsideEnvelope, ParamsError
 from .error_model import ErrorModel
-from .identify import error_stats, identify
+from .identify import Fit, error_stats, identify
 
 #: the version of the ``envelope`` record written; readers take 1..ENVELOPE_VERSION
 ENVELOPE_VERSION = 1
@@ -87,7 +89,7 @@ class Envelope:
         return cls(joints, temp, jt, t, int(data.n))
 
     @classmethod
-    def of_fit(cls, fit) -> Envelope:
+    def of_fit(cls, fit: Fit) -> Envelope:
         """The envelope of a fit's calibration rows (the blunders it left out are not
         measurements of the robot, and are not in it)."""
         return cls.of_data(fit.data, fit.error_model)
@@ -106,7 +108,7 @@ class Envelope:
         return out
 
     @classmethod
-    def from_json(cls, rec, n_joints: int, source: str) -> Envelope | None:
+    def from_json(cls, rec: Any, n_joints: int, source: str) -> Envelope | None:
         """The ``envelope`` record read back strictly (ParamsError naming the file and key);
         None for a file written before envelopes were recorded."""
         if rec is None:
@@ -121,7 +123,7 @@ class Envelope:
             raise ParamsError(f"{where}.version: {version} is newer than this cellcal reads "
                               f"({ENVELOPE_VERSION}); update cellcal")
 
-        def pair(v, key):
+        def pair(v: Any, key: str) -> tuple[float, float]:
             if (not isinstance(v, list) or len(v) != 2
                     or not all(isinstance(a, (int, float)) and not isinstance(a, bool)
                                and math.isfinite(a) for a in v) or v[0] > v[1]):
@@ -129,7 +131,7 @@ class Envelope:
                                   "finite numbers, lo <= hi")
             return float(v[0]), float(v[1])
 
-        def pairs(v, key):
+        def pairs(v: Any, key: str) -> tuple[tuple[float, float], ...]:
             if not isinstance(v, list) or len(v) != n_joints:
                 raise ParamsError(f"{where}.{key}: expected {n_joints} ranges, one per joint")
             return tuple(pair(r, f"{key}.{j}") for j, r in enumerate(v))
@@ -178,9 +180,9 @@ class Envelope:
         return np.hstack(blocks), names
 
     @staticmethod
-    def _beyond(v: np.ndarray, ranges) -> np.ndarray:
+    def _beyond(v: np.ndarray, ranges: Any) -> np.ndarray:
         r = np.asarray(ranges, float)
-        return (v < r[:, 0] - EDGE_TOL) | (v > r[:, 1] + EDGE_TOL)
+        return np.asarray((v < r[:, 0] - EDGE_TOL) | (v > r[:, 1] + EDGE_TOL))
 
     def outside_names(self, q: np.ndarray, columns: dict | None = None) -> list[list[str]]:
         """Per pose, the names of the values beyond the envelope (empty inside)."""
@@ -189,7 +191,7 @@ class Envelope:
 
     def of_data_outside(self, data: Dataset) -> np.ndarray:
         """(n,) bool: the rows of ``data`` with any value beyond the envelope."""
-        return self.outside(data.q, data_columns(data))[0].any(axis=1)
+        return np.asarray(self.outside(data.q, data_columns(data))[0].any(axis=1))
 
     def lines(self) -> list[str]:
         """The envelope in words, one quantity a line (deg, °C, s)."""
@@ -270,7 +272,7 @@ def supported_model(error_model: ErrorModel, calib: Dataset) -> tuple[ErrorModel
     cut (a table named without a range covers the data: nothing to say)."""
     effects, notes, changed = list(error_model.effects), [], False
     for i, e in enumerate(effects):
-        if not hasattr(e, "supported_knots"):
+        if not isinstance(e, Table):
             continue
         new = e.supported_knots(calib.q[:, e.joint - 1])
         if new is e:
@@ -299,7 +301,7 @@ def values_by_name(source: ErrorModel, x: np.ndarray, target: ErrorModel,
 
 
 def identify_supported(error_model: ErrorModel, data: Dataset, solver: str = "lm", *,
-                       x0: np.ndarray | None = None, **kw):
+                       x0: np.ndarray | None = None, **kw: Any) -> tuple[Fit, list[str]]:
     """:func:`~calibration.fit.identify.identify` with every table over the knots its
     calibration rows support (:func:`supported_model`). When the fit leaves blunders out and
     the rows it kept support other knots, it is refitted over those (warm-started): a
