@@ -1,7 +1,7 @@
 """Robot programs as the controllers read them: find their targets and write them back
 compensated, byte for byte elsewhere (URScript: :mod:`.urscript`; KUKA KRL ``.dat``:
-:mod:`.krl`; ABB RAPID modules: :mod:`.rapid`). The numbers come from :mod:`calibration.compensation.pose_compensation`
-(:mod:`.compensate` joins the two).
+:mod:`.krl`; ABB RAPID modules: :mod:`.rapid`). The numbers come from
+:mod:`calibration.compensation.pose_compensation` (:mod:`.compensate` joins the two).
 
 Modules
     ``compensate``      compensate a program with a calibration: read, solve, write back,

@@ -68,6 +68,9 @@ DECLARE = ("CONST", "VAR", "PERS")
 ROUTINES = ("PROC", "FUNC", "TRAP")
 ENDS = ("ENDPROC", "ENDFUNC", "ENDTRAP")
 DISPLACEMENT = ("PDISPON", "PDISPSET", "EOFFSON", "EOFFSSET")
+#: words after which an instruction starts
+STRUCTURE = ("THEN", "ELSE", "DO", "ENDIF", "ENDFOR", "ENDWHILE", "ENDTEST", "ERROR",
+             "BACKWARD", "UNDO", "DEFAULT", *ENDS)
 #: decimals written: position mm, quaternion, axis angle deg
 DECIMALS_MM, DECIMALS_QUAT, DECIMALS_DEG = 4, 7, 6
 
@@ -112,7 +115,10 @@ class _Reader:
         self.notes: list[str] = []
         self.decls: dict[tuple, Decl] = {}
         self.params: dict[str, set[str]] = {}
-        self.routines: set[str] = set()
+        #: routine names, upper-cased -> as written
+        self.routines: dict[str, str] = {}
+        #: declarations a move names (compensated or refused)
+        self.moved: set[int] = set()
         self.scope_at: list[str | None] = []
         #: offsets of the names and literals moved to directly
         self.direct: set[int] = set()
@@ -144,7 +150,7 @@ class _Reader:
                 j = k + 1 + (u == "FUNC")
                 if j < len(toks) and toks[j].kind == "name":
                     scope = toks[j].text.upper()
-                    self.routines.add(scope)
+                    self.routines[scope] = toks[j].text
                     self.params[scope] = set()
                     if j + 1 < len(toks) and toks[j + 1].text == "(":
                         close = self.close_of(j + 1)
@@ -314,7 +320,8 @@ class _Reader:
         shown = expr[0].text
         d = self.lookup(name, scope)
         if d == "param":
-            return f"{shown} is a parameter of routine {scope}() (known at run time)"
+            return (f"{shown} is a parameter of routine {self.routines[scope]}() (known at "
+                    "run time)")
         if d is None:
             return f"{shown} is not declared in this module (its value is not known here)"
         if d.type != TYPES[kind].upper():
@@ -352,9 +359,13 @@ class _Reader:
         if len(required) <= tool_at:
             self.refusals.append(Refusal(line, construct, "too few arguments"))
             return
-        for i in slots:  # the literals of the move are direct, whatever else is refused
+        for i in slots:  # what the move names is moved to, whatever else is refused
             if required[i] and required[i][0].text == "[":
                 self.direct.add(required[i][0].start)
+            named = self.named(required[i])
+            d = named and self.lookup(named[0], scope)
+            if isinstance(d, Decl):
+                self.moved.add(id(d))
         tool = self.data(required[tool_at], scope, "tooldata", "tool0")
         wobj = (self.data(optional["WOBJ"], scope, "wobjdata", "wobj0")
                 if "WOBJ" in optional else (None, "wobj0"))
@@ -411,21 +422,32 @@ class _Reader:
         if any(toks[k].text == ":=" and toks[k].depth == 0 and not (
                 k >= a + 2 and toks[k - 2].text == "\\") for k in range(a + 1, b)):
             return  # an assignment: its variable is refused where it is moved to
-        call = next((toks[k] for k in range(a, b) if toks[k].depth == 0
-                     and self.upper(k) in self.routines), None)
         k = a
         while k < b:
             if toks[k].text == "[":
                 agg, close = aggregate(toks, k)
                 if is_robtarget(agg) or is_jointtarget(agg):
-                    why = (f"a literal passed to the program's routine {call.text}, which "
-                           "may move to it: its target is known at run time" if call else
+                    i = self.instruction(a, k)
+                    why = (f"a literal passed to the program's routine {toks[i].text}(), "
+                           "which may move to it: its target is known at run time"
+                           if self.upper(i) in self.routines else
                            "a target in an instruction cellcal does not compensate (see "
                            "docs/programs.md)")
-                    self.refusals.append(Refusal(line_of(self.text, agg.start),
-                                                 self.snippet(agg.start, agg.end), why))
+                    self.refusals.append(Refusal(line_of(self.text, agg.start), self.snippet(
+                        toks[i].start, toks[b - 1].end), why))
                 k = close
             k += 1
+
+    def instruction(self, a: int, k: int) -> int:
+        """Index of the name that starts the instruction holding toks[k] (statement
+        a..): the last name at depth 0 before k that follows the statement's start or a
+        structure word."""
+        toks = self.toks
+        for i in range(k - 1, a - 1, -1):
+            if toks[i].kind == "name" and toks[i].depth == 0 and (
+                    i == a or toks[i - 1].text in (")", ":") or self.upper(i - 1) in STRUCTURE):
+                return i
+        return k
 
     def run(self) -> Program:
         self.scan_routines()
@@ -477,21 +499,23 @@ class _Reader:
                     if isinstance(e, Agg)}
             if mine & spans:
                 used.add(id(d))
-            elif d.assigned is None:
+            elif d.assigned is None and id(d) not in self.moved:
                 unused.append(f"{d.name} (line {d.line})")
         if unused:
             self.notes.append("not moved to in this module, left as written: "
                               + ", ".join(unused))
-        toks = self.toks
+        toks, seen = self.toks, set()
         for k, t in enumerate(toks):
             if t.kind != "name" or t.start in self.direct or t.start in self.lhs or (
                     k and toks[k - 1].text in (".", "\\")):
                 continue
             d = self.lookup(t.text.upper(), self.scope_at[k])
-            if isinstance(d, Decl) and id(d) in used and t.start != d.name_at:
-                self.notes.append(f"line {line_of(self.text, t.start)}: {t.text} is also "
-                                  "used in an expression or call, which sees the compensated "
-                                  "value")
+            line = line_of(self.text, t.start)
+            if isinstance(d, Decl) and id(d) in used and t.start != d.name_at and \
+                    (line, id(d)) not in seen:
+                seen.add((line, id(d)))
+                self.notes.append(f"line {line}: {t.text} is also used in an expression or "
+                                  "call, which sees the compensated value")
 
 
 def parse_program(text: str, source: str = "program") -> Program:
