@@ -169,8 +169,8 @@ def solve(program: Program, dialect: Dialect, error_model, x, options: Options, 
     n = len(use)
     is_pose = np.array([t.kind == "pose" for t in use])
     joints = np.zeros((n, N))
-    joints[~is_pose] = [np.asarray(t.values) * dialect.joint_unit for t in use
-                        if t.kind == "joints"]
+    joints[~is_pose] = np.reshape([np.asarray(t.values) * dialect.joint_unit for t in use
+                                   if t.kind == "joints"], (-1, N))  # none: (0, N)
     default = (options.seed if options.seed is not None else
                np.radians(DEFAULT_SEED_DEG[dialect.name][:N] + (0.0,) * max(0, N - 6)))
     joints = neighbour_seeds(is_pose, joints, default)

@@ -7,7 +7,7 @@ MODULE Refused(NOSTEPIN)
   CONST robtarget pB:=[[1000,200,1200],[0,0,1,0],[0,0,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
   CONST robtarget pBad:=[[1000,200,1200],[1,1,1,1],[0,0,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
   VAR robtarget pSeen;
-  CONST robtarget pTrack:=[[1000,-200,1200],[0,0,1,0],[0,0,0,0],[1500,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  CONST robtarget pTrack:=[[1000,-200,1200],[0,0,1,0],[-1,0,-1,0],[1500,9E+09,9E+09,9E+09,9E+09,9E+09]];
   CONST robtarget pSpare:=[[900,0,1100],[0,0,1,0],[0,0,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
 
   PROC main()
