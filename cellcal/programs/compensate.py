@@ -15,7 +15,7 @@ at the edge: URScript m and rad, KRL and RAPID mm and deg; the core works in mm 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -37,10 +37,11 @@ DEFAULT_SEED_DEG = {"urscript": (0.0, -90.0, 90.0, -90.0, -90.0, 0.0),
 
 @dataclass(frozen=True)
 class Dialect:
-    """A language's reader, writer and units; ``seeds`` (targets, seed joints rad) -> the
-    seeds a language's configuration data make; ``check`` (target, nominal joints,
+    """A language's reader, writer and units; ``check`` (target, nominal joints,
     compensated joints) -> why the compensation is not the configuration the target asks
-    for, or None."""
+    for, or None; ``seeds`` (targets, seed joints rad) -> the seeds the targets'
+    configuration data make, tried for those the neighbours' seeds leave in another
+    configuration."""
 
     name: str
     parse: object
@@ -174,8 +175,6 @@ def solve(program: Program, dialect: Dialect, error_model, x, options: Options, 
     default = (options.seed if options.seed is not None else
                np.radians(DEFAULT_SEED_DEG[dialect.name][:N] + (0.0,) * max(0, N - 6)))
     joints = neighbour_seeds(is_pose, joints, default)
-    if dialect.seeds is not None:
-        joints = dialect.seeds(use, joints)
     tcp = np.stack([frames[t.index][0] for t in use])
     base = np.stack([frames[t.index][1] for t in use])
     measured = np.linalg.norm(tcp[:, :3, 3] - model.tool_mm(), axis=1) < MEASURED_TOL_MM
@@ -187,10 +186,43 @@ def solve(program: Program, dialect: Dialect, error_model, x, options: Options, 
     payload = [t.payload_kg if t.payload_kg is not None else options.payload_kg for t in use]
     if any(p is not None for p in payload):
         columns["payload_kg"] = np.array([0.0 if p is None else p for p in payload])
-    cj = controller_joints(error_model, x, joints, pose=pose, is_pose=is_pose,
-                           flange_T_tcp=tcp, measured=measured, columns=columns,
-                           geometric=geometric)
+    def run(seeds):
+        return controller_joints(error_model, x, seeds, pose=pose, is_pose=is_pose,
+                                 flange_T_tcp=tcp, measured=measured, columns=columns,
+                                 geometric=geometric)
+
+    cj = run(joints)
+    if dialect.seeds is not None:  # the configuration the program asks for, if not found
+        retry = [i for i in np.flatnonzero(is_pose) if _off(dialect, use[i], cj, i)]
+        if retry:
+            again = run(dialect.seeds(use, joints))
+            cj = _take_rows(cj, again, [i for i in retry if not _off(dialect, use[i], again, i)])
     return Solved(use, base, tcp, measured, cj, refusals)
+
+
+def _off(dialect: Dialect, t: Target, cj: ControllerJoints, i: int) -> bool:
+    """Target i not reached, or not in the configuration it asks for."""
+    c = cj.compensation
+    return not c.success[i] or bool(dialect.check(t, c.q_nominal[i], c.q[i]))
+
+
+def _take_rows(a: ControllerJoints, b: ControllerJoints, rows: list[int]) -> ControllerJoints:
+    """``a`` with the given target rows taken from ``b`` (same targets, other seeds)."""
+    if not rows:
+        return a
+    n = len(a.compensation.q)
+
+    def mix(u, v):
+        if isinstance(v, np.ndarray) and v.shape[:1] == (n,):
+            u = u.copy()
+            u[rows] = v[rows]
+        return u
+
+    comp = replace(a.compensation, **{f.name: mix(getattr(a.compensation, f.name),
+                                                  getattr(b.compensation, f.name))
+                                      for f in fields(a.compensation)})
+    return ControllerJoints(comp, {k: mix(v, b.joints[k]) for k, v in a.joints.items()},
+                            {k: mix(v, b.success[k]) for k, v in a.success.items()})
 
 
 def tcp_notes(solved: Solved, model) -> list[str]:

@@ -16,7 +16,13 @@ from calibration.fit.simulate import random_joints, realistic_truth, simulate
 from calibration.model.inverse import solve_ik
 from calibration.model.transforms import make_T
 from cellcal.programs import rapid
-from cellcal.programs.compensate import DIALECTS, Options, compensate_program, language_of
+from cellcal.programs.compensate import (
+    DIALECTS,
+    Options,
+    compensate_program,
+    language_of,
+    solve,
+)
 from cellcal.programs.poses import T_to_rapid, rapid_to_T
 from cellcal.programs.targets import Correction, ProgramError
 
@@ -269,3 +275,23 @@ def test_gripper_module_reaches_what_it_meant(calibrated, tmp_path):
     miss_a = pose_difference(true_a, B_fit @ np.array(meant))
     assert miss_b[0].min() > 0.3 and miss_a[0].max() < 0.05, (miss_b, miss_a)
     assert miss_a[1].max() < 0.3 * miss_b[1].max()
+
+
+def test_a_wrist_flipped_robtarget_is_solved_in_its_configuration(calibrated):
+    """The same pose taught with the wrist flipped (axis 5 negative, axes 4 and 6 half a
+    turn away): the neighbours' seed finds the other wrist, the robconf's seed this one."""
+    em, _, fit = calibrated
+    fk = NominalTcpFK(load_model("irb2600_12_165"), np.zeros(3))
+    out = []
+    for q, conf in (((10, 20, -10, 100, 40, 50), "0,1,0,0"),
+                    ((10, 20, -10, -80, -40, -130), "0,-1,-2,1")):
+        r = fk.chain(np.radians([q]))
+        v = T_to_rapid(as_poses(r.base_p_tcp, r.base_R_flange)[0])
+        rt = (f"[[{v[0]:.4f},{v[1]:.4f},{v[2]:.4f}],[{','.join(f'{c:.7f}' for c in v[3:])}],"
+              f"[{conf}],{TRACK}]")
+        program = rapid.parse_program(_module("    MoveL p, v100, fine, tool0;\n",
+                                              f"  CONST robtarget p:={rt};\n"))
+        solved = solve(program, DIALECTS["rapid"], em, fit.values, Options())
+        out.append(np.degrees(solved.joints.compensation.q_nominal[0]))
+        np.testing.assert_allclose(out[-1], q, atol=1e-3)
+    assert out[0][3] > 0 > out[1][3]
