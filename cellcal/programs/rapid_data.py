@@ -14,6 +14,7 @@ scalar first, ``[cf1, cf4, cf6, cfx]``, six external axes, ``9E+09`` for none);
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from .poses import T_to_rapid, rapid_to_T
@@ -56,11 +57,13 @@ _NOT_A_VALUE = Token("op", "?", 0, 0, 0)
 
 
 def number(item) -> tuple[float, int, int] | None:
-    """(value, start, end) of an item that is one (signed) number literal, else None."""
+    """(value, start, end) of an item that is one (signed) finite number literal, else
+    None."""
     if isinstance(item, Agg):
         return None
     got = signed_numbers(item)
-    return got[0] if got is not None and len(got) == 1 else None
+    ok = got is not None and len(got) == 1 and math.isfinite(got[0][0])
+    return got[0] if ok else None
 
 
 def numbers(item, n: int) -> list[tuple[float, int, int]] | None:

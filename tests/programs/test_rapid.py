@@ -295,3 +295,30 @@ def test_a_wrist_flipped_robtarget_is_solved_in_its_configuration(calibrated):
         out.append(np.degrees(solved.joints.compensation.q_nominal[0]))
         np.testing.assert_allclose(out[-1], q, atol=1e-3)
     assert out[0][3] > 0 > out[1][3]
+
+
+_PIECES = st.sampled_from([
+    "MODULE", "ENDMODULE", "PROC", "main", "(", ")", "ENDPROC", "FUNC", "TRAP", "ENDFUNC",
+    "CONST", "VAR", "PERS", "LOCAL", "robtarget", "jointtarget", "tooldata", "wobjdata",
+    "loaddata", "p", "t1", "tool0", "wobj0", "MoveL", "MoveC", "MoveAbsJ", "TriggL", "SearchL",
+    "[", "]", "{", "}", ",", ";", ":=", ":", "\\", "WObj", "TLoad", "Conc", ".", "+", "-", "*",
+    "1", "0.5", "9E+09", "1e999", "-2", "TRUE", "FALSE", "IF", "THEN", "ENDIF", "! c", "\n",
+    '""', '"a;b"', "Offs", "GripLoad", "PDispOn", " ", _rt(), _rt(conf="1,2,3,5"),
+])
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(_PIECES, max_size=40))
+def test_any_text_parses_or_is_refused_with_its_line(pieces):
+    text = " ".join(pieces)
+    try:
+        program = rapid.parse_program(text)
+    except ProgramError as e:
+        assert "line " in str(e) and "\n" not in str(e)
+        return
+    assert rapid.rewrite(program, {t.index: Correction(t.values, 0.0)
+                                   for t in program.targets}) == text
+    seeds = rapid.seeds(program.targets, np.zeros((len(program.targets), 6)))
+    assert np.isfinite(seeds).all()
+    for t in program.targets:
+        assert all(np.isfinite(t.values))
