@@ -159,17 +159,17 @@ def drift_curve(samples, bound_mm: float | None = None) -> list[DriftCurve]:
     rows = np.flatnonzero(sets == DRIFT_SET)
     if len(rows) == 0:
         return []
-    refs = [int(((samples.targets[i] or {}).get("info") or {}).get("reference", 1))
+    refs = [int(((samples.target[i] or {}).get("info") or {}).get("reference", 1))
             for i in rows]
     bound = default_bound(samples.std_mm[rows], bound_mm)
     out = []
     for r in sorted(set(refs)):
         idx = rows[np.asarray(refs) == r]
-        idx = idx[np.argsort(samples.t[idx])]
+        idx = idx[np.argsort(samples.t_s[idx])]
         p = samples.tracker_p_smr[idx]
-        temp = (None if samples.joint_temp_c is None
-                else samples.joint_temp_c[idx].mean(axis=1))
-        label = ((samples.targets[idx[0]] or {}).get("info") or {}).get("of", str(r))
-        out.append(DriftCurve(str(label), samples.t[idx] - samples.t[idx[0]],
+        temp = (None if samples.joint_temp is None
+                else samples.joint_temp[idx].mean(axis=1))
+        label = ((samples.target[idx[0]] or {}).get("info") or {}).get("of", str(r))
+        out.append(DriftCurve(str(label), samples.t_s[idx] - samples.t_s[idx[0]],
                               np.linalg.norm(p - p[0], axis=1), temp, bound))
     return out

@@ -736,13 +736,13 @@ class Executor:
         env = m.env or {}
         joint_temp = self._joint_temperatures()
         return Sample(
-            point_index=t.index, joints_rad=jr.q, tracker_p_smr=m.xyz, std_mm=m.std, n=m.n,
-            t=m.timestamp, pose_id=t.label, set_name=t.set, target=t.to_dict(),
+            point_index=t.index, q=jr.q, tracker_p_smr=m.xyz, std_mm=m.std, n_averaged=m.n,
+            t_s=m.timestamp, pose_id=t.label, set_name=t.set, target=t.to_dict(),
             temp_c=env.get("temp_c"), pressure_hpa=env.get("pressure_hpa"),
-            humidity_pct=env.get("humidity_pct"), base_p_tcp_cmd=cmd, dirs=dirs,
+            humidity_pct=env.get("humidity_pct"), cmd=cmd, dirs=dirs,
             attempts=attempt, joints_t=jr.timestamp, reflector=m.reflector or None,
-            face=m.face or None, cov_mm2=m.cov, joint_temp_c=joint_temp,
-            quat_wxyz=getattr(m, "quat", None), sigma_deg=getattr(m, "sigma_deg", None),
+            face=m.face or None, cov_mm2=m.cov, joint_temp=joint_temp,
+            quat=getattr(m, "quat", None), sigma_deg=getattr(m, "sigma_deg", None),
         )
 
     def _joint_temperatures(self) -> np.ndarray | None:

@@ -185,7 +185,7 @@ class RunningModel:
 
     def refit(self) -> None:
         rows = self._calib()
-        data = Dataset(q=np.array([s.joints_rad for s in rows]),
+        data = Dataset(q=np.array([s.q for s in rows]),
                        tracker_p_smr=np.array([s.tracker_p_smr for s in rows]),
                        pose_id=[str(s.point_index) for s in rows],
                        sigma_mm=np.array([reading_sigma(s) for s in rows]))
@@ -211,7 +211,7 @@ class RunningModel:
         """A reading against the prediction of the running model."""
         if self.fit is None:
             return Judgement(None)
-        row = Dataset(q=np.asarray(s.joints_rad, float)[None],
+        row = Dataset(q=np.asarray(s.q, float)[None],
                       tracker_p_smr=np.asarray(s.tracker_p_smr, float)[None])
         r = row.tracker_p_smr - self.fit.predict(row)
         M = residual_factors(self.fit, row, np.zeros(1, bool))
@@ -373,16 +373,14 @@ class Remeasure:
         else:
             prev = self.retract(t, ref)
             ctx.move_joints(prev)  # adaptive: near the planned posture
-        if t.move == "linear" and t.via is None:
-            # the posture the point was read in (a linear move fixes only the position)
-            jr = ctx.move_joints(ref.joints_rad)
-        else:
-            jr = ctx.move_target()
+        # a linear move: the posture the point was read in (it fixes only the position)
+        jr = (ctx.move_joints(ref.q) if t.move == "linear" and t.via is None
+              else ctx.move_target())
         jr, m = ctx.measure_at(jr)
         cmd_q = np.asarray(t.q, float) if t.move == "joints" else jr.q
         env = m.env or {}
-        return replace(ref, joints_rad=jr.q, tracker_p_smr=m.xyz, std_mm=m.std, n=m.n,
-                       t=m.timestamp, temp_c=env.get("temp_c"),
+        return replace(ref, q=jr.q, tracker_p_smr=m.xyz, std_mm=m.std, n_averaged=m.n,
+                       t_s=m.timestamp, temp_c=env.get("temp_c"),
                        pressure_hpa=env.get("pressure_hpa"),
                        humidity_pct=env.get("humidity_pct"), joints_t=jr.timestamp,
                        dirs=approach_dirs(prev, cmd_q, self.deadband_rad),
@@ -391,7 +389,7 @@ class Remeasure:
     def retract(self, t: Target, ref: Sample) -> np.ndarray:
         """Joints a small step back from ``t`` against its approach (every joint when it
         was approached without motion), within the joint limits."""
-        q = np.asarray(t.q if t.move == "joints" else ref.joints_rad, float)
+        q = np.asarray(t.q if t.move == "joints" else ref.q, float)
         dirs = np.zeros(len(q)) if ref.dirs is None else np.asarray(ref.dirs, float)
         if not dirs.any():
             dirs = np.ones(len(q))

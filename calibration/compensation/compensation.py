@@ -255,14 +255,8 @@ def load_targets(path, model) -> Targets:
     with backlash), ``temp_c``, ``payload_kg``, and the thermal state a target will be
     reached at: ``joint_temp1..N`` (°C, all or none) and ``t_s`` (s, the measurement
     CSV's clock). Strict like the measurement CSV: errors name file, line and column."""
-    from ..data.dataset import (
-        MAX_LENGTH_MM,
-        OPTIONAL_RANGES,
-        PLAUSIBLE_LENGTH,
-        CsvTable,
-        DataError,
-        _joint_temperatures,
-    )
+    from ..data.columns import CsvContext, column
+    from ..data.dataset import MAX_LENGTH_MM, PLAUSIBLE_LENGTH, CsvTable
 
     t = CsvTable(path)
     N = model.n_joints
@@ -273,21 +267,8 @@ def load_targets(path, model) -> Targets:
         t.within(c, xyz[:, k], -MAX_LENGTH_MM, MAX_LENGTH_MM, PLAUSIBLE_LENGTH)
     q = np.radians(t.joints_deg(model)) if has_q else None
     pose_id = t.ids("pose_id")
-    columns = {c: t.numeric(c) for c in ("temp_c", "payload_kg") if c in t}
-    for c, v in columns.items():
-        lo, hi, what = OPTIONAL_RANGES[c]
-        t.within(c, v, lo, hi, what)
-    dir_cols = [f"dir{j + 1}" for j in range(N)]
-    if t.all_or_none(dir_cols, "direction columns"):
-        dirs = np.column_stack([t.numeric(c) for c in dir_cols])
-        if not np.isin(dirs, (-1.0, 0.0, 1.0)).all():
-            r, j = map(int, np.argwhere(~np.isin(dirs, (-1.0, 0.0, 1.0)))[0])
-            raise DataError(f"{t.source}: line {t.lines[r]}, column dir{j + 1}: "
-                            f"{dirs[r, j]:g} is not -1, 0 or +1")
-        columns["dirs"] = dirs.astype(int)
-    joint_temp = _joint_temperatures(t, N)
-    if joint_temp is not None:
-        columns["joint_temp"] = joint_temp
-    if "t_s" in t:
-        columns["t_s"] = t.numeric("t_s")
+    ctx, columns = CsvContext(N, model), {}
+    for name in ("temp_c", "payload_kg", "dirs", "joint_temp", "t_s"):  # the table's readers
+        columns.update(column(name).read_csv(t, ctx, columns))
+    columns = {k: v for k, v in columns.items() if v is not None}
     return Targets(xyz, q, pose_id, columns, [int(v) for v in t.lines])

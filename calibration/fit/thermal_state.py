@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from ..data.columns import column
 from ..data.dataset import Dataset
 from ..effects.drift import DEFAULT_TEMP_REF_C, DRIFT, DRIFT_WINDOW_KEY
 from ..errors import ParamsError
@@ -173,4 +174,5 @@ def target_state(error_model, rec: dict | None, columns: dict, n: int
 
 
 def _column_names(col: str) -> str:
-    return {"joint_temp": "joint_temp1..N", "t_s": "t_s", "temp_c": "temp_c"}[col]
+    """The CSV column(s) of Dataset field ``col``, as a message names them."""
+    return ", ".join(c.replace("{j}", "1..N") for c in column(col).csv)

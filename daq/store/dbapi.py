@@ -35,6 +35,13 @@ class Cursor:
         with self._errors():
             return self._cursor.fetchall()
 
+    def mappings(self) -> list[dict]:
+        """Every row as a dict of column name to value (rows read by name, never by
+        position), on both databases (the DB-API's ``description``)."""
+        with self._errors():
+            names = [d[0] for d in self._cursor.description or ()]
+            return [dict(zip(names, row, strict=True)) for row in self._cursor.fetchall()]
+
     def __iter__(self):
         return iter(self.fetchall())
 

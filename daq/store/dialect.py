@@ -90,6 +90,8 @@ class Cursor(Protocol):
 
     def fetchall(self) -> list: ...
 
+    def mappings(self) -> list[dict]: ...
+
 
 class Database(Protocol):
     """One connection to a run store's database (see the module docstring)."""

@@ -74,8 +74,13 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
-
+from calibration.data.columns import (
+    READING_COLUMNS,
+    SAMPLE_COLUMNS,
+    decode_row,
+    encode_row,
+    store_columns,
+)
 from calibration.version import software_version
 
 from ..run_context import RunContext
@@ -89,30 +94,6 @@ from .schema import RESERVE_BYTES
 from .summary import RunSummary
 
 __all__ = ["RunStore", "open_if_exists", "open_store"]
-
-
-def _f(v) -> float | None:
-    return None if v is None else float(v)
-
-
-#: the covariance's upper triangle as stored (``cov_xx`` … ``cov_zz``): (row, column)
-_COV = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
-
-
-def _cov_cols(cov) -> tuple:
-    if cov is None:
-        return (None,) * len(_COV)
-    c = np.asarray(cov, float)
-    return tuple(float(c[i, j]) for i, j in _COV)
-
-
-def _cov_matrix(rows: list, k: int) -> np.ndarray:
-    """(n, 3, 3) from the six columns starting at ``k`` (NaN where NULL)."""
-    out = np.full((len(rows), 3, 3), np.nan)
-    for m, (i, j) in enumerate(_COV):
-        v = np.array([np.nan if r[k + m] is None else r[k + m] for r in rows], float)
-        out[:, i, j] = out[:, j, i] = v
-    return out
 
 
 def _json(v) -> str | None:
@@ -403,27 +384,11 @@ class RunStore:
         raise StoreError(f"{self.address}: no {status} {routine} run{of}")
 
     # --------------------------------------------------------------- samples
-    #: the measurement columns a sample and a reading share, and their values
-    _MEASURED = ("q_json, x, y, z, sx, sy, sz, n, t, temp_c, pressure_hpa, humidity_pct, "
-                 "cmd_x, cmd_y, cmd_z, dir_json, model_residual_mm, model_threshold_mm, "
-                 "reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz, "
-                 "joint_temp_json, qw, qx, qy, qz, sigma_deg, tool_id")
+    # Every per-point column is an entry of the column table (calibration.data.columns): its
+    # store columns, how a value is written there and read back. Rows are read by name.
 
-    @staticmethod
-    def _measured(s: Sample) -> tuple:
-        cmd = s.base_p_tcp_cmd if s.base_p_tcp_cmd is not None else (None, None, None)
-        return (json.dumps([float(v) for v in np.asarray(s.joints_rad, float)]),
-                *(float(v) for v in s.tracker_p_smr), *(float(v) for v in s.std_mm),
-                int(s.n), float(s.t), _f(s.temp_c), _f(s.pressure_hpa), _f(s.humidity_pct),
-                *(_f(v) for v in cmd),
-                json.dumps([int(v) for v in s.dirs]) if s.dirs is not None else None,
-                _f(s.model_residual_mm), _f(s.model_threshold_mm), s.reflector or None,
-                int(s.face) if s.face else None, *_cov_cols(s.cov_mm2),
-                None if s.joint_temp_c is None
-                else json.dumps([float(v) for v in np.asarray(s.joint_temp_c, float)]),
-                *((None,) * 4 if s.quat_wxyz is None
-                  else (float(v) for v in np.asarray(s.quat_wxyz, float))),
-                _f(s.sigma_deg), s.tool_id or None)
+    #: the columns a sample and a rejected reading share (besides ``point_index``)
+    _MEASURED = tuple(c for c in READING_COLUMNS if c.name != "point_index")
 
     def add_sample(self, run_id: int, s: Sample, rejected=(), revisited=()) -> bool:
         """Write one sample in one transaction (the checkpoint).
@@ -437,16 +402,13 @@ class RunStore:
         Returns True when stored, False when the point was already there (idempotent:
         the first sample of a point wins; its rejected readings are then not written).
         """
-        ins = self._MEASURED.count(",") + 1
+        cols = store_columns(SAMPLE_COLUMNS)
         with self.db.transaction():
             cur = self.db.execute(
-                f"""INSERT INTO samples (run_id, point_index, pose_id, set_name,
-                   target_json, attempts, joints_t, verdict, remeasures, {self._MEASURED})
-                   VALUES (?,?,?,?,?,?,?,?,?,{",".join("?" * ins)})
+                f"""INSERT INTO samples (run_id, {", ".join(cols)})
+                   VALUES (?,{",".join("?" * len(cols))})
                    ON CONFLICT DO NOTHING""",
-                (run_id, int(s.point_index), s.pose_id, s.set_name,
-                 json.dumps(s.target) if s.target is not None else None, int(s.attempts),
-                 _f(s.joints_t), s.verdict, int(s.remeasures), *self._measured(s)),
+                (run_id, *encode_row(s, SAMPLE_COLUMNS)),
             )
             stored = cur.rowcount == 1
             for r in rejected if stored else ():
@@ -456,22 +418,22 @@ class RunStore:
         return stored
 
     def _add_reading(self, run_id: int, r: Reading) -> None:
-        n = self._MEASURED.count(",") + 1
+        cols = store_columns(READING_COLUMNS)
         self.db.execute(
-            f"INSERT INTO readings (run_id, point_index, reason, {self._MEASURED}) "
-            f"VALUES (?,?,?,{','.join('?' * n)})",
-            (run_id, int(r.sample.point_index), r.reason, *self._measured(r.sample)))
+            f"INSERT INTO readings (run_id, reason, {', '.join(cols)}) "
+            f"VALUES (?,?,{','.join('?' * len(cols))})",
+            (run_id, r.reason, *encode_row(r.sample, READING_COLUMNS)))
 
     def _replace_sample(self, run_id: int, s: Sample, rejected) -> None:
         """Replace a point's sample by ``s`` (a re-measurement, taken later) and add the
         readings it rejected; a no-op when the point already holds ``s`` (the same
         commit repeated after a lost connection)."""
-        cols = [c.strip() for c in self._MEASURED.split(",")]
+        cols = store_columns(self._MEASURED)
         cur = self.db.execute(
             f"""UPDATE samples SET {", ".join(f"{c}=?" for c in cols)}, verdict=?,
                remeasures=? WHERE run_id=? AND point_index=? AND t<>?""",
-            (*self._measured(s), s.verdict, int(s.remeasures), run_id, int(s.point_index),
-             float(s.t)))
+            (*encode_row(s, self._MEASURED), s.verdict, int(s.remeasures), run_id,
+             int(s.point_index), float(s.t_s)))
         if cur.rowcount != 1:
             if self.db.execute("SELECT count(*) FROM samples WHERE run_id=? AND "
                                "point_index=?", (run_id, int(s.point_index))).fetchone()[0]:
@@ -493,77 +455,20 @@ class RunStore:
     def samples(self, run_id: int) -> Samples:
         """All samples of a run ordered by point index (:class:`Samples`)."""
         rows = self.db.execute(
-            """SELECT point_index, pose_id, set_name, q_json, x, y, z, sx, sy, sz, n, t,
-               temp_c, pressure_hpa, humidity_pct, cmd_x, cmd_y, cmd_z, dir_json, target_json,
-               reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz,
-               verdict, remeasures, joint_temp_json, qw, qx, qy, qz, sigma_deg, tool_id
-               FROM samples WHERE run_id=? ORDER BY point_index""", (run_id,)
-        ).fetchall()
-
-        def col(k, dtype=float):
-            return np.array([np.nan if r[k] is None else r[k] for r in rows], dtype)
-
-        def xyz(k):
-            return np.column_stack([col(k), col(k + 1), col(k + 2)]) if rows else np.zeros((0, 3))
-
-        q = np.array([json.loads(r[3]) for r in rows], float)
-        dirs = [r[18] for r in rows]
-        temps = [r[30] for r in rows]
-        return Samples(
-            point_index=np.array([r[0] for r in rows], int),
-            pose_id=[r[1] or str(r[0] + 1) for r in rows],
-            set_name=[r[2] or "calib" for r in rows],
-            joints_rad=q.reshape(len(rows), -1) if rows else np.zeros((0, 0)),
-            tracker_p_smr=xyz(4),
-            std_mm=xyz(7),
-            n_averaged=col(10, float),
-            t=col(11),
-            temp_c=col(12),
-            pressure_hpa=col(13),
-            humidity_pct=col(14),
-            base_p_tcp_cmd=xyz(15),
-            dirs=(np.array([json.loads(d) for d in dirs], int)
-                  if rows and all(d is not None for d in dirs) else None),
-            targets=[json.loads(r[19]) if r[19] else None for r in rows],
-            reflector=[r[20] or None for r in rows],
-            face=np.array([r[21] or 0 for r in rows], int),
-            cov_mm2=_cov_matrix(rows, 22),
-            verdict=[r[28] for r in rows],
-            remeasures=np.array([r[29] or 0 for r in rows], int),
-            joint_temp_c=(np.array([json.loads(x) for x in temps], float)
-                          if rows and all(x is not None for x in temps) else None),
-            quat_wxyz=(np.column_stack([col(31), col(32), col(33), col(34)]) if rows
-                       else np.zeros((0, 4))),
-            sigma_deg=col(35),
-            tool_id=[r[36] for r in rows],
-        )
+            f"SELECT {', '.join(store_columns(SAMPLE_COLUMNS))} FROM samples "
+            "WHERE run_id=? ORDER BY point_index", (run_id,)).mappings()
+        return Samples(**{c.name: c.kind.column(rows, c.store) for c in SAMPLE_COLUMNS})
 
     def readings(self, run_id: int) -> list[Reading]:
-        """The readings of a run that were not accepted, by point index, in order taken."""
+        """The readings of a run that were not accepted, by point index, in order taken
+        (each with its point's ``pose_id`` and ``set_name``)."""
+        cols = ", ".join(f"r.{c}" for c in store_columns(READING_COLUMNS))
         rows = self.db.execute(
-            f"""SELECT r.point_index, r.reason, s.pose_id, s.set_name, {
-                ", ".join(f"r.{c.strip()}" for c in self._MEASURED.split(","))}
+            f"""SELECT r.reason, s.pose_id, s.set_name, {cols}
                FROM readings r LEFT JOIN samples s
                ON s.run_id = r.run_id AND s.point_index = r.point_index
-               WHERE r.run_id=? ORDER BY r.point_index, r.t, r.id""", (run_id,)).fetchall()
-        out = []
-        for r in rows:
-            (q, x, y, z, sx, sy, sz, n, t, temp, pres, hum, cx, cy, cz, dirs, res,
-             thr, reflector, face) = r[4:24]
-            out.append(Reading(Sample(
-                point_index=int(r[0]), joints_rad=np.array(json.loads(q), float),
-                tracker_p_smr=np.array([x, y, z], float), std_mm=np.array([sx, sy, sz], float),
-                n=int(n or 0), t=float(t), pose_id=r[2] or str(r[0] + 1),
-                set_name=r[3] or "calib", temp_c=temp, pressure_hpa=pres, humidity_pct=hum,
-                base_p_tcp_cmd=None if cx is None else np.array([cx, cy, cz], float),
-                dirs=None if dirs is None else np.array(json.loads(dirs), int),
-                model_residual_mm=res, model_threshold_mm=thr, reflector=reflector or None,
-                face=face or None, cov_mm2=None if r[24] is None else _cov_matrix([r], 24)[0],
-                joint_temp_c=None if r[30] is None else np.array(json.loads(r[30]), float),
-                quat_wxyz=None if r[31] is None else np.array(r[31:35], float),
-                sigma_deg=r[35], tool_id=r[36]),
-                r[1]))
-        return out
+               WHERE r.run_id=? ORDER BY r.point_index, r.t, r.id""", (run_id,)).mappings()
+        return [Reading(Sample(**decode_row(r)), r["reason"]) for r in rows]
 
     def remeasure_counts(self, run_id: int) -> dict:
         """What the re-measure policy did in a run (from the stored samples and readings).

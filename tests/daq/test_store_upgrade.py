@@ -179,8 +179,8 @@ def test_schema_3_gains_reflector_face_and_covariance(v3_db, tmp_path):
         assert s.reflector == [None] * len(s) and np.all(s.face == 0)
         assert np.all(np.isnan(s.cov_mm2))
         cov = np.array([[4e-4, 1e-5, -2e-5], [1e-5, 3e-4, 0.0], [-2e-5, 0.0, 5e-4]])
-        new = Sample(point_index=99, joints_rad=np.zeros(6), tracker_p_smr=np.ones(3),
-                     std_mm=np.sqrt(np.diag(cov)), n=1, t=1.0, reflector="RRR 1.5in",
+        new = Sample(point_index=99, q=np.zeros(6), tracker_p_smr=np.ones(3),
+                     std_mm=np.sqrt(np.diag(cov)), n_averaged=1, t_s=1.0, reflector="RRR 1.5in",
                      face=2, cov_mm2=cov)
         assert st.add_sample(2, new)
         s = st.samples(2)
