@@ -10,9 +10,10 @@ from ..flags.program_flags import add_program_flags
 from .common import print_json
 
 #: what ``--program`` says in ``cellcal compensate --help``
-PROGRAM_HELP = ("compensate a robot program (URScript .script, KUKA KRL .dat) into --out: "
-                "its targets rewritten, every other byte kept (docs/programs.md); exit 1 when "
-                "a target cannot be compensated (nothing written unless --allow-partial)")
+PROGRAM_HELP = ("compensate a robot program (URScript .script, KUKA KRL .dat, ABB RAPID "
+                ".mod) into --out: its targets rewritten, every other byte kept "
+                "(docs/programs.md); exit 1 when a target cannot be compensated (nothing "
+                "written unless --allow-partial)")
 
 
 def add_flags(p) -> None:

@@ -51,7 +51,7 @@ def register(sub) -> None:
     p.add_argument("--params", required=True, metavar="params.json",
                    help="the calibration (`cellcal calibrate --out`)")
     add_program_flags(p, program_help="the robot program whose waypoints run "
-                      "(URScript .script, KUKA KRL .dat)")
+                      "(URScript .script, KUKA KRL .dat, ABB RAPID .mod)")
     p.add_argument("--start", metavar="Q1,..,QN",
                    help="joints (deg) near which a program's first pose targets are solved "
                    "when no joint target comes before them")

@@ -1,8 +1,8 @@
 """Compensate a robot program with a calibration: read, solve, write back, report.
 
 :func:`compensate_program` is what ``cellcal compensate --program`` runs: it reads a
-URScript (``.script``, ``.urscript``, ``.txt``) or KRL ``.dat`` file, compensates every
-target it can
+URScript (``.script``, ``.urscript``, ``.txt``), KRL ``.dat`` or RAPID (``.mod``,
+``.modx``, ``.sys``, ``.sysx``) file, compensates every target it can
 (:func:`calibration.compensation.pose_compensation.compensate_targets`: joint targets by
 the full model, pose targets near their neighbouring joint targets with the active TCP),
 writes the result atomically, and returns a :class:`ProgramReport` (what the command
@@ -10,12 +10,12 @@ prints, and its exit code: 1 when something could not be compensated, unless
 ``allow_partial``). A TCP at the calibration's tool (the SMR it measured) carries the
 identified point; any other TCP rides on the calibration's view of the flange (the report
 says which). :func:`solve` is shared with ``cellcal validate``. Units are converted here,
-at the edge: URScript m and rad, KRL mm and deg; the core works in mm and rad.
+at the edge: URScript m and rad, KRL and RAPID mm and deg; the core works in mm and rad.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -26,19 +26,24 @@ from calibration.files import read_input, write_atomic
 from calibration.fit.envelope import Envelope, outside_envelope, refuse_outside
 from calibration.fit.thermal_state import target_state
 
-from . import krl, urscript
-from .poses import T_to_krl, T_to_ur, krl_to_T, ur_to_T
+from . import krl, rapid, urscript
+from .poses import T_to_krl, T_to_rapid, T_to_ur, krl_to_T, rapid_to_T, ur_to_T
 from .program_report import ProgramReport, target_row
 from .targets import Correction, Program, ProgramError, Refusal, Target
 
 #: a 6-axis arm's usual working configuration (deg), the seed when a program has no joints
 DEFAULT_SEED_DEG = {"urscript": (0.0, -90.0, 90.0, -90.0, -90.0, 0.0),
-                    "krl": (0.0, -90.0, 90.0, 0.0, 45.0, 0.0)}
+                    "krl": (0.0, -90.0, 90.0, 0.0, 45.0, 0.0),
+                    "rapid": (0.0, 0.0, 0.0, 0.0, 30.0, 0.0)}
 
 
 @dataclass(frozen=True)
 class Dialect:
-    """A language's reader, writer and units."""
+    """A language's reader, writer and units; ``check`` (target, nominal joints,
+    compensated joints) -> why the compensation is not the configuration the target asks
+    for, or None; ``seeds`` (targets, seed joints rad) -> the seeds the targets'
+    configuration data make, tried for those the neighbours' seeds leave in another
+    configuration."""
 
     name: str
     parse: object
@@ -46,14 +51,28 @@ class Dialect:
     to_T: object
     from_T: object
     joint_unit: float  # rad per unit of a joint value
+    seeds: object = None
+    check: object = None
 
 
 DIALECTS = {
     "urscript": Dialect("urscript", urscript.parse_program, urscript.rewrite, ur_to_T, T_to_ur,
                         1.0),
     "krl": Dialect("krl", krl.parse_program, krl.rewrite, krl_to_T, T_to_krl, np.pi / 180.0),
+    "rapid": Dialect("rapid", rapid.parse_program, rapid.rewrite, rapid_to_T, T_to_rapid,
+                     np.pi / 180.0, rapid.seeds, rapid.configuration),
 }
-SUFFIXES = {".script": "urscript", ".urscript": "urscript", ".txt": "urscript", ".dat": "krl"}
+SUFFIXES = {".script": "urscript", ".urscript": "urscript", ".txt": "urscript", ".dat": "krl",
+            ".mod": "rapid", ".modx": "rapid", ".sys": "rapid", ".sysx": "rapid"}
+#: files that are no program text of a known language, and what to do instead
+NOT_TEXT = {
+    ".urp": "a PolyScope program (.urp) is not URScript text; save it as a .script file "
+            "(PolyScope writes one beside it)",
+    ".pgf": "a RAPID program file (.pgf) lists the program's modules: compensate each "
+            "module (.mod, .modx)",
+    ".prg": "an S4 RAPID program (.prg): save its modules as .mod files (RobotStudio, or "
+            "the controller's Save Module)",
+}
 
 
 @dataclass
@@ -75,9 +94,8 @@ def language_of(path: str | Path, language: str | None = None) -> Dialect:
     if language:
         return DIALECTS[language]
     suffix = Path(path).suffix.lower()
-    if suffix == ".urp":
-        raise ProgramError(f"{path}: a PolyScope program (.urp) is not URScript text; save "
-                           "it as a .script file (PolyScope writes one beside it)")
+    if suffix in NOT_TEXT:
+        raise ProgramError(f"{path}: {NOT_TEXT[suffix]}")
     if suffix not in SUFFIXES:
         raise ProgramError(f"{path}: cannot tell the program's language from {suffix!r}; "
                            f"known: {', '.join(sorted(SUFFIXES))}")
@@ -109,7 +127,7 @@ def _frames(program: Program, dialect: Dialect, options: Options):
                 out.append(f"TOOL_DATA[{t.extra['tool_no']}] is not given")
                 continue
         else:
-            tool = t.tcp
+            tool, base = t.tcp, t.extra.get("base")
         out.append((np.eye(4) if tool is None else dialect.to_T(tool),
                     np.eye(4) if base is None else dialect.to_T(base)))
     return out
@@ -160,8 +178,8 @@ def solve(program: Program, dialect: Dialect, error_model, x, options: Options, 
     n = len(use)
     is_pose = np.array([t.kind == "pose" for t in use])
     joints = np.zeros((n, N))
-    joints[~is_pose] = [np.asarray(t.values) * dialect.joint_unit for t in use
-                        if t.kind == "joints"]
+    joints[~is_pose] = np.reshape([np.asarray(t.values) * dialect.joint_unit for t in use
+                                   if t.kind == "joints"], (-1, N))  # none: (0, N)
     default = (options.seed if options.seed is not None else
                np.radians(DEFAULT_SEED_DEG[dialect.name][:N] + (0.0,) * max(0, N - 6)))
     joints = neighbour_seeds(is_pose, joints, default)
@@ -179,10 +197,44 @@ def solve(program: Program, dialect: Dialect, error_model, x, options: Options, 
     # a drift effect's joint temperatures and time: the calibration's warm state (a program
     # runs on a robot that has warmed up), as for a targets CSV without them
     columns, thermal = target_state(error_model, options.thermal, columns, n)
-    cj = controller_joints(error_model, x, joints, pose=pose, is_pose=is_pose,
-                           flange_T_tcp=tcp, measured=measured, columns=columns,
-                           geometric=geometric)
+
+    def run(seeds: np.ndarray) -> ControllerJoints:
+        return controller_joints(error_model, x, seeds, pose=pose, is_pose=is_pose,
+                                 flange_T_tcp=tcp, measured=measured, columns=columns,
+                                 geometric=geometric)
+
+    cj = run(joints)
+    if dialect.seeds is not None:  # the configuration the program asks for, if not found
+        retry = [i for i in np.flatnonzero(is_pose) if _off(dialect, use[i], cj, i)]
+        if retry:
+            again = run(dialect.seeds(use, joints))
+            cj = _take_rows(cj, again, [i for i in retry if not _off(dialect, use[i], again, i)])
     return Solved(use, base, tcp, measured, cj, refusals, thermal)
+
+
+def _off(dialect: Dialect, t: Target, cj: ControllerJoints, i: int) -> bool:
+    """Target i not reached, or not in the configuration it asks for."""
+    c = cj.compensation
+    return not c.success[i] or bool(dialect.check(t, c.q_nominal[i], c.q[i]))
+
+
+def _take_rows(a: ControllerJoints, b: ControllerJoints, rows: list[int]) -> ControllerJoints:
+    """``a`` with the given target rows taken from ``b`` (same targets, other seeds)."""
+    if not rows:
+        return a
+    n = len(a.compensation.q)
+
+    def mix(u, v):
+        if isinstance(v, np.ndarray) and v.shape[:1] == (n,):
+            u = u.copy()
+            u[rows] = v[rows]
+        return u
+
+    comp = replace(a.compensation, **{f.name: mix(getattr(a.compensation, f.name),
+                                                  getattr(b.compensation, f.name))
+                                      for f in fields(a.compensation)})
+    return ControllerJoints(comp, {k: mix(v, b.joints[k]) for k, v in a.joints.items()},
+                            {k: mix(v, b.success[k]) for k, v in a.success.items()})
 
 
 def tcp_notes(solved: Solved, model) -> list[str]:
@@ -231,6 +283,10 @@ def corrections(solved: Solved, dialect: Dialect, outside: list[list[str]] | Non
         if not c.success[i]:
             refusals.append(Refusal(t.line, t.context, "the calibrated robot cannot reach it "
                                     "(out of reach or at a singularity)"))
+            continue
+        why = dialect.check and dialect.check(t, c.q_nominal[i], c.q[i])
+        if why:
+            refusals.append(Refusal(t.line, t.context, why))
             continue
         if t.kind == "pose":
             values = dialect.from_T(np.linalg.inv(solved.base[i]) @ c.cmd[i], near=t.values)

@@ -36,6 +36,27 @@ PROGRAMS = {
     "compensated_already": (PROGRAM.replace("v=0.25)", "v=0.25)  # cellcal: was x"),
                             r"compensated already"),
 }
+#: the same for an ABB RAPID module: the TCP at the flange, a joint and a pose target
+RAPID = """MODULE Prog
+  PERS tooldata tPen:=[TRUE,[[0,0,0],[1,0,0,0]],[0.3,[0,0,20],[1,0,0,0],0,0,0]];
+  CONST jointtarget jHome:=[[0,-90,90,-90,-90,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  CONST robtarget pDown:=[[400,-100,300],[0,0,1,0],[0,0,-1,1],
+                         [9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  PROC main()
+    MoveAbsJ jHome, v500, z10, tPen;
+    MoveL pDown, v200, fine, tPen;
+  ENDPROC
+ENDMODULE
+"""
+RAPIDS = {
+    "rapid_unbalanced": (RAPID.replace("[0,0,-1,1],", "[0,0,-1,1,"), r"line 4"),
+    "rapid_unterminated_string": (RAPID.replace("  ENDPROC", '    TPWrite "oops;\n  ENDPROC'),
+                                  r"line 9: unterminated string"),
+    "rapid_compensated_already": (RAPID.replace("tPen;\n  ENDPROC",
+                                                "tPen;  ! cellcal: was x\n  ENDPROC"),
+                                  r"compensated already"),
+    "rapid_binary": (b"MODULE \x00\x01", r"binary"),
+}
 FRAMES = {
     "not_yaml": ("tools: [1, 2\n", r"frames.*yaml"),
     "list": ("- 1\n- 2\n", r"frames.*mapping"),
@@ -56,6 +77,17 @@ def program_cases() -> list[Case]:
     for name, (body, msg) in PROGRAMS.items():
         cases.append(Case("compensate", f"program:{name}", comp, 2, msg,
                           [write("prog.script", body)], creates=made))
+    rapid = [*comp[:4], "prog.mod", "--out", "out.mod"]
+    cases.append(Case("compensate", "program:rapid_ok", rapid, 0, "", [write("prog.mod", RAPID)],
+                      creates=("out.mod",)))
+    for name, (body, msg) in RAPIDS.items():
+        cases.append(Case("compensate", f"program:{name}", rapid, 2, msg,
+                          [write("prog.mod", body)], creates=("out.mod",)))
+    for suffix, msg in ((".pgf", r"program file \(\.pgf\).*each module"),
+                        (".prg", r"S4 RAPID program \(\.prg\)")):
+        cases.append(Case("compensate", f"program:rapid{suffix}",
+                          [*comp[:4], f"prog{suffix}", "--out", "out.mod"], 2, msg,
+                          [write(f"prog{suffix}", RAPID)], creates=("out.mod",)))
     cases += [
         Case("compensate", "program:missing", comp, 2, MISSING, creates=made),
         Case("compensate", "program:directory", comp, 2, DIRECTORY, [mkdir("prog.script")],
@@ -72,7 +104,7 @@ def program_cases() -> list[Case]:
         Case("compensate", "program:flag_without_program",
              ["compensate", "targets.csv", "--params", "params.json", "--temp-c", "20"], 2,
              r"--temp-c.*only with --program"),
-        Case("compensate", "program:bad_language", [*comp, "--language", "rapid"], 2,
+        Case("compensate", "program:bad_language", [*comp, "--language", "karel"], 2,
              r"language", [prog], creates=made),
         Case("compensate", "program:strict_outside",
              [*comp[:2], "narrow.json", *comp[3:], "--strict-range"], 3,
