@@ -56,3 +56,8 @@ class InsufficientData(CalibrationError):  # noqa: N818 - named for what the dat
     what to capture instead."""
 
     exit_code = 3
+
+
+class OutsideEnvelope(InsufficientData):
+    """Targets beyond the calibrated envelope were refused (``--strict-range``, exit code
+    3): the calibration did not measure there; the message names them."""

@@ -53,6 +53,7 @@ COMMANDS = [
     "cellcal.commands.resume",
     "cellcal.commands.export_run",
     "cellcal.commands.calibrate",
+    "cellcal.commands.check",
     "cellcal.commands.history",
     "cellcal.commands.diagnose",
     "cellcal.commands.models",

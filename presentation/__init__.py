@@ -35,7 +35,8 @@ run_listing        runs: the rows of the list, and one run in detail
 run_outcome        how a capture run ended (capture, resume): its lines, its exit code
 zero_text          zero's text: postures, convergence, a row per joint, the verdict
 demo_text          the demo's closing table: validation RMS stage by stage
-history_text       history's tables and --json object
+history_text       history's tables and --json object (and the checks: accuracy over time)
+check_text         check's text and --json object: a calibration's error on new poses
 simulation_text    the line simulate prints
 models_text        the table of built-in models
 """

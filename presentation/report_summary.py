@@ -53,7 +53,8 @@ def _steps(story: AutoStory) -> dict:
     return {"recorded": story.recorded, "heldout_method": story.heldout_method,
             "stop_reason": story.stop_reason,
             "steps": [{"effect": s.effect, "n_params": s.n_params,
-                       "calib_rms_mm": s.calib_rms_mm, "heldout_rms_mm": s.heldout_rms_mm}
+                       "calib_rms_mm": s.calib_rms_mm, "heldout_rms_mm": s.heldout_rms_mm,
+                       "range_blocked_rms_mm": s.blocked_rms_mm}
                       for s in story.steps]}
 
 

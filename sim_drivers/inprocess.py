@@ -20,7 +20,7 @@ on a 60 mm holder), ``time_scale`` (default 0), ``faults`` (only ``beam``, ``pst
 for one with no facing limit; :data:`calibration.cell.cell.REFLECTOR_ACCEPTANCE_DEG`) and
 ``thermal=cold|warm`` (the robot warms up with its work, from cold or already warm, and its
 joint zeros and links drift with the temperatures: :mod:`sim_drivers.thermal`; off by
-default).
+default: the joints then report the air's temperature, constant, and nothing drifts).
 
 The drivers identify themselves as simulators (:meth:`SimRobot.identify`).
 """
@@ -166,12 +166,13 @@ class SimRobot:
         return self.cell.robot_state().tcp
 
     def joint_temperatures(self, timeout: float = 1.0) -> tuple[float, ...]:
-        """Each joint's temperature (°C); CommandRejected when the cell has no thermal model."""
+        """Each joint's temperature (°C): the thermal model's, else the air's (constant);
+        CommandRejected from a cell whose controller reports none."""
         _need_link(self, "joint_temperatures")
         temps = self.cell.joint_temperatures()
         if temps is None:
             raise CommandRejected(self._dev, "joint_temperatures",
-                                  "the simulated robot reports no joint temperatures (thermal=)")
+                                  "the simulated robot reports no joint temperatures")
         return tuple(float(v) for v in temps)
 
     def status(self, timeout: float = 1.0) -> RobotStatus:

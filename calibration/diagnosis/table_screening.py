@@ -37,14 +37,14 @@ def data_gap_deg(theta_rad: np.ndarray, trim: float = 1.0) -> float:
 
 def screen_table(lin: Linearised, joint: int,
                  spacings: Sequence[int]) -> Screened | None:
-    """The best table on ``joint``: knots over the data's angles, spacing (no finer than the
-    data's widest gap, :func:`data_gap_deg`; a finer one only when its GCV is lower by more
-    than :data:`GCV_TIE_RTOL`) and smoothing by GCV on the linearised problem."""
+    """The best table on ``joint``: knots over the calibration rows' angles, only those the
+    rows support (:meth:`Table.supported`: constant beyond; validation rows, which the
+    table is not fitted to, add no knot), spacing (no finer than the data's widest gap,
+    :func:`data_gap_deg`; a finer one only when its GCV is lower by more than
+    :data:`GCV_TIE_RTOL`) and smoothing by GCV on the linearised problem."""
     fit = lin.fit
     em = fit.error_model
     theta = lin.calib.q[:, joint - 1]
-    if lin.valid is not None:
-        theta = np.concatenate([theta, lin.valid.q[:, joint - 1]])
     n = lin.n
     best = None
     curves = {}
@@ -54,7 +54,7 @@ def screen_table(lin: Linearised, joint: int,
     for spacing in usable:
         if np.ptp(np.degrees(theta)) < 2 * spacing:
             continue
-        table = Table.covering(em.model, joint, theta, spacing)
+        table = Table.supported(em.model, joint, theta, spacing)
         B = joint_partials(table, lin.calib, lin.bound)
         if products is None:
             products = _joint_products(lin, joint)

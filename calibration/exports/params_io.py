@@ -18,6 +18,8 @@ The file embeds the nominal model, so it is self-contained::
      "outliers": [{"pose_id": "p017", "residual_mm": 2.41, "along_beam": true,
                    "excluded": true, "line": 19, "angle_to_beam_deg": 8.2}, ...],
      "outlier_check": {"mode": "exclude", "clean_cloud": true, "threshold_mm": 0.07, ...},
+     "envelope": {"version": 1, "n_poses": 150, "joints_deg": [[-170.2, 168.9], ...],
+                  "t_s": [1.7e9, 1.7e9 + 3600]},
      "auto_steps": {"start_effects": ["geometric", "base", "tool"],
                     "start_calib_rms_mm": 0.21, "start_heldout_rms_mm": 0.23,
                     "heldout_method": "validation poses", "noise_floor_mm": 0.026,
@@ -47,6 +49,10 @@ never broken). ``thermal`` (a model with a drift effect only) is the time window
 reference temperature and warm state its parameters were fitted against, given back to
 the reloaded effects; it carries a version of its own (:mod:`calibration.fit.thermal_state`):
 a file without it measures time against the data it meets, as before.
+``envelope`` (:class:`~calibration.fit.envelope.Envelope`, a version of its own) is the
+range of each joint the calibration rows covered (deg, as the CSV's q1..qN), and of the
+air temperature, joint temperatures and time where an effect reads them: what
+``compensate`` and ``validate`` check targets against (a file without it checks nothing).
 
 Reading is strict (:class:`ParamsFile`, pydantic): every value a finite number of a
 plausible size, std null or >= 0, units as the effect declares them, every parameter of
@@ -85,6 +91,7 @@ from ..data.capture_meta import CaptureMeta
 from ..effects import REGISTRY, EffectError, display_unit, effect_source, parse_effects
 from ..errors import ParamsError
 from ..files import json_ready, read_text, write_atomic
+from ..fit.envelope import Envelope
 from ..fit.error_model import ErrorModel
 from ..fit.identify import Fit
 from ..fit.thermal_state import apply_thermal_record, check_thermal_record, thermal_record
@@ -239,6 +246,7 @@ def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto: Any = Non
         out["capture"] = capture.to_json()
     if thermal is not None:
         out["thermal"] = thermal
+    out["envelope"] = Envelope.of_fit(fit).to_json()
     return out
 
 
@@ -285,10 +293,32 @@ def read_outliers(source: str | Path | dict) -> list[dict]:
     return list(out) if isinstance(out, list) else []
 
 
-def capture_of(path: str | Path) -> CaptureMeta:
-    """The ``capture`` metadata of a params.json (empty when it has none)."""
+def read_stats(source: str | Path | dict) -> dict:
+    """The ``stats`` of a params.json (a path or its mapping): its calibration's own error
+    on its calibration rows (``calib``) and validation rows (``valid``, when it had some),
+    each as :func:`~calibration.fit.identify.error_stats` wrote it; {} when absent."""
+    data = source if isinstance(source, dict) else _read_json(source)
+    out = data.get("stats") if isinstance(data, dict) else None
+    if not isinstance(out, dict):
+        return {}
+    return {k: v for k, v in out.items() if k in ("calib", "valid") and isinstance(v, dict)}
+
+
+def read_document(path: str | Path) -> dict:
+    """The JSON document of a params.json as read (the size limit, UTF-8, JSON syntax:
+    ParamsError naming the file otherwise); :func:`read_params` checks its contents."""
+    data = _read_json(path)
+    if not isinstance(data, dict):
+        raise ParamsError(f"{path}: not a cellcal params file (a JSON object expected)")
+    return data
+
+
+def capture_of(path: str | Path | dict) -> CaptureMeta:
+    """The ``capture`` metadata of a params.json (a path or its mapping; empty when it has
+    none or it is malformed)."""
     try:  # read as the parameters are (size limit, UTF-8); ParamsError is a ValueError
-        return CaptureMeta.from_json(_read_json(path).get("capture"))
+        doc = path if isinstance(path, dict) else _read_json(path)
+        return CaptureMeta.from_json(doc.get("capture"))
     except (ValueError, TypeError, AttributeError):
         return CaptureMeta()
 
@@ -333,6 +363,9 @@ class LoadedParams:
     notes: list[str] = field(default_factory=list)
     #: the ``thermal`` record (:mod:`calibration.fit.thermal_state`), None when none
     thermal: dict | None = None
+    #: the calibrated envelope (:class:`~calibration.fit.envelope.Envelope`), None for a
+    #: file written before it was recorded
+    envelope: Envelope | None = None
 
 
 def _check_effect_files(doc: ParamsFile, source: str) -> None:
@@ -400,6 +433,9 @@ def params_from_doc(data: object, source: str = "<params>", *, model: RobotModel
     except EffectError as e:
         raise ParamsError(f"{source}: effects: {e}") from None
     names = [row.name for row in doc.parameters]
+    for eff in effects:
+        if eff.label in doc.smoothing:
+            cast(Any, eff).smoothing = doc.smoothing[eff.label]  # a table's
     for i, eff in enumerate(effects):
         if hasattr(eff, "with_parameter_names"):  # a table: its knots are in the names
             local = [n[len(eff.prefix) + 1 :] for n in names if n.startswith(eff.prefix + ".")]
@@ -407,9 +443,6 @@ def params_from_doc(data: object, source: str = "<params>", *, model: RobotModel
                 effects[i] = eff.with_parameter_names(local)
             except EffectError as err:
                 raise ParamsError(f"{source}: effects: {err}") from None
-    for eff in effects:
-        if eff.label in doc.smoothing:
-            cast(Any, eff).smoothing = doc.smoothing[eff.label]  # a table's
     thermal = check_thermal_record(data.get("thermal"), pmodel.n_joints, source)
     apply_thermal_record(effects, thermal)
     em = ErrorModel(pmodel, effects)
@@ -437,7 +470,8 @@ def params_from_doc(data: object, source: str = "<params>", *, model: RobotModel
         shown = ", ".join(missing[:5]) + (f" and {len(missing) - 5} more" if len(missing) > 5
                                           else "")
         raise ParamsError(f"{source}: parameters missing: {shown}")
-    return LoadedParams(em, x, std, source, notes, thermal)
+    envelope = Envelope.from_json(data.get("envelope"), pmodel.n_joints, source)
+    return LoadedParams(em, x, std, source, notes, thermal, envelope)
 
 
 def params_from_dict(data: dict, source: str = "<params>", *, model: RobotModel | None = None
@@ -509,6 +543,7 @@ def write_zero_update(params_path: str | Path, out: str | Path,
 
 
 __all__ = ["FORMAT", "VERSION", "LoadedParams", "ParamsError", "auto_steps_json", "capture_of",
-           "fit_to_dict", "load_params", "params_by_name", "params_from_dict", "params_json",
-           "read_auto_steps", "read_outliers", "read_params", "save_params", "solver_summary",
-           "with_zero_offsets", "write_zero_update"]
+           "fit_to_dict", "load_params", "params_by_name", "params_from_dict",
+           "params_from_doc", "params_json", "read_auto_steps", "read_document", "read_outliers",
+           "read_params", "read_stats", "save_params", "solver_summary", "with_zero_offsets",
+           "write_zero_update"]

@@ -19,6 +19,7 @@ outputs             check_outputs: the guard on output paths; existing_paths
 stores              open_store: an existing run store, or a UsageError naming it
 calibrate           CalibrateRequest, calibrate: identify the error parameters
 calibration_record  calibrate --db: record a calibration in a run store
+check               CheckRequest, check: a calibration's error on new poses, as calibrated
 diagnose            DiagnoseRequest, diagnose: rank the missing effects, or add them (--auto)
 report              ReportRequest, write_report: the HTML report
 compensate          CompensateRequest, compensate_targets: joints and corrected targets

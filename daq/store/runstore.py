@@ -1,6 +1,7 @@
 """The durable run store: runs, samples, the readings a capture did not accept,
-interruptions, leases (:mod:`daq.store.leases`) and calibrations, in one SQLite file (one per
-cell, the default) or in a PostgreSQL database (a plant's central store).
+interruptions, leases (:mod:`daq.store.leases`), calibrations and their checks, in one
+SQLite file (one per cell, the default) or in a PostgreSQL database (a plant's central
+store).
 
 :func:`open_store` (and :class:`RunStore` itself) picks the backend from the address
 (docs/formats.md §5): a ``postgresql://user@host/db`` URL is a server, anything else a
@@ -49,8 +50,8 @@ Schema versions
 
 Every run stores its plan, its typed context (:class:`daq.run_context.RunContext`) and
 the robot's identity (``robot_id``). Reading turns a run's samples into calibration
-inputs: :mod:`daq.run_data`. Calibrations (a params.json per robot and time) are read
-by ``cellcal history``.
+inputs: :mod:`daq.run_data`. Calibrations (a params.json per robot and time) and their
+checks on new poses (``cellcal check --db``) are read by ``cellcal history``.
 
 Opening read-only and refusing what is not a store
     ``read_only=True`` (the commands that only read: ``runs``, ``export``, ``zero --db``)
@@ -90,7 +91,16 @@ from .addresses import display_address, is_server_address
 from .dialect import Database, connect
 from .errors import StoreError, StoreFull, StoreUnavailable
 from .migration import check_file, migrate
-from .records import STATUSES, Calibration, Interruption, InterruptionKind, Run, RunStatus, known
+from .records import (
+    STATUSES,
+    Calibration,
+    Check,
+    Interruption,
+    InterruptionKind,
+    Run,
+    RunStatus,
+    known,
+)
 from .samples import Reading, Sample, Samples
 from .schema import RESERVE_BYTES
 from .summary import RunSummary
@@ -556,6 +566,83 @@ class RunStore:
     def robots(self) -> list[tuple[str, int]]:
         """(robot id, number of calibrations) of every robot with calibrations."""
         rows = self.db.execute("SELECT robot_id, count(*) FROM calibrations GROUP BY robot_id "
+                               "ORDER BY robot_id").fetchall()
+        return [(r[0], int(r[1])) for r in rows]
+
+    # ---------------------------------------------------------------- checks
+    @staticmethod
+    def params_digest(params: dict) -> str:
+        """The sha256 a params.json document is recorded under (as a calibration)."""
+        from calibration.files import json_ready
+
+        text = json.dumps(json_ready(params), sort_keys=True, allow_nan=False)
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    def add_check(self, robot_id: str, params: dict, result: dict, *, t: float | None = None,
+                  source_file: str | None = None, source_run: int | None = None,
+                  software: str | None = None) -> tuple[int, bool, int | None]:
+        """Record a check of ``robot_id``'s calibration ``params`` (the params.json
+        document) on new poses: ``result`` is the check's ``--json`` object (``n``,
+        ``rms_mm``, ``mean_mm``, ``p95_mm``, ``max_mm``, ``tolerance_mm``,
+        ``within_tolerance``, ``refitted``).
+
+        ``t`` when the poses were measured (default: now). The calibration of the same
+        robot recorded with the same parameters is linked. Idempotent: the same result
+        recorded again for the same robot is not stored twice. Returns (its id, True when
+        new, the linked calibration's id or None).
+        """
+        if not robot_id:
+            raise ValueError("a check needs a robot id")
+        from calibration.files import json_ready
+
+        digest = self.params_digest(params)
+        text = json.dumps(json_ready(result), sort_keys=True, allow_nan=False)
+        result_digest = hashlib.sha256(text.encode()).hexdigest()
+        ok = result.get("within_tolerance")
+        now = time.time()
+
+        def num(key: str) -> float | None:
+            v = result.get(key)
+            return None if v is None else float(v)
+
+        with self.db.transaction():
+            row = self.db.execute("SELECT id FROM calibrations WHERE robot_id=? AND "
+                                  "params_sha256=?", (robot_id, digest)).fetchone()
+            cal_id = None if row is None else int(row[0])
+            row = self.db.execute(
+                "INSERT INTO checks (robot_id, t, recorded, params_sha256, calibration_id, n, "
+                "rms_mm, mean_mm, p95_mm, max_mm, tolerance_mm, within_tolerance, "
+                "refitted_json, result_json, result_sha256, source_file, source_run, software) "
+                "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?) ON CONFLICT DO NOTHING RETURNING id",
+                (robot_id, now if t is None else float(t), now, digest, cal_id,
+                 int(result.get("n") or 0), num("rms_mm"), num("mean_mm"), num("p95_mm"),
+                 num("max_mm"), num("tolerance_mm"), None if ok is None else int(bool(ok)),
+                 json.dumps(list(result.get("refitted") or [])), text, result_digest,
+                 source_file, source_run, software or software_version())).fetchone()
+            if row is not None:
+                return int(row[0]), True, cal_id
+            row = self.db.execute("SELECT id FROM checks WHERE robot_id=? AND result_sha256=?",
+                                  (robot_id, result_digest)).fetchone()
+        return int(row[0]), False, cal_id
+
+    def checks(self, robot_id: str) -> list[Check]:
+        """The checks of ``robot_id``'s calibrations, in time order."""
+        rows = self.db.execute(
+            "SELECT id, robot_id, t, recorded, params_sha256, calibration_id, n, rms_mm, "
+            "mean_mm, p95_mm, max_mm, tolerance_mm, within_tolerance, refitted_json, "
+            "result_json, source_file, source_run, software FROM checks WHERE robot_id=? "
+            "ORDER BY t, id", (robot_id,)).fetchall()
+        out = []
+        for r in rows:
+            r = list(r)
+            r[12] = None if r[12] is None else bool(r[12])
+            r[13] = tuple(json.loads(r[13]))
+            out.append(Check(*r))
+        return out
+
+    def checked_robots(self) -> list[tuple[str, int]]:
+        """(robot id, number of checks) of every robot with checks."""
+        rows = self.db.execute("SELECT robot_id, count(*) FROM checks GROUP BY robot_id "
                                "ORDER BY robot_id").fetchall()
         return [(r[0], int(r[1])) for r in rows]
 

@@ -31,6 +31,7 @@ REQUESTS = {
     "resume": ["resume:ResumeArgs"],
     "export": ["export_run:ExportRequest"],
     "calibrate": ["calibrate:CalibrateRequest"],
+    "check": ["check:CheckRequest"],
     "history": ["history:HistoryRequest"],
     "diagnose": ["diagnose:DiagnoseRequest"],
     "models": [],  # no request: it lists the built-in models

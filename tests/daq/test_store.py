@@ -408,3 +408,4 @@ def test_the_executor_waits_for_a_lost_store_then_pauses(pg_url, pg_server, wait
         inproc.reset_cells()
     assert s.point_index.tolist() == list(range(12))
     assert kinds == (["store"] if wait_s else ["pause"])
+

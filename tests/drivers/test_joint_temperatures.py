@@ -15,7 +15,9 @@ from tests.drivers.rigs import serve_robot
 
 
 def test_controllers_without_temperatures_refuse():
-    cell = SimCell(ModelTruth.from_spec("ur10e", None, 2), seed=2)
+    # a controller that reports none (a simulated one with no thermal model reports the
+    # air's temperature: issue 36)
+    cell = SimCell(ModelTruth.from_spec("ur10e", None, 2), seed=2, joint_temps=False)
     for kind, refusal in (("line-tcp", "BAD_COMMAND"), ("modbus", "exception 2"),
                           ("sim", "no joint temperatures")):
         with serve_robot(kind, cell) as rig:
@@ -26,7 +28,7 @@ def test_controllers_without_temperatures_refuse():
                          joint_count=204, actual_joints=210, actual_tcp=230)
     assert custom.joint_temps is None and "joint_temps" not in custom.fields()
     with serve_robot("ur-rtde", cell, read_only=True) as rig:
-        # a UR always streams them: a cell without a thermal model says 30 °C
+        # a UR always streams them: a cell that reports none says 30 °C
         assert rig.driver.joint_temperatures() == (IDLE_JOINT_TEMP_C,) * 6
 
 
