@@ -115,6 +115,7 @@ def test_demo_on_the_simulated_abb(tmp_path, capsys):
     text = capsys.readouterr().out
     assert rc == 0, text
     assert "robot abb://127.0.0.1:" in text and "an ABB IRC5 over Robot Web Services" in text
+    assert "a simulated ABB IRB 2600-12/1.65 with realistic hidden errors" in text
     doc = json.loads((out / "demo.json").read_text())
-    assert doc["hidden"] == doc["found"] == DEMO_EFFECTS[5 % len(DEMO_EFFECTS)]
+    assert doc["hidden"] == doc["found"] == pick_hidden(5, "abb")
     assert list(doc["valid_rms_mm"].values())[-1] < 1.15 * doc["noise_floor_mm"]
