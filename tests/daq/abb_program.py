@@ -1,14 +1,31 @@
-"""A RAPID module of taught targets, as a teach pendant would save it: where the nominal
-controller puts the tool at given joints, as ``robtarget``s (position, quaternion, the
-robconf of those joints) moved to with ``MoveL ... fine`` and the SMR's ``tooldata``.
-The ABB tests and docs/abb.md's example (examples/abb_taught.mod) are made with it."""
+"""The ABB tests' cell and program: the built-in IRB 2600-12/1.65 with hidden errors (the
+simulated IRC5 moves it), and a RAPID module of taught targets as a teach pendant would
+save it: where the nominal controller puts the tool at given joints, as ``robtarget``s
+(position, quaternion, the robconf of those joints) moved to with ``MoveL ... fine`` and
+the SMR's ``tooldata``. docs/abb.md's example (examples/abb_taught.mod) was made with
+:func:`taught_module`."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from calibration import load_model
 from calibration.compensation.pose_compensation import NominalTcpFK
 from cellcal.programs.poses import T_to_rapid
+from sim_drivers.model_truth import ModelTruth
+
+MODEL = "irb2600_12_165"
+TOOL_MM = (0.0, 0.0, 60.0)  # the SMR on its holder
+
+
+def controller_model():
+    """The nominal IRB 2600 as the simulated controller knows it (SMR on a 60 mm holder)."""
+    return load_model(MODEL).with_changes(tool=TOOL_MM)
+
+
+def irb2600_truth(seed: int, hidden: str | None) -> ModelTruth:
+    """``truth_factory`` of the simulated cell: the IRB 2600 with hidden errors."""
+    return ModelTruth.from_spec(MODEL, hidden, seed, tool_mm=TOOL_MM)
 
 
 def robconf(q_rad: np.ndarray) -> list[int]:

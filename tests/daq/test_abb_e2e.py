@@ -19,28 +19,16 @@ import json
 import numpy as np
 import pytest
 
-from calibration import load_csv, load_model
+from calibration import load_csv
 from calibration.model.kinematics import tool_points
 from cellcal.cli import main
 from cellcal.programs import rapid
 from daq.store import RunStore
-from sim_drivers.model_truth import ModelTruth
 
-from .abb_program import taught_module
+from .abb_program import MODEL, controller_model, irb2600_truth, taught_module
 from .capture_helpers import served_cell
 
 SEED = 6
-MODEL = "irb2600_12_165"
-TOOL_MM = (0.0, 0.0, 60.0)  # the SMR on its holder
-
-
-def controller_model():
-    """The nominal IRB 2600 as the simulated controller knows it (SMR on a 60 mm holder)."""
-    return load_model(MODEL).with_changes(tool=TOOL_MM)
-
-
-def irb2600_truth(seed: int, hidden: str | None) -> ModelTruth:
-    return ModelTruth.from_spec(MODEL, hidden, seed, tool_mm=TOOL_MM)
 
 
 def _cellcal(*args: str, rc: int = 0) -> str:

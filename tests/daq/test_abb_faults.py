@@ -1,7 +1,7 @@
-"""A capture on the simulated ABB (Robot Web Services, the RAPID server module) meets each
-fault of the controller and of the link: each ends in a clear error or is recovered, and
-once the operator has dealt with it the run resumes and completes, every point stored
-once (nothing lost, nothing doubled)."""
+"""A capture on the simulated ABB (an IRB 2600 moved over Robot Web Services through the
+RAPID server module) meets each fault of the controller and of the link: each ends in a
+clear error or is recovered, and once the operator has dealt with it the run resumes and
+completes, every point stored once (nothing lost, nothing doubled)."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ import pytest
 from daq.routines import make_plan
 from daq.run_context import ExecutorOptions
 from daq.store import RunStore
-from sim_drivers.model_truth import model_truth_factory
 
-from .capture_helpers import connected, rough_cell, run_plan, served_cell, ur10e_controller_model
+from .abb_program import controller_model, irb2600_truth
+from .capture_helpers import connected, rough_cell, run_plan, served_cell
 
 FAST = dict(io_timeout_s=0.5, measure_timeout_s=0.5, move_timeout_s=2.0, backoff_s=0.001,
             backoff_max_s=0.01, max_retries=3, measure_s=0.01)
@@ -37,10 +37,10 @@ def _abb(stack):
 @pytest.mark.parametrize("fault", list(CASES))
 def test_each_fault_ends_clearly_and_the_run_resumes(tmp_path, fault):
     said, fix = CASES[fault]
-    model = ur10e_controller_model()
+    model = controller_model()
     plan = make_plan("poses", model, count=24, seed=5, cell=rough_cell())
     opts = ExecutorOptions(**FAST)
-    with served_cell(model_truth_factory, seed=5, abb=True,
+    with served_cell(irb2600_truth, seed=5, abb=True,
                      faults="delay=1.0" if fault == "slow" else None) as stack, \
             RunStore(tmp_path / "cell.db") as store:
         robot_url = _abb(stack).url
