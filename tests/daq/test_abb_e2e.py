@@ -70,7 +70,7 @@ def test_the_whole_workflow_on_the_simulated_abb(tmp_path, monkeypatch):
         common = ["--model", MODEL, "--tool-mm", "0,0,60", *devices]
         _cellcal("capture", "frame", "--tracker-at", "2500,0,500", *common)
         _cellcal("capture", "poses", "--count", "300", "--valid-fraction", "0.25", "--seed",
-                 SEED, "--remeasure", "0", "--measure-s", "0.05", *common)
+                 SEED, "--remeasure", "0", *common)
         _cellcal("export", "--db", "cell.db", "--out", "capture.csv")
         fit = json.loads(_cellcal("calibrate", "capture.csv", "--out", "params.json",
                                   "--json"))
