@@ -98,11 +98,30 @@ def _error_table(fit: Fit, baseline: Fit) -> str:
                              fmt(s["p95_mm"]), fmt(s["max_mm"])])
     if fit.valid:
         split = split_stats(Envelope.of_fit(fit), fit.valid_data, fit.valid_residuals)
-        for where in ("inside", "outside"):
-            s = split[where]
-            rows.append([f"  valid {where} the envelope", s["n"], fmt(s["rms_mm"]),
-                         fmt(s["mean_mm"]), fmt(s["p95_mm"]), fmt(s["max_mm"])])
+        rows += split_rows(split, "valid ")
     return table(rows, ["position error", "n", "rms mm", "mean mm", "p95 mm", "max mm"])
+
+
+def split_rows(split: dict, prefix: str = "") -> list[list]:
+    """The error table's two rows of :func:`~calibration.fit.envelope.split_stats`: the
+    poses inside the calibrated envelope and those beyond it (``prefix``: ``"valid "``)."""
+    rows = []
+    for where in ("inside", "outside"):
+        s = split[where]
+        rows.append([f"  {prefix}{where} the envelope", s["n"], fmt(s["rms_mm"]),
+                     fmt(s["mean_mm"]), fmt(s["p95_mm"]), fmt(s["max_mm"])])
+    return rows
+
+
+def beyond_line(outside: dict, n: int, what: str) -> str | None:
+    """``outside   2 of 100 validation poses lie beyond the envelope (q4: 1, q5: 1): ...``
+    from the ``outside`` part of :func:`~calibration.fit.envelope.split_stats` (None when
+    no pose lies beyond it); ``n`` the poses, ``what`` their name."""
+    if not outside["n"]:
+        return None
+    return (f"outside   {outside['n']} of {n} {what} lie beyond the envelope ("
+            + ", ".join(f"{k}: {v}" for k, v in outside["by_quantity"].items())
+            + "): the calibration did not measure there")
 
 
 def envelope_lines(fit: Fit) -> list[str]:
@@ -113,11 +132,9 @@ def envelope_lines(fit: Fit) -> list[str]:
              for k, line in enumerate(env.lines())]
     if fit.valid:
         by = split_stats(env, fit.valid_data, fit.valid_residuals)["outside"]
-        if by["n"]:
-            lines.append(f"outside   {by['n']} of {fit.valid['n']} validation poses lie "
-                         "beyond the envelope ("
-                         + ", ".join(f"{k}: {v}" for k, v in by["by_quantity"].items())
-                         + "): the calibration did not measure there")
+        line = beyond_line(by, fit.valid["n"], "validation poses")
+        if line is not None:
+            lines.append(line)
     return lines
 
 

@@ -14,6 +14,11 @@ after the rigid transform between the frames is fitted (:func:`check_model` with
 :func:`frame_change` tells from what two captures recorded of their measurement frame
 (``tracker_T_base`` of the files' metadata, :class:`~calibration.data.capture_meta.CaptureMeta`)
 whether they are in the same one.
+
+Given the calibrated envelope (:class:`~calibration.fit.envelope.Envelope`, the ranges the
+calibration rows covered), :func:`check_model` names per pose the quantities beyond it
+(``outside``) and splits the statistics inside and outside it
+(:func:`~calibration.fit.envelope.split_stats`, as ``calibrate`` splits its validation rows).
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ from ..data.dataset import Dataset
 from ..effects.geometric import Base
 from ..errors import InsufficientData
 from ..model.transforms import fit_rigid, matrix_to_rotvec, quat_to_matrix, rotvec_to_matrix
+from .envelope import Envelope, data_columns, split_stats
 from .error_model import ErrorModel
 from .identify import error_stats
 from .orientation_residuals import orientation_stats, rotation_residuals
@@ -114,6 +120,11 @@ class ModelCheck:
         (its origin, mm; its rotation, deg), None without a refit
     orientation_residuals : (n, 3) rad, or None
     notes : remarks on what was and was not compared
+    envelope : the calibrated envelope the poses were compared with, or None
+    outside : per pose, the quantities beyond ``envelope`` (``q2``, ``t_s``...; empty
+        inside), None without an envelope
+    split : :func:`~calibration.fit.envelope.split_stats` of the residuals (``inside``,
+        ``outside`` with ``by_quantity``), None without an envelope
     """
 
     error_model: ErrorModel
@@ -128,15 +139,32 @@ class ModelCheck:
     base_turn_deg: float | None = None
     orientation_residuals: np.ndarray | None = field(default=None, repr=False)
     notes: list[str] = field(default_factory=list)
+    envelope: Envelope | None = None
+    outside: list[list[str]] | None = field(default=None, repr=False)
+    split: dict | None = None
+
+    def worst_index(self, k: int = 5, beyond_mm: float | None = None) -> np.ndarray:
+        """The rows of the ``k`` largest errors, largest first; with ``beyond_mm`` only
+        those larger than it."""
+        order = np.argsort(-self.errors, kind="stable")
+        if beyond_mm is not None:
+            order = order[self.errors[order] > beyond_mm]
+        return order[:k]
 
     def worst(self, k: int = 5, beyond_mm: float | None = None) -> list[tuple[str, int, float]]:
         """The ``k`` largest errors, largest first, as (pose id, file line, error mm);
         with ``beyond_mm`` only those larger than it."""
-        order = np.argsort(-self.errors, kind="stable")
-        if beyond_mm is not None:
-            order = order[self.errors[order] > beyond_mm]
         return [(str(self.data.pose_id[i]), int(self.data.lines[i]), float(self.errors[i]))
-                for i in order[:k]]
+                for i in self.worst_index(k, beyond_mm)]
+
+    def outside_of(self, i: int) -> list[str]:
+        """The quantities of pose ``i`` beyond the envelope (empty inside or without one)."""
+        return [] if self.outside is None else list(self.outside[i])
+
+    @property
+    def n_outside(self) -> int:
+        """How many poses lie beyond the envelope (0 without one)."""
+        return 0 if self.outside is None else sum(1 for names in self.outside if names)
 
     def n_beyond(self, tolerance_mm: float) -> int:
         """How many poses miss by more than ``tolerance_mm``."""
@@ -152,9 +180,13 @@ def base_effect(error_model: ErrorModel) -> tuple[Base, np.ndarray] | None:
 
 
 def check_model(error_model: ErrorModel, values: np.ndarray, data: Dataset, *,
-                refit_base: bool = False) -> ModelCheck:
+                refit_base: bool = False, envelope: Envelope | None = None) -> ModelCheck:
     """The error of the model ``(error_model, values)`` on ``data``, every row (a ``set``
     column is not looked at: every pose is new to the model).
+
+    ``envelope``: the calibrated envelope; each pose's quantities beyond it are named
+    (:meth:`Envelope.outside_names`) and the statistics split inside and outside it
+    (:func:`~calibration.fit.envelope.split_stats`).
 
     ``refit_base``: fit the tracker-to-base transform (the ``base`` effect's six
     parameters) to these poses first, every other parameter held; ValueError for a model
@@ -194,8 +226,12 @@ def check_model(error_model: ErrorModel, values: np.ndarray, data: Dataset, *,
                          "target's orientation (no tool_rotation effect): positions only "
                          "are checked")
     errors = np.linalg.norm(resid, axis=1)
+    outside = split = None
+    if envelope is not None:
+        outside = envelope.outside_names(data.q, data_columns(data))
+        split = split_stats(envelope, data, resid)
     return ModelCheck(error_model, x, given, data, resid, errors, stats, refitted, shift, turn,
-                      ores, notes)
+                      ores, notes, envelope, outside, split)
 
 
 def _refit_base(em: ErrorModel, x: np.ndarray, bound: Any, idx: np.ndarray) -> np.ndarray:

@@ -21,7 +21,10 @@ def register(sub) -> None:
         "No parameter is refitted but the tracker-to-base transform, and that only with "
         "--refit-base or when the data recorded another measurement frame than the "
         "calibration's (the tracker was moved); the output says what was refitted. Every "
-        "row of the file is checked (a set column is not looked at).\n\n"
+        "row of the file is checked (a set column is not looked at). The figures are split "
+        "inside and outside the calibrated envelope (the ranges the calibration data covered, "
+        "params.json envelope), and each pose beyond it is named with what lies beyond "
+        "(outside_range).\n\n"
         "Exit codes: 0 done (within --tolerance-mm when given), 1 the RMS error is beyond "
         "--tolerance-mm, 2 bad input, 3 data the check cannot use (docs/formats.md §6).",
     )

@@ -4,7 +4,8 @@
 and the measurement CSV, decides whether the tracker-to-base transform is refitted (asked
 with ``--refit-base``, or the data recorded another measurement frame than the
 calibration's: :func:`calibration.fit.model_check.frame_change`), computes every pose's
-error (:func:`calibration.fit.model_check.check_model`), judges it against
+error (:func:`calibration.fit.model_check.check_model`; inside and outside the calibrated
+envelope the params.json records, a note when it records none), judges it against
 ``--tolerance-mm`` and records it in the robot's history with ``--db``; it returns a
 :class:`Checked`.
 """
@@ -28,6 +29,7 @@ from ..errors import UsageError
 from ..request import FiniteFloat
 from .calibration_record import open_history_store
 from .inputs import DataInputs
+from .target_checks import no_envelope_note
 
 
 class CheckRequest(DataInputs):
@@ -105,6 +107,8 @@ def check(request: CheckRequest, *, on_note: Callable[[str], None] | None = None
     refuse_radians(data, em.model)
     calibration = capture_of(doc)
     notes += _tool_notes(calibration, data.capture, request.params)
+    if loaded.envelope is None:
+        notes.append(no_envelope_note(request.params, "poses"))
     frame = compare_frames(calibration, data.capture)
     reason = None
     if request.refit_base:
@@ -120,7 +124,8 @@ def check(request: CheckRequest, *, on_note: Callable[[str], None] | None = None
         reason = None
     for n in notes if on_note is not None else ():
         on_note(n)
-    result = check_model(em, values, data, refit_base=reason is not None)
+    result = check_model(em, values, data, refit_base=reason is not None,
+                         envelope=loaded.envelope)
     notes += result.notes
     if on_note is not None:
         for n in result.notes:

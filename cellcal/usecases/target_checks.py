@@ -29,10 +29,11 @@ __all__ = ["JOINTS_TOLERANCE_MM", "check_joints_reach", "no_envelope_note", "out
 
 
 
-def no_envelope_note(params: str) -> str:
-    """What is said when a params.json records no envelope."""
+def no_envelope_note(params: str, what: str = "targets") -> str:
+    """What is said when a params.json records no envelope (``what``: the targets, the
+    poses... that are not checked against it)."""
     return (f"{params} records no calibrated envelope (written before cellcal recorded "
-            "one): the targets are not checked against the ranges the calibration "
+            f"one): the {what} are not checked against the ranges the calibration "
             "measured; calibrate again to have them checked")
 
 

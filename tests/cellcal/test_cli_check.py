@@ -3,7 +3,10 @@
 The parity: what ``check`` says of a params.json on new poses is what ``calibrate --valid``
 said of the same poses when it wrote that params.json (to 1e-9 mm). Only the base is ever
 refitted, when asked or when the data recorded another measurement frame; ``--tolerance-mm``
-exits 1 naming the poses beyond it; ``--db`` records the check and ``history`` shows it."""
+exits 1 naming the poses beyond it; ``--db`` records the check and ``history`` shows it.
+With the calibrated envelope in the params.json the figures are split inside and outside
+it as ``calibrate --valid`` splits its validation poses, and every pose beyond it is named
+(``outside_range``); without one a note says so."""
 
 from __future__ import annotations
 
@@ -12,11 +15,13 @@ import json
 import numpy as np
 import pytest
 
-from calibration import ErrorModel, load_model
+from calibration import ErrorModel, load_csv, load_model
+from calibration.fit.identify import error_stats
 from calibration.fit.simulate import random_joints, realistic_truth, simulate
 from calibration.model.transforms import rotvec_to_matrix
 from cellcal.cli import main
 from daq.store import RunStore
+from tests.corpus.cases import narrowed_params
 
 STATS = ("n", "rms_mm", "mean_mm", "p95_mm", "max_mm")
 #: the calibration's measurement frame (as a frame run records it) and another one
@@ -254,3 +259,104 @@ def test_diagnose_with_params_reports_the_given_models_error_first(files, tmp_pa
     assert main(["diagnose", str(files / "new.csv"), "--model", "ur10e", "--top", "3"]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert lines[1].startswith("error     RMS") and "refitted" not in lines[1]
+
+
+def _same_stats(got, want):
+    """Two statistics objects of the split agree (to 1e-9 mm; null figures when n is 0)."""
+    for key in STATS:
+        if want[key] is None:
+            assert got[key] is None, key
+        else:
+            assert got[key] == pytest.approx(want[key], abs=1e-9, rel=0), key
+
+
+@pytest.mark.parametrize("effects", ["geometric,base,tool",
+                                     "geometric,base,tool,compliance:2,backlash:3,base_drift"])
+def test_check_splits_its_figures_as_calibrate_splits_its_validation(files, tmp_path, capsys,
+                                                                    effects):
+    """The same model on the same poses: check's figures inside and outside the envelope
+    are calibrate --valid's (the joints beyond it; with base_drift, the later times)."""
+    params = tmp_path / "p.json"
+    cal = _json(capsys, ["calibrate", str(files / "cal.csv"), "--model", "ur10e", "--effects",
+                         effects, "--valid", str(files / "new.csv"), "--out", str(params),
+                         "--json"])
+    out = _json(capsys, ["check", "--params", str(params), str(files / "new.csv"), "--json"])
+    assert out["envelope"] == cal["envelope"] == json.loads(params.read_text())["envelope"]
+    _same_stats(out["inside"], cal["valid_inside"])
+    _same_stats(out["outside"], cal["valid_outside"])
+    assert out["outside"]["by_quantity"] == cal["valid_outside"]["by_quantity"]
+    assert out["outside"]["n"] > 0  # the split is not empty on either data set
+    assert out["n_outside_range"] == out["outside"]["n"]
+    beyond = [p for p in out["poses"] if p["outside_range"]]
+    assert len(beyond) == out["outside"]["n"]
+    if "base_drift" in effects:  # measured after the calibration: every pose beyond it
+        assert out["inside"]["n"] == 0 and all("t_s" in p["outside_range"] for p in beyond)
+    by_id = {p["pose_id"]: p["outside_range"] for p in out["poses"]}
+    assert all(w["outside_range"] == by_id[w["pose_id"]] for w in out["worst"])
+
+
+def test_a_narrowed_envelope_splits_the_figures_and_names_the_poses(files, tmp_path, capsys):
+    assert main(["calibrate", str(files / "cal.csv"), "--model", "ur10e", "--out",
+                 str(tmp_path / "params.json")]) == 0
+    capsys.readouterr()
+    narrow = tmp_path / "narrow.json"
+    narrow.write_text(narrowed_params(tmp_path))  # joint 2 cut to [0, 0.1] deg
+    new = str(files / "new.csv")
+    out = _json(capsys, ["check", "--params", str(narrow), new, "--json"])
+    assert out["inside"]["n"] == 0 and out["inside"]["rms_mm"] is None
+    assert out["outside"]["by_quantity"]["q2"] == 200 and out["n_outside_range"] == 200
+    _same_stats(out["outside"], out)  # every pose beyond it
+    assert all("q2" in p["outside_range"] for p in out["poses"])
+    # the worst poses named on failure carry what of them lies beyond the envelope
+    failed = _json(capsys, ["check", "--params", str(narrow), new, "--json",
+                            "--tolerance-mm", f"{out['rms_mm'] * 0.8:.6f}"], rc=1)
+    assert failed["worst"] and all("q2" in w["outside_range"] for w in failed["worst"])
+    assert main(["check", "--params", str(narrow), new, "--tolerance-mm",
+                 f"{out['rms_mm'] * 0.8:.6f}"]) == 1
+    text = capsys.readouterr().out
+    assert "  inside the envelope" in text and "  outside the envelope" in text
+    line = next(ln for ln in text.splitlines() if ln.startswith("outside "))
+    assert line.startswith("outside   200 of 200 poses lie beyond the envelope (")
+    assert "q2: 200" in line and line.endswith("): the calibration did not measure there")
+    tol = next(ln for ln in text.splitlines() if ln.startswith("tolerance"))
+    first = failed["worst"][0]
+    assert (f"{first['pose_id']} (line {first['line']}) {first['error_mm']:.3f} mm (outside "
+            f"{';'.join(first['outside_range'])})") in tol
+    # cut at the median of joint 2: the inside figures are those of the poses inside
+    doc = json.loads(narrow.read_text())
+    q2 = np.degrees(load_csv(new, load_model("ur10e")).q[:, 1])
+    doc["envelope"]["joints_deg"][1] = [-400.0, float(np.median(q2))]
+    half = tmp_path / "half.json"
+    half.write_text(json.dumps(doc))
+    out = _json(capsys, ["check", "--params", str(half), new, "--json"])
+    inside = [p for p in out["poses"] if not p["outside_range"]]
+    assert out["inside"]["n"] == len(inside) >= 90
+    resid = np.array([[p["dx_mm"], p["dy_mm"], p["dz_mm"]] for p in inside])
+    _same_stats(out["inside"], error_stats(resid))
+    assert out["outside"]["by_quantity"]["q2"] == 100
+    assert main(["check", "--params", str(half), new]) == 0
+    text = capsys.readouterr().out
+    assert f"outside   {200 - len(inside)} of 200 poses lie beyond the envelope (" in text
+
+
+def test_without_an_envelope_check_says_so(files, tmp_path, capsys):
+    params = tmp_path / "p.json"
+    assert main(["calibrate", str(files / "cal.csv"), "--model", "ur10e", "--out",
+                 str(params)]) == 0
+    capsys.readouterr()
+    doc = json.loads(params.read_text())
+    doc.pop("envelope")
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps(doc))
+    note = (f"{old} records no calibrated envelope (written before cellcal recorded one): the "
+            "poses are not checked against the ranges the calibration measured; calibrate "
+            "again to have them checked")
+    assert main(["check", "--params", str(old), str(files / "new.csv")]) == 0
+    captured = capsys.readouterr()
+    assert f"note: {note}" in captured.err
+    assert "the envelope" not in captured.out
+    out = _json(capsys, ["check", "--params", str(old), str(files / "new.csv"), "--json"])
+    assert note in out["notes"]
+    assert out["envelope"] is None and out["inside"] is None and out["outside"] is None
+    assert out["n_outside_range"] == 0
+    assert all(p["outside_range"] == [] for p in out["poses"])

@@ -743,8 +743,8 @@ def narrowed_params(ws: Path) -> str:
 
 def _envelope_cases() -> list[Case]:
     """Issue 34: targets beyond the calibrated envelope (warned; refused with
-    --strict-range, exit 3), a params.json without the envelope or with a bad one, a
-    table's knot range in its name."""
+    --strict-range, exit 3), a params.json without the envelope or with a bad one, check's
+    poses beyond it, a table's knot range in its name."""
     def params(change):
         def make(ws):
             d = json.loads((ws / "params.json").read_text())
@@ -778,6 +778,17 @@ def _envelope_cases() -> list[Case]:
     cases += [Case("compensate", f"envelope:{name}", argv, 2, msg,
                    [write("p.json", params(change))])
               for name, (change, msg) in bad.items()]
+    # check: the poses beyond the envelope named, a file without one said, a bad one refused
+    check = ["check", "good.csv", "--params", "p.json", "--model", "ur5"]
+    cases += [
+        Case("check", "envelope:outside_named", check, 0,
+             r"outside +\d+ of \d+ poses lie beyond the envelope \(.*q2: \d+", [narrow]),
+        Case("check", "envelope:without_record", check, 0,
+             r"records no calibrated envelope.*the poses are not checked",
+             [write("p.json", params(lambda d: d.pop("envelope")))]),
+        Case("check", "envelope:reversed", check, 2, r"envelope\.joints_deg\.0",
+             [write("p.json", params(env(joints_deg=[[1, 0]] * 6)))]),
+    ]
     cal = ["calibrate", "good.csv", "--model", "ur5", "--effects"]
     for name, effect, msg in (("not_knots", "table5:2@-3..40", r"multiples of 5"),
                               ("reversed", "table:2@40..-30", r"LO < HI"),
