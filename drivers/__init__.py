@@ -17,6 +17,8 @@ Modules
     ``line_tracker``  a laser tracker over TCP or serial, line protocol
     ``modbus_robot``  a PLC-style robot controller over Modbus TCP
     ``ur_rtde``       Universal Robots over ur-rtde
+    ``abb/``          ABB IRC5 over Robot Web Services 1.0 and a RAPID server module (see
+                      its package)
     ``leica/``        Leica laser trackers over the emScon TPI (see its package)
 
 Logging: every driver logs its wire traffic decoded at DEBUG to its module's logger
@@ -71,6 +73,7 @@ _LAZY = {
     "LineTracker": "drivers.line_tracker",
     "EmsconTracker": "drivers.leica.driver",
     "UrRtdeRobot": "drivers.ur_rtde",
+    "AbbRwsRobot": "drivers.abb.driver",
 }
 
 __all__ = [

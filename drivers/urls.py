@@ -6,6 +6,7 @@ Robots (:func:`open_robot`)::
     serial:///dev/ttyUSB0?baud=115200             SerialRobot over a serial port
     socket://host:port                            SerialRobot over TCP
     ur://host                                     drivers.ur_rtde.UrRtdeRobot.from_url(url)
+    abb://[user:password@]host[:80]?joints=6      AbbRwsRobot (ABB IRC5, Robot Web Services 1.0)
     sim://...                                     whatever registered the ``sim`` scheme
 
 Trackers (:func:`open_tracker`)::
@@ -36,6 +37,7 @@ from typing import TYPE_CHECKING, Any, Literal, Protocol
 from drivers import url_parts as parts
 
 if TYPE_CHECKING:  # the driver modules load when their URL is opened
+    from drivers.abb.driver import AbbRwsRobot
     from drivers.leica.driver import EmsconTracker
     from drivers.line_robot import SerialRobot
     from drivers.line_tracker import LineTracker
@@ -205,6 +207,18 @@ def _open_emscon(url: str, kind: Kind, /, **kw: Any) -> EmsconTracker:
     return EmsconTracker(url, a["host"], a["port"], **kw)
 
 
+def _open_abb(url: str, kind: Kind, /, **kw: Any) -> AbbRwsRobot:
+    from drivers.abb.driver import AbbRwsRobot
+
+    return AbbRwsRobot.from_url(url, **kw)
+
+
+def _check_abb(url: str) -> None:
+    from drivers.abb.driver import AbbRwsRobot
+
+    AbbRwsRobot.from_url(url)  # builds a driver: nothing is opened
+
+
 register_scheme("modbus+tcp", _open_modbus, kinds=("robot",), params=("unit", "map"),
                 check=_check_modbus)
 register_scheme("serial", _open_line_robot(_serial), kinds=("robot",), params=("baud",),
@@ -216,5 +230,8 @@ register_scheme("tracker+tcp", _open_line_tracker(_socket), kinds=("tracker",), 
                 check=_socket)
 register_scheme("tracker+serial", _open_line_tracker(_serial), kinds=("tracker",),
                 params=("baud",), check=_serial)
+register_scheme("abb", _open_abb, kinds=("robot",),
+                params=("joints", "task", "module", "mechunit", "tool", "wobj", "read_only"),
+                check=_check_abb)
 register_scheme("emscon", _open_emscon, kinds=("tracker",), params=("reflector",),
                 check=_emscon)

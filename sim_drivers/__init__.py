@@ -23,6 +23,8 @@ Modules
     ``rtde_server``        an RTDE server for the cell (receive side of ur-rtde)
     ``rtde_child``         that server's child process
     ``fake_rtde_control``  ``FakeRTDEControl``: ur-rtde's control interface on a cell
+    ``abb_controller``     ``SimIrc5``: an ABB controller's state and its RAPID server module
+    ``rws_server``         the ABB controller over Robot Web Services 1.0 (digest, JSON)
     ``serve``              ``SimStack``: every server for one cell (``cellcal sim serve``)
 
 Logging: the faults fired and the clients connected at INFO (``cellcal sim serve -v``);

@@ -21,7 +21,7 @@ beam      tracker: the beam breaks during ``MEAS`` (``EVT BEAM_LOST``,
 slow      any line server: the reply is held back ``delay`` seconds (longer
           than a client timeout); Modbus server: the response likewise
 drop      TCP servers: the server closes the connection instead of replying
-          (ignored on a pty; the Modbus server drops the connection too)
+          (ignored on a pty; the Modbus and RWS servers drop the connection too)
 garbage   line servers: a line of random non-protocol bytes instead of the reply
 pstop     robot servers (and FakeRTDEControl, the in-process robot): a move command
           triggers a protective stop
@@ -33,6 +33,12 @@ blunder   tracker (the cell's injector, so over the wire and in process): the
           random direction (:func:`calibration.fit.simulate.blunder_offsets`), with
           nothing on the wire to tell; the cell records the truth
           (:attr:`sim_drivers.cell.SimCell.blunder_log`)
+motoroff  ABB controller (RWS): the motors go off when the RAPID module starts a
+          move (the robot stops, RAPID stops; ``ctrlstate`` motoroff)
+mastership  ABB controller: another client takes the mastership at a RAPID data
+          write, which is refused (403) until the operator frees it
+rapid     ABB controller: a RAPID error when the module starts a move (the task
+          stops, the event log says why)
 ========  =================================================================
 
 Servers call :meth:`FaultInjector.begin_command` once per command and then
@@ -51,7 +57,8 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 #: every fault name the spec language knows
-FAULT_NAMES = ("beam", "slow", "drop", "garbage", "pstop", "modbus", "stale", "blunder")
+FAULT_NAMES = ("beam", "slow", "drop", "garbage", "pstop", "modbus", "stale", "blunder",
+               "motoroff", "mastership", "rapid")
 
 
 @dataclass

@@ -2,11 +2,11 @@
 
 :class:`SimStack` builds one :class:`~sim_drivers.cell.SimCell` and serves it as
 a Modbus TCP robot, a line-protocol robot over TCP, the line-protocol
-tracker over TCP and over a pty, and an emScon (Leica TPI) tracker over TCP,
-all on loopback, on the configured ports (:data:`DEFAULT_PORTS`, or
-:func:`ports_from_base`): a port in use is an error (:class:`PortInUse`) unless the
-configuration allows any port (``any_port``: a free one instead); port 0 is any free
-port.
+tracker over TCP and over a pty, and an emScon (Leica TPI) tracker over TCP (and, when
+asked, as an ABB IRC5 over Robot Web Services: ``abb``), all on loopback, on the
+configured ports (:data:`DEFAULT_PORTS`, or :func:`ports_from_base`): a port in use is an
+error (:class:`PortInUse`) unless the configuration allows any port (``any_port``: a free
+one instead); port 0 is any free port.
 
 The truth is one parameter: ``truth_factory(seed, hidden) -> TrueRobot``
 (default :func:`sim_drivers.inprocess.default_truth`, a ``ToyArm``).
@@ -24,16 +24,21 @@ from sim_drivers.inprocess import default_truth, with_thermal
 from sim_drivers.modbus_server import ModbusRobotServer
 from sim_drivers.robot_server import RobotLineServer
 from sim_drivers.rtde_server import PortUnavailable, RtdeSimServer
+from sim_drivers.rws_server import RwsServer
 from sim_drivers.tracker_server import TrackerServer
 from sim_drivers.truth import TrueRobot
 
 #: preferred ports: Modbus robot, line robot, line tracker, emScon tracker (a real
 #: emScon server listens on 700, a privileged port)
 DEFAULT_PORTS = {"modbus": 15020, "line_robot": 15021, "tracker": 15700, "emscon": 15701}
+#: the ABB robot's (Robot Web Services; a real IRC5 listens on 80), served when asked: port
+#: ``abb`` of :attr:`ServeConfig.ports` (absent from ports a caller gives: any free port)
+ABB_PORT = 15080
 
 #: what each port serves, for messages
 PORT_NAMES = {"modbus": "Modbus robot", "line_robot": "line-protocol robot",
-              "tracker": "line-protocol tracker", "emscon": "emScon tracker"}
+              "tracker": "line-protocol tracker", "emscon": "emScon tracker",
+              "abb": "ABB robot (RWS)"}
 
 
 class PortInUse(ValueError):
@@ -41,7 +46,8 @@ class PortInUse(ValueError):
 
 
 def ports_from_base(base: int) -> dict[str, int]:
-    """Ports ``base`` .. ``base + 3``: Modbus robot, line robot, line tracker, emScon."""
+    """Ports ``base`` .. ``base + 3``: Modbus robot, line robot, line tracker, emScon (the
+    ABB robot, when served, takes ``base + 4``)."""
     return {name: base + k for k, name in enumerate(DEFAULT_PORTS)}
 
 
@@ -53,7 +59,8 @@ class ServeConfig:
     spec (:mod:`sim_drivers.faults`); ports of 0 mean "any free port"; ``any_port``: a
     port in use is replaced by a free one (else :class:`PortInUse`); ``thermal`` ("cold",
     "warm", None) gives the robot joint temperatures and their hidden effects
-    (:mod:`sim_drivers.thermal`).
+    (:mod:`sim_drivers.thermal`); ``abb``: also serve the robot as an ABB IRC5 over Robot
+    Web Services (:mod:`sim_drivers.rws_server`), its URL after the others'.
     """
 
     seed: int = 0
@@ -61,12 +68,13 @@ class ServeConfig:
     faults: str | None = None
     time_scale: float = 0.0
     host: str = "127.0.0.1"
-    ports: dict[str, int] = field(default_factory=lambda: dict(DEFAULT_PORTS))
+    ports: dict[str, int] = field(default_factory=lambda: {**DEFAULT_PORTS, "abb": ABB_PORT})
     pty: bool = True
     any_port: bool = False
     #: also serve RTDE (receive side) on the fixed port 30004 of ``host``, when it is free
     rtde: bool = False
     thermal: str | None = None
+    abb: bool = False
 
 
 class SimStack:
@@ -150,6 +158,10 @@ class SimStack:
                     "emscon",
                 )
             )
+            if c.abb:
+                self.servers.append(
+                    self._start_one(
+                        lambda p: RwsServer(cell, faults=f, host=c.host, port=p), "abb"))
             if c.rtde:
                 try:
                     self.servers.append(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..flags.choices import DEMO_ROBOTS
 from .common import bounded_int, seed_int
 from .parsers import command_parser
 
@@ -33,6 +34,11 @@ def register(sub) -> None:
                    help="the robot starts cold and warms up while it is captured (drift "
                    "checks every 25 points); no physical effect hidden unless --hidden; exit "
                    "0 when the diagnosis adds a drift effect")
+    p.add_argument("--robot", choices=DEMO_ROBOTS, default="modbus",
+                   help="the simulated robot: modbus (a UR10e behind a PLC-style controller "
+                   "over Modbus TCP, the default) or abb (an IRB 2600-12/1.65 behind an ABB "
+                   "IRC5 over Robot Web Services, moved through the RAPID server module; "
+                   "docs/abb.md)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.add_argument("--force", action="store_true",
                    help="write into a folder that holds other files (the demo's own file "

@@ -1,7 +1,8 @@
 """``cellcal sim serve``: run the simulated cell behind its wire protocols until stopped.
 
 Prints one driver URL per line (Modbus robot, line robot, tracker over TCP, tracker over
-a pty, emScon tracker, then the read-only RTDE robot when port 30004 was free), then a
+a pty, emScon tracker, with ``--abb`` the ABB robot over Robot Web Services, then the
+read-only RTDE robot when port 30004 was free), then a
 ready-to-paste ``export R=... T=...`` line (the Modbus robot and the TCP tracker), then
 serves until Ctrl-C or SIGTERM and stops cleanly (exit code 0). A port in use is an
 error (exit 2) unless ``--any-port``. The simulated tracker's line of sight is honest
@@ -15,7 +16,7 @@ import sys
 import threading
 
 from ..flags.choices import THERMAL_STARTS
-from ..flags.sim_ports import DEFAULT_PORTS, PORT_FLAGS
+from ..flags.sim_ports import ABB_PORT, ABB_PORT_FLAG, DEFAULT_PORTS, PORT_FLAGS
 from .common import bounded_float, bounded_int, nonneg_float, seed_int
 from .parsers import add_subcommands, command_parser
 
@@ -31,11 +32,13 @@ def register(sub) -> None:
         ssub, "serve", help="start the simulated servers and print their URLs",
         description="Serve the simulated cell on loopback until Ctrl-C: prints one driver URL "
         "per line (Modbus robot, line-protocol robot, line-protocol tracker over TCP and "
-        "over a pty, emScon tracker; the read-only RTDE robot when port 30004 is free), "
-        "then an `export R=... T=...` line to paste into the shell that captures.\n\n"
-        "Ports: Modbus robot 15020, line robot 15021, tracker 15700, emScon 15701 by "
-        "default; --port-base N serves them on N, N+1, N+2, N+3; a port flag sets one (0: "
-        "any free port). A port in use is an error (exit 2) unless --any-port.")
+        "over a pty, emScon tracker; with --abb the ABB robot over Robot Web Services; the "
+        "read-only RTDE robot when port 30004 is free), then an `export R=... T=...` line "
+        "to paste into the shell that captures.\n\n"
+        "Ports: Modbus robot 15020, line robot 15021, tracker 15700, emScon 15701, ABB "
+        "robot 15080 by default; --port-base N serves them on N, N+1, N+2, N+3, N+4; a port "
+        "flag sets one (0: any free port). A port in use is an error (exit 2) unless "
+        "--any-port.")
     s.add_argument("--seed", type=seed_int, default=0,
                    help="random seed of the cell (default 0)")
     s.add_argument("--model", default="ur10e", metavar="NAME|PATH",
@@ -63,14 +66,20 @@ def register(sub) -> None:
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (default loopback)")
     s.add_argument("--port-base", type=bounded_int(0, 65532), default=None, metavar="N",
                    help="serve on ports N (Modbus robot), N+1 (line robot), N+2 (tracker), "
-                   "N+3 (emScon); 0: any free ports")
+                   "N+3 (emScon), N+4 (ABB robot, with --abb); 0: any free ports")
     for name, flag in PORT_FLAGS.items():
         s.add_argument(flag, type=bounded_int(0, 65535), default=None, metavar="PORT",
                        help=f"port of the {name.replace('_', ' ')} server (default "
                        f"{DEFAULT_PORTS[name]}; 0: any free port)")
+    s.add_argument(ABB_PORT_FLAG, type=bounded_int(0, 65535), default=None, metavar="PORT",
+                   help=f"port of the ABB robot server, with --abb (default {ABB_PORT}; 0: "
+                   "any free port)")
     s.add_argument("--any-port", action="store_true",
                    help="serve on a free port instead of a port in use (the printed URLs "
                    "are the truth)")
+    s.add_argument("--abb", action="store_true",
+                   help="also serve the robot as an ABB IRC5 over Robot Web Services 1.0 "
+                   "(abb://, the RAPID server module CellcalServer running; docs/abb.md)")
     s.add_argument("--no-pty", action="store_true", help="no tracker on a pseudo-terminal")
     s.add_argument("--no-rtde", action="store_true",
                    help="no RTDE receive server on port 30004 (ur://, read-only)")

@@ -42,3 +42,6 @@ THERMAL_STARTS = ("cold", "warm")
 #: written to 0.01 deg (a 1.3 m arm: ~0.2 mm per joint) and a calibration's corrections (a
 #: few mm), far below joints of another target or configuration (hundreds of mm)
 JOINTS_TOLERANCE_MM = 10.0
+
+#: the keys of :data:`cellcal.usecases.demo.DEMO_ROBOTS`: the demo robot's controllers
+DEMO_ROBOTS = ("modbus", "abb")

@@ -8,3 +8,6 @@ from __future__ import annotations
 DEFAULT_PORTS = {"modbus": 15020, "line_robot": 15021, "tracker": 15700, "emscon": 15701}
 PORT_FLAGS = {"modbus": "--modbus-port", "line_robot": "--line-robot-port",
               "tracker": "--tracker-port", "emscon": "--emscon-port"}
+#: the ABB robot's port (Robot Web Services, served with --abb; ``--port-base N``: N+4) and
+#: its flag (:data:`sim_drivers.serve.ABB_PORT`)
+ABB_PORT, ABB_PORT_FLAG = 15080, "--abb-port"

@@ -1,9 +1,10 @@
 """The whole cell on the simulator, from capture to a more accurate robot.
 
 :func:`run_demo` starts the simulated cell (a UR10e with realistic hidden errors and one
-hidden physical effect) behind its wire protocols on loopback, connects the real drivers
-(Modbus TCP robot, line-protocol tracker over TCP), sets up the measurement frame,
-captures calibration and validation poses into a SQLite run store, exports the
+hidden physical effect, or with ``robot="abb"`` an IRB 2600 behind an ABB controller)
+behind its wire protocols on loopback, connects the real drivers (the Modbus TCP robot or
+the ABB one over Robot Web Services; the line-protocol tracker over TCP), sets up the
+measurement frame, captures calibration and validation poses into a SQLite run store, exports the
 measurement CSV, calibrates the default model, diagnoses, lets the automatic diagnosis
 add the missing effects one at a time, and writes the HTML report, which tells that story
 step by step. With ``cold_start`` the robot warms up while it is captured, with drift
@@ -28,6 +29,7 @@ from calibration.diagnosis.diagnosis import diagnose
 from calibration.exports.params_io import save_params
 from calibration.files import write_atomic
 from calibration.workflow import UNCALIBRATED_LABEL, AutoStory, staged_fit
+from daq.run_context import ExecutorOptions
 from daq.run_data import dataset_from_run
 from daq.service import CaptureRequest, plan_run, start_run
 from daq.store import RunStore, RunSummary
@@ -46,6 +48,16 @@ from .demo_folder import MANIFEST_KEY, DemoFolderError, check_demo_folder
 DEMO_EFFECTS = ("compliance:3", "compliance:2", "harmonic:1", "backlash:2", "scale:3",
                 "coupling:5")
 
+
+#: the demo's robots: their controller, how its URL begins, the arm (a built-in model, its
+#: name in words) and the hidden effects the seed draws from
+DEMO_ROBOTS = {
+    "modbus": ("a PLC-style controller over Modbus TCP", "modbus+tcp://", "ur10e", "UR10e",
+               DEMO_EFFECTS),
+    # the built-in IRB 2600 has no link masses: no gravity-driven effect to hide
+    "abb": ("an ABB IRC5 over Robot Web Services", "abb://", "irb2600_12_165",
+            "ABB IRB 2600-12/1.65", ("harmonic:1", "backlash:2", "scale:3", "coupling:5")),
+}
 
 #: where the demo's user says the tracker stands (mm, robot base frame): roughly where the
 #: simulated cell puts it (:data:`~sim_drivers.model_truth.DEFAULT_TRACKER_AT_MM`)
@@ -76,17 +88,21 @@ class DemoResult:
                     k: self.frame[k] for k in ("orthogonality_deg",) if k in self.frame}}
 
 
-def pick_hidden(seed: int) -> str:
-    return DEMO_EFFECTS[seed % len(DEMO_EFFECTS)]
+def pick_hidden(seed: int, robot: str = "modbus") -> str:
+    """The hidden effect of the demo of ``seed`` on ``robot`` (of :data:`DEMO_ROBOTS`)."""
+    effects = DEMO_ROBOTS[robot][4]
+    return effects[seed % len(effects)]
 
 
 def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | None = None,
              poses: int = 300, valid: int = 150, progress: ProgressFactory | None = None,
              say: Callable[[str], None] | None = None, force: bool = False,
-             cold_start: bool = False) -> DemoResult:
+             cold_start: bool = False, robot: str = "modbus") -> DemoResult:
     """Run the demo; returns what it measured. ``say`` receives the step-by-step text, line
     by line; ``progress()`` makes each capture's progress reporter (None: none);
-    ``cold_start``: the robot starts cold (no physical effect hidden unless ``hidden``).
+    ``cold_start``: the robot starts cold (no physical effect hidden unless ``hidden``);
+    ``robot``: the robot's controller, one of :data:`DEMO_ROBOTS` (``abb``: an ABB IRC5
+    moved over Robot Web Services through the RAPID server module).
 
     :class:`DemoFolderError` for a folder holding other files (see
     :func:`check_demo_folder`; ``force`` writes there anyway, never over a foreign store).
@@ -95,7 +111,9 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     out = Path(out)
     check_demo_folder(out, force)
     out.mkdir(parents=True, exist_ok=True)
-    hidden = hidden or (None if cold_start else pick_hidden(seed))
+    controller, scheme, arm, arm_words, _ = DEMO_ROBOTS[robot]
+    options = cold_start_demo.capture_options() if cold_start else _capture_options(robot)
+    hidden = hidden or (None if cold_start else pick_hidden(seed, robot))
     db_path, csv_path = out / "cell.db", out / "capture.csv"
     params_path, report_path = out / "params.json", out / "report.html"
     # the manifest first: the store about to be made is the demo's, whatever happens next
@@ -108,20 +126,21 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
         def say(text: str) -> None:
             pass
 
-    truth = ModelTruth.from_spec("ur10e", hidden, seed)
-    model = truth.model  # what the controller knows: nominal UR10e, SMR on a 60 mm holder
-    say(f"cellcal demo (seed {seed}): a simulated UR10e with realistic hidden errors and "
+    truth = ModelTruth.from_spec(arm, hidden, seed)
+    model = truth.model  # what the controller knows: the nominal arm, SMR on a 60 mm holder
+    say(f"cellcal demo (seed {seed}): a simulated {arm_words} with realistic hidden errors and "
         + ("a cold start (it warms up while it is captured)" if cold_start else
            "one hidden physical effect") + ", measured by a simulated laser tracker")
     config = ServeConfig(seed=seed, hidden=hidden, pty=False,
-                         ports={"modbus": 0, "line_robot": 0, "tracker": 0},
-                         thermal="cold" if cold_start else None)
+                         ports={"modbus": 0, "line_robot": 0, "tracker": 0, "abb": 0},
+                         thermal="cold" if cold_start else None, abb=robot == "abb")
     result = DemoResult(out, cold_start_demo.HIDDEN if cold_start else hidden, None,
                         float("nan"))
     with SimStack(config, truth_factory=lambda s, h: truth) as stack:
-        robot_url = next(u for u in stack.urls if u.startswith("modbus+tcp://"))
+        robot_url = next(u for u in stack.urls if u.startswith(scheme))
         tracker_url = next(u for u in stack.urls if u.startswith("tracker+tcp://"))
-        say(f"[1/7] cell served on loopback: robot {robot_url}, tracker {tracker_url}")
+        served = "" if robot == "modbus" else f" ({controller})"
+        say(f"[1/7] cell served on loopback: robot {robot_url}{served}, tracker {tracker_url}")
         robot, tracker = open_robot(robot_url), open_tracker(tracker_url)
         try:
             robot.connect(5.0)
@@ -144,8 +163,7 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
                                                    "valid_fraction": valid / count,
                                                    "floor_z_mm": 0.0},
                                   model, robot, tracker, (robot_url, tracker_url), progress,
-                                  seed, **(cold_start_demo.capture_options() if cold_start
-                                           else {}))
+                                  seed, **options)
                 if cold_start:
                     say(cold_start_demo.drift_story(store, run_id))
                 dataset_from_run(store, run_id).to_csv(csv_path)
@@ -204,6 +222,15 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     return result
 
 
+def _capture_options(robot: str) -> dict:
+    """The poses capture's settings for ``robot``: the IRB 2600 re-measures a suspect
+    reading after a retract of 0.005 rad per joint (the default 0.01 rad moves its 1.65 m
+    arm's tool beyond the motion guard's 25 mm from the planned posture)."""
+    if robot != "abb":
+        return {}
+    return {"executor": ExecutorOptions(remeasure_retract_rad=0.005)}
+
+
 def _capture(store, routine, params, model, robot, tracker, urls, progress, seed,
              tracker_at=None, **options) -> int:
     """Plan (for the tracker at ``tracker_at``, else where the store's frame run measured
@@ -235,6 +262,7 @@ class DemoRequest(Request):
     valid: int = Field(150, ge=20, alias="--valid")
     force: bool = Field(False, alias="--force")
     cold_start: bool = Field(False, alias="--cold-start")
+    robot: str = Field("modbus", alias="--robot")
 
 
 def demo(req: DemoRequest, *, say: Callable[[str], None] | None = None,
@@ -248,7 +276,7 @@ def demo(req: DemoRequest, *, say: Callable[[str], None] | None = None,
 
     if req.hidden:
         try:
-            parse_effect(req.hidden, load_model("ur10e"))
+            parse_effect(req.hidden, load_model(DEMO_ROBOTS[req.robot][2]))
         except EffectError as e:
             raise UsageError(f"--hidden {req.hidden!r}: {e}") from None
     try:
@@ -257,4 +285,4 @@ def demo(req: DemoRequest, *, say: Callable[[str], None] | None = None,
         raise UsageError(str(e)) from None
     return run_demo(req.out, seed=req.seed, hidden=req.hidden, poses=req.poses,
                     valid=req.valid, progress=progress, say=say, force=req.force,
-                    cold_start=req.cold_start)
+                    cold_start=req.cold_start, robot=req.robot)

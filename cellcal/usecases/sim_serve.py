@@ -15,21 +15,23 @@ from typing import Annotated, Any, Self
 from pydantic import Field
 
 from ..errors import UsageError
-from ..flags.sim_ports import DEFAULT_PORTS, PORT_FLAGS
+from ..flags.sim_ports import ABB_PORT, DEFAULT_PORTS, PORT_FLAGS
 from ..request import Request
 from .capture import Point, comma_numbers
 
 
 def ports_of(args) -> dict[str, int]:
     """The ports asked for: the defaults, or from --port-base, then the port flags."""
-    out = dict(DEFAULT_PORTS)
+    out = {**DEFAULT_PORTS, "abb": ABB_PORT}
     if args.port_base is not None:
         out = {name: args.port_base + k if args.port_base else 0
-               for k, name in enumerate(DEFAULT_PORTS)}
+               for k, name in enumerate([*DEFAULT_PORTS, "abb"])}
     for name in DEFAULT_PORTS:
         v = getattr(args, PORT_FLAGS[name].lstrip("-").replace("-", "_"))
         if v is not None:
             out[name] = v
+    if getattr(args, "abb_port", None) is not None:
+        out["abb"] = args.abb_port
     bad = {name: v for name, v in out.items() if not 0 <= v <= 65535}
     if bad:
         raise UsageError("ports must be 0..65535 (0: any free port), got "
@@ -54,6 +56,7 @@ class SimServeRequest(Request):
     ports: dict[str, int] = {}
     any_port: bool = Field(False, alias="--any-port")
     no_pty: bool = Field(False, alias="--no-pty")
+    abb: bool = Field(False, alias="--abb")
     no_rtde: bool = Field(False, alias="--no-rtde")
     no_weather_station: bool = Field(False, alias="--no-weather-station")
     tracker_collimation_urad: float = Field(0.0, alias="--tracker-collimation-urad")
@@ -87,7 +90,8 @@ def sim_stack(req: SimServeRequest):
     config = ServeConfig(seed=req.seed, hidden=req.hidden, faults=req.faults,
                          time_scale=req.time_scale, thermal=req.thermal, host=req.host,
                          ports=req.ports,
-                         pty=not req.no_pty, rtde=not req.no_rtde, any_port=req.any_port)
+                         pty=not req.no_pty, rtde=not req.no_rtde, any_port=req.any_port,
+                         abb=req.abb)
     try:
         cell = load_cell(req.cell) if req.cell else None
     except ValueError as e:

@@ -112,8 +112,10 @@ def _waypoints_of_csv(request: ValidateRequest, em, x, variants, thermal):
     r = NominalTcpFK(em.model, em.model.tool_mm()).chain(t.q)
     pose = as_poses(t.base_p_tcp, r.base_R_flange)
     columns, state = target_state(em, thermal, t.columns, len(t.q))
+    tcp = np.eye(4)  # the CSV's points are the model's tool's, for every controller
+    tcp[:3, 3] = em.model.tool_mm()
     cj = controller_joints(em, x, t.q, pose=pose, is_pose=np.ones(len(t.q), bool),
-                           measured=True, columns=columns,
+                           flange_T_tcp=tcp, measured=True, columns=columns,
                            geometric="geometric" in variants)
     return _rows(cj, list(t.pose_id), [None] * len(t.q), variants,
                  cj.compensation.target[:, :3, 3]), _thermal_notes(state)

@@ -65,7 +65,7 @@ def test_parser_constants_agree_with_the_core():
     from cellcal.flags import choices
     from cellcal.flags.routine_args import ROUTINE_ARGS
     from daq.routines import ROUTINES, get
-    from sim_drivers.serve import DEFAULT_PORTS
+    from sim_drivers.serve import ABB_PORT, DEFAULT_PORTS
 
     assert choices.DEFAULT_EFFECTS == DEFAULT_EFFECTS
     assert list(choices.SOLVERS) == list(SOLVERS)
@@ -73,6 +73,10 @@ def test_parser_constants_agree_with_the_core():
     assert zero.DEFAULT_SIGMA_MM == DEFAULT_SIGMA_MM
     assert history.DEFAULT_SIGMA == DEFAULT_SIGMA
     assert sim_serve.DEFAULT_PORTS == DEFAULT_PORTS
+    assert sim_serve.ABB_PORT == ABB_PORT
+    from cellcal.usecases.demo import DEMO_ROBOTS
+
+    assert tuple(DEMO_ROBOTS) == choices.DEMO_ROBOTS
     assert list(ROUTINE_ARGS) == list(ROUTINES)
     for name, spec in ROUTINE_ARGS.items():  # the summary is the routine's docstring's
         first = get(name).__doc__.strip().splitlines()[0]

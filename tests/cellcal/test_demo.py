@@ -103,3 +103,19 @@ def test_cold_start_demo_shows_the_drift_and_the_diagnosis_names_it(tmp_path, ca
     assert 'id="fig-joint-temps"' in html
     params = json.loads((out / "params.json").read_text())
     assert params["thermal"]["warm_state"]["joint_temp_c"][1] > 24.0
+
+
+@pytest.mark.slow
+def test_demo_on_the_simulated_abb(tmp_path, capsys):
+    """The demo's robot behind a simulated ABB IRC5, moved over Robot Web Services through
+    the RAPID server module: the same story, found at the noise floor."""
+    out = tmp_path / "abb"
+    rc = main(["demo", "--robot", "abb", "--seed", "5", "--out", str(out), "--poses", "150",
+               "--valid", "60", "--quiet"])
+    text = capsys.readouterr().out
+    assert rc == 0, text
+    assert "robot abb://127.0.0.1:" in text and "an ABB IRC5 over Robot Web Services" in text
+    assert "a simulated ABB IRB 2600-12/1.65 with realistic hidden errors" in text
+    doc = json.loads((out / "demo.json").read_text())
+    assert doc["hidden"] == doc["found"] == pick_hidden(5, "abb")
+    assert list(doc["valid_rms_mm"].values())[-1] < 1.15 * doc["noise_floor_mm"]

@@ -68,13 +68,15 @@ def rough_cell(tracker_at=DEFAULT_TRACKER_AT_MM, error_mm=(60.0, -40.0, 30.0)) -
 
 
 @contextlib.contextmanager
-def served_cell(truth_factory, *, faults=None, seed=0, time_scale=0.0, cell=None, **cell_kw):
+def served_cell(truth_factory, *, faults=None, seed=0, time_scale=0.0, cell=None, abb=False,
+                **cell_kw):
     """A SimStack on free loopback ports (no pty): yields the stack (what ``cellcal sim
     serve`` runs, in this process so a test can read the simulator's truth). ``cell``: the
-    cell (fixtures, SMR); ``cell_kw``: extra :class:`~sim_drivers.cell.SimCell` arguments
-    (weather station, collimation...)."""
+    cell (fixtures, SMR); ``abb``: the robot served as an ABB IRC5 too (its URL the last);
+    ``cell_kw``: extra :class:`~sim_drivers.cell.SimCell` arguments (weather station,
+    collimation...)."""
     cfg = ServeConfig(seed=seed, faults=faults, ports=dict(FREE_PORTS), pty=False,
-                      time_scale=time_scale)
+                      time_scale=time_scale, abb=abb)
     with SimStack(cfg, truth_factory=truth_factory, cell=cell, **cell_kw) as stack:
         yield stack
 

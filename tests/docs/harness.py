@@ -17,8 +17,8 @@ Sessions
 The simulated cell
     ``cellcal sim serve ...`` runs in the background for the rest of the file, with
     ``--port-base P --no-rtde`` appended (free ports of the test's own); the documented
-    default ports 15020, 15021, 15700, 15701 in later commands become P .. P+3. Its
-    expected output is the URLs it prints.
+    default ports 15020, 15021, 15700, 15701 (and the ABB robot's 15080, with ``--abb``)
+    in later commands become P .. P+4. Its expected output is the URLs it prints.
 Comparing output, line by line
     A line ``...`` matches any number of lines (none included); ``[...]`` in a line
     matches any text (a solver's stopping reason, say). Otherwise a line matches
@@ -58,7 +58,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 SHELL_LANGS = ("sh", "bash", "shell")
-DEFAULT_PORTS = (15020, 15021, 15700, 15701)
+DEFAULT_PORTS = (15020, 15021, 15700, 15701, 15080)
 
 _MARKER = re.compile(r"<!--\s*doctest:\s*(.*?)\s*-->")
 _NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
@@ -368,7 +368,7 @@ class Session:
     def _serve(self, command: str) -> list[str]:
         """Start ``cellcal sim serve`` in the background on ports of the session's own; its
         URLs (up to the ``export`` line)."""
-        base = free_port_base()
+        base = free_port_base(len(DEFAULT_PORTS))
         self.ports = {old: base + k for k, old in enumerate(DEFAULT_PORTS)}
         args = [a for a in shlex.split(command, comments=True)[3:] if a != "&"]
         proc = subprocess.Popen([sys.executable, "-m", "cellcal", "sim", "serve", *args,

@@ -14,6 +14,7 @@ import contextlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
+from drivers.abb.driver import AbbRwsRobot
 from drivers.leica.driver import EmsconTracker
 from drivers.line_robot import SerialRobot
 from drivers.line_tracker import LineTracker
@@ -27,6 +28,7 @@ from sim_drivers.inprocess import SimRobot, SimTracker
 from sim_drivers.modbus_server import ModbusRobotServer
 from sim_drivers.robot_server import RobotLineServer
 from sim_drivers.rtde_server import RtdeSimServer
+from sim_drivers.rws_server import RwsServer
 from sim_drivers.tracker_server import TrackerServer
 from tests.sim_drivers.rtde_helpers import loopback_host
 
@@ -49,7 +51,9 @@ class Kind:
     suite opens it with (ur-rtde: the joint limits, which a UR controller does not report).
     ``faults``: what the suite's wire-fault tests do to it (``drop``, ``slow``: the server
     drops the connection, holds a reply back, :mod:`sim_drivers.faults`; ``gone``: the
-    server stops).
+    server stops). ``observer``: the options of the second client :meth:`Rig.observer`
+    opens (an ABB driver that only watches takes no mastership: ``read_only``).
+    ``joint_temperatures``: the controller reports them (RWS does not).
     """
 
     serve: Callable[..., contextlib.AbstractContextManager[Served]]
@@ -60,6 +64,8 @@ class Kind:
     names_itself: bool = True
     options: Callable[[SimCell], dict] = lambda cell: {}
     faults: set[str] = field(default_factory=set)
+    observer: dict = field(default_factory=dict)
+    joint_temperatures: bool = True
 
 
 def _wire(server_cls: type, open_fn: Callable, suffix: str = "", **fixed):
@@ -130,6 +136,12 @@ ROBOTS: dict[str, Kind] = {
                            "move": "moveJ"},
                     tol={"q": 1e-9, "tcp": 1e-6, "linear": 0.05, "temp": 1e-9},
                     names_itself=False, options=lambda cell: {"limits": cell.truth.limits}),
+    "abb": Kind(_wire(RwsServer, open_robot), AbbRwsRobot,
+                words={"limit": "LIMIT", "unreachable": "ERR_ROBLIMIT", "pstop": "guardstop",
+                       "move": "MoveAbsJ", "read": "jointtarget"},
+                tol={"q": 1e-7, "tcp": 1e-3, "linear": 0.05},
+                faults={"drop", "gone", "slow"}, observer={"read_only": True},
+                joint_temperatures=False),
     "sim": Kind(_in_process(SimRobot, "sim://robot"), SimRobot,
                 words={"limit": "LIMIT", "unreachable": "UNREACHABLE", "pstop": "PROTECTIVE_STOP",
                        "move": "move_joints"},
@@ -192,7 +204,7 @@ class Rig:
             with _serve(self.table, "line-tcp", self.cell) as rig:
                 yield rig.driver
             return
-        other = self.open()
+        other = self.open(**self.kind.observer)
         other.connect(5.0)
         try:
             yield other

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from drivers import urls
+from drivers.abb.driver import AbbRwsRobot
 from drivers.line_robot import SerialRobot
 from drivers.line_tracker import LineTracker
 from drivers.modbus_robot import ModbusRobot
@@ -23,6 +24,8 @@ def test_dispatch():
     assert isinstance(t, LineTracker) and t._transport.port_url == "socket://127.0.0.1:15700"
     t = urls.open_tracker("tracker+serial:///dev/ttyUSB1?baud=57600")
     assert t._transport.port_url == "/dev/ttyUSB1" and t._transport.baudrate == 57600
+    a = urls.open_robot("abb://10.0.0.9?joints=6")
+    assert isinstance(a, AbbRwsRobot) and (a._link.host, a._link.port) == ("10.0.0.9", 80)
 
 
 def test_registered_scheme():

@@ -146,3 +146,31 @@ def test_sim_serve_port_in_use_is_an_error_with_a_hint():
 def test_port_base_gives_four_consecutive_ports():
     assert ports_from_base(20000) == {"modbus": 20000, "line_robot": 20001, "tracker": 20002,
                                       "emscon": 20003}
+
+
+def test_sim_serve_abb_serves_the_robot_over_rws_too():
+    """``--abb``: the same robot as an ABB IRC5, its URL after the emScon tracker's (port
+    base + 4); moved over RWS, seen by the Modbus driver."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "cellcal", "sim", "serve", "--model", "toy", "--abb",
+         "--no-pty", "--no-rtde", "--port-base", "0"],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        urls = read_lines(proc, 5, timeout=20.0)
+        assert urls[3].startswith("emscon://") and urls[4].startswith("abb://127.0.0.1:")
+        assert urls[4].endswith("?joints=3")
+        target = np.array([0.3, -0.2, 0.4])
+        with open_robot(urls[4]) as abb:
+            abb.connect(5.0)
+            abb.move_joints(target, speed=0.5, timeout=5.0)
+        with open_robot(urls[0]) as rob:
+            rob.connect(2.0)
+            assert np.allclose(rob.read_joints().q, target, atol=1e-4)
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=10) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()
