@@ -31,7 +31,6 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -63,18 +62,32 @@ def cellcal(*args: str) -> list[str]:
 CPU = False
 
 
+#: runs a command and prints its wall time, CPU time, peak memory (KiB) and exit code: a
+#: small process between this one and the command, because a child forked from a large
+#: process reports that process's memory as its own peak (Linux counts it until the exec)
+LAUNCHER = """
+import os, sys, time
+argv = sys.argv[1:]
+t = time.perf_counter()
+pid = os.fork()
+if pid == 0:
+    fd = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(fd, 1)
+    os.execvp(argv[0], argv)
+_, status, ru = os.wait4(pid, 0)
+wall = time.perf_counter() - t
+print(wall, ru.ru_utime + ru.ru_stime, ru.ru_maxrss, os.waitstatus_to_exitcode(status))
+"""
+
+
 def run_child(argv: list[str], cwd: Path) -> tuple[float, float, int, str]:
     """Run ``argv`` once: (wall s, or with :data:`CPU` user + system s; peak resident
     memory MiB, exit code, stderr's tail)."""
-    t = time.perf_counter()
-    p = subprocess.Popen(argv, cwd=cwd, env=env(), stdout=subprocess.DEVNULL,
-                         stderr=subprocess.PIPE)
-    err = p.stderr.read() if p.stderr else b""
-    _, status, usage = os.wait4(p.pid, 0)
-    wall = time.perf_counter() - t
-    p.returncode = os.waitstatus_to_exitcode(status)
-    took = usage.ru_utime + usage.ru_stime if CPU else wall
-    return took, usage.ru_maxrss / 1024.0, p.returncode, err.decode(errors="replace")[-400:]
+    p = subprocess.run([sys.executable, "-S", "-c", LAUNCHER, *argv], cwd=cwd, env=env(),
+                       capture_output=True, text=True)
+    wall, cpu, peak_kib, code = p.stdout.split()
+    took = float(cpu) if CPU else float(wall)
+    return took, int(peak_kib) / 1024.0, int(code), p.stderr[-400:]
 
 
 def timed_command(argv: list[str], cwd: Path, runs: int, remove: Path | None = None
