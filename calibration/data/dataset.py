@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError
-from ..files import read_text, write_atomic
+from ..files import TextLines, write_atomic
 from ..model.robot_model import RobotModel
 from .capture_meta import CaptureMeta
 from .orientation_columns import QUAT_COLUMNS, read_orientation_columns
@@ -334,15 +334,25 @@ def read_meta(path: str | Path) -> dict[str, str]:
 
 
 def _read_rows(path: Path, source: str):
-    """Metadata, header, its line number and the data rows as (line_no, fields)."""
-    text = read_text(path, DataError, "CSV file", MAX_CSV_BYTES)
+    """Metadata, header, its line number and the data rows as (line_no, fields); the file
+    is read a block at a time (:class:`calibration.files.TextLines`), never held whole."""
+    lines = TextLines(path, DataError, "CSV file", MAX_CSV_BYTES)
+    try:
+        return _parse_rows(lines, source)
+    except DataError:
+        lines.check_rest()  # an encoding error anywhere in the file is said first
+        raise
+
+
+def _parse_rows(lines, source: str):
     meta: dict[str, str] = {}
     meta_line: dict[str, int] = {}
     header = None
     header_line = 0
     rows = []
     in_preamble = True
-    for line_no, line in enumerate(text.splitlines(), start=1):
+    plain = csv.field_size_limit()  # below it, a line without quotes is split on commas
+    for line_no, line in lines:
         stripped = line.strip()
         if not stripped:
             continue
@@ -357,10 +367,13 @@ def _read_rows(path: Path, source: str):
                 meta[k], meta_line[k] = v.strip(), line_no
             continue
         in_preamble = False
-        try:
-            fields = next(csv.reader([line]))
-        except csv.Error as e:
-            raise DataError(f"{source}: line {line_no}: {e}") from None
+        if '"' not in line and len(line) <= plain:
+            fields = line.split(",")  # what csv.reader gives a line without quotes
+        else:
+            try:
+                fields = next(csv.reader([line]))
+            except csv.Error as e:
+                raise DataError(f"{source}: line {line_no}: {e}") from None
         for f in fields:
             if len(f) > MAX_FIELD_CHARS:
                 raise DataError(f"{source}: line {line_no}: a field of {len(f)} characters "

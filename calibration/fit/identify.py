@@ -9,12 +9,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import full_pose
 from ..data.dataset import Dataset
 from ..effects import display_unit
 from ..numerics.blas import blas_threads
 from ..numerics.heap import keep_freed_memory
 from ..numerics.linalg import cho_solve, cholesky_upper, triangular_inverse
+from . import full_pose
 from .error_model import Bound, ErrorModel
 from .identifiability import Identifiability, analyse, penalised_groups
 from .outliers import MODES as OUTLIER_MODES
