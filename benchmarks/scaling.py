@@ -183,17 +183,20 @@ def write_store(path: Path, poses: Path, n: int) -> None:
 #: a fine table (2 deg knots) and the periodic errors
 REAL_RANGES_DEG = ((-90, 90), (-180, 0), (-160, 20), (-180, 0), (-150, 30), (-120, 120))
 REAL_TABLE_JOINTS = (2, 3, 5)
-REAL_HIDDEN = "harmonic:1,harmonic2:1,harmonic:4,harmonic2:4,compliance:2,compliance:3"
+REAL_HIDDEN = ("harmonic:1,harmonic2:1,harmonic3:1,harmonic:4,harmonic2:4,harmonic8:4,"
+               "compliance:2,compliance:3,backlash:3,scale:2")
 #: the per-pose scatter no effect explains, in tracker sigmas (a real arm's repeatability)
 REAL_SCATTER = 4.0
 
 
-def real_shaped(n: int = 500, seed: int = 8):
+def real_shaped(n: int = 500, seed: int = 8, amp: float = 5e-4):
     """A data set shaped like a real capture: ``n`` calibration poses of a UR10e within
     :data:`REAL_RANGES_DEG`; hidden fine tables on :data:`REAL_TABLE_JOINTS` (2 deg knots,
-    60 local bumps 1-3 deg wide, 0.3 mrad each), harmonics of orders 1 and 2 on joints 1
-    and 4 (twice their typical size), compliance of joints 2 and 3; the tracker's sigma
-    0.015 mm, and each pose scattered by four times that (what no effect explains)."""
+    60 local bumps 1-3 deg wide, ``amp`` rad each), harmonics of orders 1 to 8 on joints 1
+    and 4 (twice their typical size), compliance, backlash and scale
+    (:data:`REAL_HIDDEN`); the tracker's sigma 0.015 mm, and each pose scattered by four
+    times that (what no effect explains). The automatic diagnosis takes all its 12 steps
+    on it, tables and harmonics winning most."""
     from calibration import ErrorModel, load_model
     from calibration.effects import parse_effects
     from calibration.effects.table import Table
@@ -210,7 +213,7 @@ def real_shaped(n: int = 500, seed: int = 8):
             v = np.zeros(len(e.knots))
             for _ in range(60):
                 c, w = rng.uniform(-np.pi, np.pi), np.radians(rng.uniform(1.0, 3.0))
-                v += rng.normal(0.0, 3e-4) * np.exp(-0.5 * ((e.knots - c) / w) ** 2)
+                v += rng.normal(0.0, amp) * np.exp(-0.5 * ((e.knots - c) / w) ** 2)
             x[sl] = v
         elif e.family == "harmonic":
             x[sl] *= 2.0

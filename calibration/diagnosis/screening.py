@@ -116,8 +116,9 @@ def kfold_errors(fit: Fit, folds: int = 10, seed: int = 0) -> np.ndarray:
     P, J = em.evaluate(x, em.bind(calib), jacobian=True)
     X = J[:, :, free].reshape(n, 3, m)
     r = calib.tracker_p_smr - P
-    A = np.einsum("nim,nik->mk", X, X)
-    b = np.einsum("nim,ni->m", X, r)
+    X2 = X.reshape(3 * n, m)
+    A = X2.T @ X2  # BLAS, not einsum's loops
+    b = X2.T @ r.ravel()
     pen = em.penalty(x)
     if pen is not None:
         Pf = pen[1][:, free]
