@@ -30,8 +30,10 @@ from .linear_screen import (  # noqa: F401 - _loo, linearise: with screen, this 
 )
 from .table_screening import TABLE_SPACINGS_DEG, data_gap_deg, screen_table  # noqa: F401
 
-#: candidates evaluated together (memory: 3n x batch x k doubles per array)
+#: candidates evaluated together (memory: 3n x batch x k doubles per array), and the
+#: memory their arrays may take at once (fewer together on many poses)
 _BATCH = 64
+_BATCH_BYTES = 256 << 20
 
 
 def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = None,
@@ -52,8 +54,7 @@ def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = 
     fit = lin.fit
     em, x = fit.error_model, fit.values
     out: list[Screened] = []
-    groups: dict[int, list[tuple[Effect, np.ndarray, np.ndarray | None]]] = {}
-    periodic = harmonic_columns(lin, [e for e in effects if type(e) is Harmonic])
+    groups: dict[int, list[tuple[Effect, np.ndarray | None, np.ndarray | None]]] = {}
     for eff in effects:
         try:
             if isinstance(eff, Table):
@@ -61,8 +62,8 @@ def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = 
                 if s is not None:
                     out.append(s)
                 continue
-            if id(eff) in periodic:
-                C, Cv = periodic[id(eff)]
+            if type(eff) is Harmonic:  # its columns when its batch is evaluated
+                C = Cv = None
             else:
                 C = effect_columns(eff, lin.calib, lin.bound, lin.G, em, x, lin.P)
                 Cv = (None if lin.valid is None else
@@ -88,20 +89,38 @@ def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = 
     return out
 
 
+def batch_size(n: int, k: int) -> int:
+    """Candidates of ``k`` columns evaluated together on ``n`` poses: :data:`_BATCH`, fewer
+    when their arrays (about 90 doubles a pose each, with the held-out figures) would pass
+    :data:`_BATCH_BYTES`."""
+    return max(1, min(_BATCH, _BATCH_BYTES // max(8 * n * (72 + 18 * k), 1)))
+
+
 def _evaluate_all(lin: Linearised, items: list, out: list[Screened], heldout: bool = True,
                   waiting: list | None = None) -> None:
     """Evaluate candidates ``items`` [(effect, C, Cv)] with the same number of columns in
-    batches of :data:`_BATCH`, appending their :class:`Screened` to ``out`` (and, without
-    the ``heldout`` figures, ``(index, effect, C, Cv)`` to ``waiting``)."""
-    for i in range(0, len(items), _BATCH):
-        batch = items[i : i + _BATCH]
+    batches (:func:`batch_size`), appending their :class:`Screened` to ``out`` (and,
+    without the ``heldout`` figures, ``(index, effect, C, Cv)`` to ``waiting``). A
+    harmonic's columns (C None) are made with its batch."""
+    if not items:
+        return
+    size = batch_size(lin.n, items[0][0].n_params)
+    for i in range(0, len(items), size):
+        batch = [(eff, c, cv) if c is not None else (eff, *_harmonic(lin, eff))
+                 for eff, c, cv in items[i : i + size]]
         C = np.stack([c for _, c, _ in batch], axis=2)
         Cv = None if lin.valid is None else np.stack([c for _, _, c in batch], axis=2)
         res = evaluate_candidates(lin, C, Cv, heldout=heldout)
         for a, (eff, c, cv) in enumerate(batch):
             out.append(as_screened(lin, eff, {k: v[a] for k, v in res.items()}))
             if not heldout and waiting is not None:
-                waiting.append((len(out) - 1, eff, c, cv))
+                held = (None, None) if type(eff) is Harmonic else (c, cv)
+                waiting.append((len(out) - 1, eff, *held))
+
+
+def _harmonic(lin: Linearised, eff: Harmonic) -> tuple[np.ndarray, np.ndarray | None]:
+    """(C, Cv) of one harmonic candidate (what :func:`harmonic_columns` gives it)."""
+    return harmonic_columns(lin, [eff])[id(eff)]
 
 
 def kfold_errors(fit: Fit, folds: int = 10, seed: int = 0) -> np.ndarray:
