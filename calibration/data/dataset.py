@@ -265,22 +265,30 @@ class Dataset:
             buf.write(f"# {k}: {v}\n")
         w = csv.writer(buf, lineterminator="\n")
         w.writerow(cols.keys())
-        columns = list(cols.values())
-        for i in range(self.n):
-            row = []
-            for c in columns:
-                v = c[i]
-                if isinstance(v, (float, np.floating)):
-                    row.append(repr(float(v)))
-                elif isinstance(v, (np.integer,)):
-                    row.append(str(int(v)))
-                else:
-                    row.append(str(v))
-            w.writerow(row)
+        w.writerows(zip(*(_column_text(c) for c in cols.values()), strict=True))
         text = buf.getvalue()
         if path is not None:
             write_atomic(path, text)
         return text
+
+
+def _column_text(c) -> list[str]:
+    """The CSV text of a column's values: floats at full precision (``repr``), integers
+    as integers, anything else as ``str``; a numeric array converted at once."""
+    kind = getattr(getattr(c, "dtype", None), "kind", "")
+    if kind == "f":
+        return list(map(repr, np.asarray(c, float).tolist()))
+    if kind in "iu" and kind:
+        return list(map(str, np.asarray(c).tolist()))
+    out = []
+    for v in c:
+        if isinstance(v, (float, np.floating)):
+            out.append(repr(float(v)))
+        elif isinstance(v, (np.integer,)):
+            out.append(str(int(v)))
+        else:
+            out.append(str(v))
+    return out
 
 
 # ---- reading ----------------------------------------------------------------
