@@ -11,8 +11,9 @@ them, the identification's own solve in this process (``Fit.solve_s``, warm, med
 
 Two more rows: ``diagnose --auto`` on a 500-pose case shaped like real data (fine
 correction tables on three joints, periodic errors on two, a per-pose scatter four times
-the tracker's sigma that no effect explains: :func:`real_shaped`), and the first solve of
-a fresh process against a warm one (cold/warm).
+the tracker's sigma that no effect explains: :func:`real_shaped`), and the solve a fresh
+``calibrate`` process reports (``solve_s``: cold) against the same solve repeated in this
+process (warm).
 
 BLAS runs on one thread (``OPENBLAS_NUM_THREADS=1`` and its kin in every child).
 
@@ -60,6 +61,8 @@ def cellcal(*args: str) -> list[str]:
 
 #: ``--cpu``: the process's CPU time (user + system) instead of its wall time
 CPU = False
+#: ``--quick``: one run of everything, the real-shaped loop cut to two steps
+QUICK = False
 
 
 #: runs a command and prints its wall time, CPU time, peak memory (KiB) and exit code: a
@@ -242,16 +245,15 @@ def solve_ms(poses: Path, runs: int) -> float:
                                         for _ in range(runs))
 
 
-def cold_warm(poses: str) -> None:
-    """(In a fresh process) the first identification's solve, then the median of five
-    more: ``cold_ms warm_ms`` on one line."""
-    from calibration import ErrorModel, identify, load_csv, load_model
-
-    m = load_model("ur10e")
-    data = load_csv(poses, m)
-    cold = identify(ErrorModel(m), data).solve_s
-    warm = statistics.median(identify(ErrorModel(m), data).solve_s for _ in range(5))
-    print(f"{1000 * cold:.2f} {1000 * warm:.2f}")
+def command_solve_ms(poses: Path, runs: int) -> float:
+    """Median ``solve_s`` (ms) that ``cellcal calibrate --json`` reports: the first solve
+    of a fresh process (cold)."""
+    out = []
+    for _ in range(runs):
+        p = subprocess.run(cellcal("calibrate", "--model", "ur10e", str(poses), "--json"),
+                           env=env(), cwd=ROOT, capture_output=True, text=True, check=True)
+        out.append(1000 * json.loads(p.stdout)["solve_s"])
+    return statistics.median(out)
 
 
 # ---- the table ------------------------------------------------------------------------------
@@ -279,23 +281,20 @@ def main() -> None:
     ap.add_argument("--sizes", default=",".join(map(str, SIZES)),
                     help="comma-separated pose counts (default %(default)s)")
     ap.add_argument("--runs", type=int, default=3, help="processes per figure (median)")
-    ap.add_argument("--quick", action="store_true", help="one run each (that it works)")
+    ap.add_argument("--quick", action="store_true",
+                    help="one run each, the real-shaped loop two steps (that it works)")
     ap.add_argument("--only", default=",".join(ROWS), metavar="ROWS",
                     help=f"comma-separated rows of {', '.join(ROWS)} (default all)")
     ap.add_argument("--workdir", help="keep the inputs here (default: a temporary folder)")
     ap.add_argument("--cpu", action="store_true",
                     help="CPU time (user + system) of each process instead of wall time")
-    ap.add_argument("--cold-warm", metavar="CSV", help=argparse.SUPPRESS)
     a = ap.parse_args()
-    if a.cold_warm:
-        cold_warm(a.cold_warm)
-        return
     rows = a.only.split(",")
     if set(rows) - set(ROWS):
         ap.error(f"--only: unknown rows {', '.join(sorted(set(rows) - set(ROWS)))}")
     sizes = [int(s) for s in a.sizes.split(",")]
-    global CPU
-    CPU = a.cpu
+    global CPU, QUICK
+    CPU, QUICK = a.cpu, a.quick
     runs = 1 if a.quick else a.runs
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(a.workdir or tmp)
@@ -331,7 +330,8 @@ def table(work: Path, sizes: list[int], rows: list[str], runs: int) -> None:
         csv = work / "real500.csv"
         if not csv.exists():
             real_shaped(500).to_csv(csv)
-        argv = cellcal("diagnose", "--auto", "--model", "ur10e", str(csv))
+        argv = cellcal("diagnose", "--auto", "--model", "ur10e", str(csv),
+                       *(["--max-steps", "2"] if runs == 1 and QUICK else []))
         wall, peak, failed = timed_command(argv, work, runs)
         print(f"\ndiagnose --auto, 500 real-shaped poses: {wall:.2f} s, {peak:.0f} MiB"
               + (f" (failed: {failed})" if failed else ""))
@@ -342,15 +342,11 @@ def table(work: Path, sizes: list[int], rows: list[str], runs: int) -> None:
             print(f"  {len(doc['steps'])} steps: {', '.join(s['effect'] for s in doc['steps'])}"
                   f"; {doc['stop_reason']}")
     if "cold" in rows:
-        n = sizes[0]
-        out = [subprocess.run([sys.executable, __file__, "--cold-warm",
-                               str(files[n]["poses"])], env=env(), check=True,
-                              capture_output=True, text=True).stdout.split()
-               for _ in range(max(runs, 3))]
-        cold = statistics.median(float(o[0]) for o in out)
-        warm = statistics.median(float(o[1]) for o in out)
-        print(f"first solve in a fresh process, {n} poses: {cold:.1f} ms; warm {warm:.1f} ms "
-              f"({cold / warm:.2f}x)")
+        n = 1000 if 1000 in sizes else sizes[0]
+        cold = command_solve_ms(files[n]["poses"], max(runs, 5))
+        warm = solve_ms(files[n]["poses"], max(runs, 5))
+        print(f"first solve of a fresh calibrate process, {n} poses: {cold:.1f} ms; warm, "
+              f"in process: {warm:.1f} ms ({cold / warm:.2f}x)")
     print(f"\nload average afterwards {os.getloadavg()[0]:.1f}")
 
 
