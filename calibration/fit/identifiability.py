@@ -161,7 +161,7 @@ def _analyse(J, names, scales, families, rtol, always_free, n_poses, penalised, 
         free |= always_free & live
     dropped = [k for k in np.flatnonzero(live & ~in_group) if not free[k]]
     gram = None
-    if guard:
+    if guard and free.any():
         gram = Jn[:, free].T @ Jn[:, free]
         w = np.linalg.eigvalsh(gram)
         if not w[0] > w[-1] / GUARD_COND**2:
