@@ -36,10 +36,10 @@ TOY = ROOT / "tests" / "daq" / "data" / "toyarm.yaml"
 
 
 def _sample(i: int) -> Sample:
-    return Sample(point_index=i, joints_rad=np.full(6, 0.01 * i),
+    return Sample(point_index=i, q=np.full(6, 0.01 * i),
                   tracker_p_smr=np.array([1000.0 + i, 200.0, 300.0]), std_mm=np.full(3, 0.01),
-                  n=500, t=time.time(), pose_id=f"p{i}", temp_c=20.0,
-                  base_p_tcp_cmd=np.array([1.0, 2.0, 3.0]), dirs=np.array([1, 0, -1, 1, 0, 1]),
+                  n_averaged=500, t_s=time.time(), pose_id=f"p{i}", temp_c=20.0,
+                  cmd=np.array([1.0, 2.0, 3.0]), dirs=np.array([1, 0, -1, 1, 0, 1]),
                   target={"index": i, "q": [0.0] * 6})
 
 

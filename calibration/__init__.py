@@ -16,7 +16,7 @@ exports/      params.json, model YAML, controller files and URDF, with parity ch
 fit/          the error model, identification, solvers, outliers, uncertainty, simulation
 cell/         the cell YAML, the tracker's line of sight, the frame routine's fits
 effects/      the physical causes of error (geometric, base, tool, compliance, ...)
-data/         the Dataset and the measurement CSV, the capture's context
+data/         the Dataset and the measurement CSV, the column table, the capture's context
 model/        the nominal robot: models, kinematics, inverse kinematics, transforms, gravity
 numerics/     linear algebra, the chi(3) quantile, BLAS threads, the heap, memory
 errors        the core's error family, each with its exit code

@@ -64,3 +64,8 @@ class TooLarge(CalibrationError):  # noqa: N818 - named for what the data are
     before the work starts: the message gives the size that would fit."""
 
     exit_code = 3
+
+
+class OutsideEnvelope(InsufficientData):
+    """Targets beyond the calibrated envelope were refused (``--strict-range``, exit code
+    3): the calibration did not measure there; the message names them."""

@@ -24,6 +24,7 @@ import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any, BinaryIO
 
 #: the first bytes of every SQLite database file
 SQLITE_MAGIC = b"SQLite format 3\x00"
@@ -177,7 +178,7 @@ class TextLines:
             raise error(f"{path}: {size / 1e6:.0f} MB is too large for a {what} "
                         f"(limit {max_bytes / 1e6:.0f} MB)")
         self.path, self.source, self.error, self.what = p, str(path), error, what
-        self._file = None
+        self._file: BinaryIO | None = None
         self._rest = b""  # the bytes after the last line feed read
         self._head = b""  # the file's first bytes (what decode_text looks at)
         self._newlines = 0  # line feeds in the pieces decoded so far
@@ -211,8 +212,9 @@ class TextLines:
         the last call stopped."""
         try:
             if self._file is None and not self._done:
-                self._file = open(self.path, "rb")  # noqa: SIM115 - closed at the end below
-                self._head = self._rest = self._file.read(4096)
+                f = open(self.path, "rb")  # noqa: SIM115 - closed at the end below
+                self._file = f
+                self._head = self._rest = f.read(4096)
                 if self._head.startswith((b"\xff\xfe", b"\xfe\xff")):
                     raise self.error(f"{self.source}: UTF-16 text; save the {self.what} "
                                      "as UTF-8")
@@ -265,7 +267,7 @@ def sha256_file(path: str | Path) -> str:
     return h.hexdigest()
 
 
-def json_ready(o):
+def json_ready(o: Any) -> Any:
     """``o`` with every NaN and infinity (in nested dicts, lists and tuples) as None: what
     strict JSON can hold."""
     if isinstance(o, float) and not math.isfinite(o):

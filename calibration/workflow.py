@@ -23,6 +23,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -31,6 +32,7 @@ from .diagnosis.auto_diagnosis import AutoDiagnosis, auto_diagnose, explain_effe
 from .diagnosis.diagnosis import Diagnosis, diagnose
 from .effects import DEFAULT_EFFECTS
 from .exports.params_io import ParamsError, read_auto_steps, read_params
+from .fit.envelope import identify_supported
 from .fit.error_model import ErrorModel
 from .fit.full_pose import for_data
 from .fit.identify import Fit, fit_at, identify
@@ -46,7 +48,7 @@ UNCALIBRATED_LABEL = "uncalibrated (best-fit base and tool)"
 ParamsSource = str | Path | tuple[ErrorModel, np.ndarray]
 
 
-def fit_uncalibrated(model: RobotModel, data: Dataset, **kw) -> Fit:
+def fit_uncalibrated(model: RobotModel, data: Dataset, **kw: Any) -> Fit:
     """The nominal robot's accuracy: only the base and tool fitted (see
     :data:`UNCALIBRATED_EFFECTS`); ``kw`` go to :func:`~calibration.fit.identify.identify`."""
     em, _ = for_data(ErrorModel(model, UNCALIBRATED_EFFECTS), data, position_only=True)
@@ -71,8 +73,10 @@ def current_fit(model: RobotModel, data: Dataset, effects: str = DEFAULT_EFFECTS
     through.
     """
     if params is None:
-        return identify(ErrorModel(model, effects), data, solver)
-    notes: list[str] = []
+        fit, notes = identify_supported(ErrorModel(model, effects), data, solver)
+        fit.notes.extend(notes)
+        return fit
+    notes = []
     if isinstance(params, (str, Path)):
         loaded = read_params(params, model=model)
         em, x, notes = loaded.error_model, loaded.values, loaded.notes
@@ -115,7 +119,8 @@ class StagedFit:
     @property
     def added_effect(self) -> str | None:
         """The effect ``improved`` adds to the current model, or None."""
-        return None if self.improved is None else self.diagnosis.best.effect
+        best = self.diagnosis.best  # the effect ``improved`` was fitted with
+        return None if self.improved is None or best is None else best.effect
 
 
 def staged_fit(data: Dataset, model: RobotModel, effects: str = DEFAULT_EFFECTS,
@@ -171,6 +176,8 @@ class StoryStep:
     n_params : parameters the step added (the start: all of its model's)
     seconds : time the step took (None when not known)
     explanation : one line of physics for the effect
+    blocked_rms_mm : RMS of the range-blocked folds (the poses at either end of each
+        joint's range, predicted by the model refitted without them), mm
     """
 
     effect: str | None
@@ -179,6 +186,8 @@ class StoryStep:
     n_params: int
     seconds: float | None = None
     explanation: str = ""
+    #: the range-blocked folds' RMS (mm), None without them
+    blocked_rms_mm: float | None = None
 
     @property
     def calib_rms_mm(self) -> float:
@@ -224,9 +233,13 @@ class AutoStory:
     def from_auto(cls, result: AutoDiagnosis, uncalibrated: Fit) -> AutoStory:
         start = result.start
         steps = [StoryStep(None, start, result.start_heldout_rms_mm,
-                           start.error_model.n_params)]
-        steps += [StoryStep(s.effect, s.fit, s.heldout_rms_mm, s.n_params, s.seconds,
-                            s.explanation) for s in result.steps]
+                           start.error_model.n_params,
+                           blocked_rms_mm=result.start_blocked_rms_mm)]
+        for s in result.steps:
+            if s.fit is None:
+                raise ValueError(f"auto step {s.effect}: no fit (a recorded step, not a run)")
+            steps.append(StoryStep(s.effect, s.fit, s.heldout_rms_mm, s.n_params, s.seconds,
+                                   s.explanation, s.blocked_rms_mm))
         return cls(steps, result.heldout_method, result.stop_reason,
                    heldout_errors(uncalibrated).rms_mm, notes=list(result.notes))
 
@@ -254,14 +267,17 @@ def replay_story(final: Fit, uncalibrated: Fit, data: Dataset, record: dict) -> 
         else:
             sub = ErrorModel(em.model, [e for e in em.effects if e.label in keep])
             fit = identify(sub, data, final.solver)
-        held = heldout_errors(fit).rms_mm
+        ho = heldout_errors(fit)
+        held = ho.rms_mm
         if k == 0:
-            steps.append(StoryStep(None, fit, held, fit.error_model.n_params))
+            steps.append(StoryStep(None, fit, held, fit.error_model.n_params,
+                                   blocked_rms_mm=ho.blocked_rms_mm))
             continue
         rs = rec_steps[k - 1]
         steps.append(StoryStep(
             rs["effect"], fit, held, int(rs.get("n_params", 0)), rs.get("seconds"),
-            rs.get("explanation") or explain_effect(rs["effect"], em.model)))
+            rs.get("explanation") or explain_effect(rs["effect"], em.model),
+            ho.blocked_rms_mm))
     return AutoStory(steps, heldout_errors(final).method,
                      str(record.get("stop_reason", "")), heldout_errors(uncalibrated).rms_mm,
                      recorded=True)

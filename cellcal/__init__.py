@@ -9,7 +9,12 @@ Modules
     ``commands/``       one module per ``cellcal`` sub-command (see its package)
     ``usecases/``       one module per use case: its typed request and its function (the
                         demo's whole cell on the simulator among them)
+    ``flags/``          the flags' vocabulary the parser and the requests share (see its
+                        package)
+    ``programs/``       robot programs: their targets found and written back compensated
+    ``errors``          ``UsageError``: bad usage of a command (exit 2)
     ``progress``        the progress line of a capture on a terminal
+    ``logs``            logging set up once per command; the log a capture keeps by its run
     ``request``         typed requests: what a command was asked, naming the user's flags
     ``url_schemes``     the URL schemes the application adds to the drivers' (``sim://``)
 """

@@ -23,6 +23,11 @@ its work needs inside its ``run`` function, and the parser's constants (default 
 solver names, routine summaries) come from :mod:`cellcal.flags.choices`, which
 ``tests/cellcal/test_cli_help.py`` keeps equal to the calibration core's. The error
 families are caught only once their module is loaded (:func:`_Loaded`).
+
+Logging is set up here, once per command (:func:`cellcal.logs.configured`), from the
+flags every command takes before or after its name (``-v``, ``--log-level``,
+``--log-file``: :mod:`cellcal.flags.log_flags`); the command line and how it ended are
+logged at INFO, an error's traceback at DEBUG.
 """
 
 from __future__ import annotations
@@ -30,11 +35,15 @@ from __future__ import annotations
 import argparse
 import errno
 import importlib
+import logging
 import os
 import sys
 
 from .commands.parsers import HelpFormatter, add_subcommands
 from .errors import UsageError
+from .flags.log_flags import add_log_flags
+
+log = logging.getLogger(__name__)
 
 #: sub-command modules, in the order ``cellcal --help`` lists them
 COMMANDS = [
@@ -44,6 +53,7 @@ COMMANDS = [
     "cellcal.commands.resume",
     "cellcal.commands.export_run",
     "cellcal.commands.calibrate",
+    "cellcal.commands.check",
     "cellcal.commands.history",
     "cellcal.commands.diagnose",
     "cellcal.commands.models",
@@ -84,6 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=HelpFormatter,
     )
     parser.add_argument("--version", action=_Version)
+    add_log_flags(parser, top=True)
     sub = add_subcommands(parser, "command", "COMMAND")
     for name in COMMANDS:
         importlib.import_module(name).register(sub)
@@ -132,9 +143,20 @@ def main(argv: list[str] | None = None) -> int:
 
     register_schemes()  # sim:// (drivers.urls knows the real cell's schemes itself)
     name = args.command + (f" {args.sim_command}" if getattr(args, "sim_command", None) else "")
+    from .logs import configured  # after parsing: a short start-up
+
+    args.command_line = "cellcal " + " ".join(sys.argv[1:] if argv is None else argv)
     try:
-        rc = int(args.func(args) or 0)
-        sys.stdout.flush()  # a reader that went away shows here, not at the exit
+        with configured(args):
+            log.info("%s", args.command_line)
+            try:
+                rc = int(args.func(args) or 0)
+                sys.stdout.flush()  # a reader that went away shows here, not at the exit
+            except BaseException as e:
+                log.info("cellcal %s ended by %s: %s", name, type(e).__name__, _one_line(e))
+                log.debug("the traceback", exc_info=True)
+                raise
+            log.info("cellcal %s: exit %d", name, rc)
         return rc
     except BrokenPipeError:
         _quiet_stdout()

@@ -3,12 +3,24 @@
 Written to stderr: refreshed in place (``\\r``) when the stream is a TTY and erased at
 the end (the command's own summary line follows), plain lines otherwise (at most one
 every ``interval_s``, plus every fault and the end). Disabled (quiet) under ``--json``.
+A log record written to the same terminal erases the line first (:func:`erase_line`);
+the next update draws it again.
 """
 
 from __future__ import annotations
 
 import sys
 import time
+
+#: the progress line drawn in place on a terminal now, if any
+_drawn: Progress | None = None
+
+
+def erase_line() -> None:
+    """Erase the progress line drawn in place on the terminal, if any (a log record is
+    about to be written there: :mod:`cellcal.logs`)."""
+    if _drawn is not None:
+        _drawn.erase()
 
 
 def _fmt_s(s: float) -> str:
@@ -73,11 +85,13 @@ class Progress:
         new_error = last_error is not None and last_error != self._last_error
         self._last_error = last_error
         if self.tty:
+            global _drawn
             if now - self._last_print < 0.1 and done < total and not new_error:
                 return
             pad = max(self._width - len(text), 0)
             self.stream.write("\r" + text + " " * pad)
             self._width = len(text)
+            _drawn = self
         else:
             if now - self._last_print < self.interval_s and done < total and not new_error:
                 return
@@ -85,9 +99,16 @@ class Progress:
         self._last_print = now
         self.stream.flush()
 
-    def close(self) -> None:
-        """Erase the in-place line (TTY): the summary that follows says how it ended."""
+    def erase(self) -> None:
+        """Erase the in-place line (TTY), if drawn."""
         if self.enabled and self.tty and self._width:
             self.stream.write("\r" + " " * self._width + "\r")
             self.stream.flush()
             self._width = 0
+
+    def close(self) -> None:
+        """Erase the in-place line (TTY): the summary that follows says how it ended."""
+        global _drawn
+        self.erase()
+        if _drawn is self:
+            _drawn = None

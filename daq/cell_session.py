@@ -29,6 +29,7 @@ the devices it connected closed when the block ends.
 from __future__ import annotations
 
 import contextlib
+import logging
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
@@ -51,6 +52,8 @@ from .store import InterruptionKind, Run, RunStore, StoreError, StoreUnavailable
 from .store.leases import Leases, held_leases, run_key, take_robot
 from .store.queries import frame_run, measured_in
 from .tracker_checks import check_tracker
+
+log = logging.getLogger(__name__)
 
 #: called with the devices' identities before anything moves; raises to refuse
 ConfirmFn = Callable[[CellIdentity, str, str], None]
@@ -173,6 +176,8 @@ def cell_session(store: RunStore, model, robot_url: str, tracker_url: str,
                            on_fail=None if resumed is None else connect_failed
                            ) as (robot, tracker):
             cell = identify(robot, tracker, options.io_timeout_s + 1.0)
+            log.info("devices: robot %s is %s; tracker %s is %s", robot_url,
+                     cell.robot.to_dict(), tracker_url, cell.tracker.to_dict())
             check_robot(model, robot, cell.robot)
             take_robot(held, robot_url, cell.robot)
             if resumed is None:
@@ -190,6 +195,7 @@ def cell_session(store: RunStore, model, robot_url: str, tracker_url: str,
                     store.add_interruption(resumed.id, None, InterruptionKind.NOT_READY,
                                            f"resume: {e}")
                     raise
+            log.info("tracker checked: %s", found.model_dump_json(exclude_none=True))
             yield CellSession(store, robot_url, tracker_url, robot, tracker, cell, held,
                               found, why)
 

@@ -133,7 +133,6 @@ class CompensatedRobot:
             raise MotionRefused(self._device, "compensated move",
                                 "joint move refused: " + "; ".join(problems))
         self.robot.move_joints(q, speed=self.speed_rad_s, timeout=self.timeout_s)
-        self.robot.wait_settled(timeout=self.timeout_s)
         reading = self.read_joints()
         problems = self.guard.check_arrival(reading.q, q_cmd=q)
         if problems:

@@ -10,18 +10,23 @@ point; the store keeps them as samples of set ``drift``; export writes them with
 ``set=drift`` (calibration rows that also show the drift over time, so they constrain a
 drift effect). :func:`drift_curve` reads them back: each reference's distance from its
 first reading over time, flagged above a bound (what ``cellcal runs RUN`` shows).
+:class:`DriftWatch` does the same as the run goes, for the capture's log: each check's
+distance from its reference's first reading, at INFO (``daq.drift_checks``).
 
 Units: mm, s (minutes only in the ``every`` of :class:`DriftCheck`).
 """
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .plans import Plan, Target
+
+log = logging.getLogger(__name__)
 
 #: the set name of a drift check's target, sample and exported row
 DRIFT_SET = "drift"
@@ -159,17 +164,61 @@ def drift_curve(samples, bound_mm: float | None = None) -> list[DriftCurve]:
     rows = np.flatnonzero(sets == DRIFT_SET)
     if len(rows) == 0:
         return []
-    refs = [int(((samples.targets[i] or {}).get("info") or {}).get("reference", 1))
+    refs = [int(((samples.target[i] or {}).get("info") or {}).get("reference", 1))
             for i in rows]
     bound = default_bound(samples.std_mm[rows], bound_mm)
     out = []
     for r in sorted(set(refs)):
         idx = rows[np.asarray(refs) == r]
-        idx = idx[np.argsort(samples.t[idx])]
+        idx = idx[np.argsort(samples.t_s[idx])]
         p = samples.tracker_p_smr[idx]
-        temp = (None if samples.joint_temp_c is None
-                else samples.joint_temp_c[idx].mean(axis=1))
-        label = ((samples.targets[idx[0]] or {}).get("info") or {}).get("of", str(r))
-        out.append(DriftCurve(str(label), samples.t[idx] - samples.t[idx[0]],
+        temp = (None if samples.joint_temp is None
+                else samples.joint_temp[idx].mean(axis=1))
+        label = ((samples.target[idx[0]] or {}).get("info") or {}).get("of", str(r))
+        out.append(DriftCurve(str(label), samples.t_s[idx] - samples.t_s[idx[0]],
                               np.linalg.norm(p - p[0], axis=1), temp, bound))
     return out
+
+
+class DriftWatch:
+    """The drift checks of a run as they are stored: each reading's distance from its
+    reference's first (the drift curve so far), logged at INFO with the bound (the plan's
+    ``bound_mm``, else :func:`default_bound` over the readings so far) and whether it is
+    above it. :meth:`of_run` starts from the readings already stored (a resumed run)."""
+
+    def __init__(self, bound_mm: float | None = None) -> None:
+        self.bound_mm = bound_mm
+        self.first: dict[int, np.ndarray] = {}
+        self.std: list[np.ndarray] = []
+
+    @classmethod
+    def of_run(cls, plan: Plan, samples) -> DriftWatch | None:
+        """The watch of ``plan`` (None without drift checks), fed the drift readings of
+        ``samples`` (:class:`~daq.store.Samples`, the run's stored ones) in time order."""
+        params = plan.params.get("drift_check")
+        if not params:
+            return None
+        watch = cls(params.get("bound_mm"))
+        rows = np.flatnonzero(np.asarray(samples.set_name) == DRIFT_SET)
+        for i in rows[np.argsort(samples.t_s[rows])]:
+            info = (samples.target[i] or {}).get("info") or {}
+            watch._add(int(info.get("reference", 1)), samples.tracker_p_smr[i],
+                       samples.std_mm[i])
+        return watch
+
+    def _add(self, reference: int, xyz, std) -> float:
+        xyz = np.asarray(xyz, float)
+        self.std.append(np.asarray(std, float))
+        first = self.first.setdefault(reference, xyz)
+        return float(np.linalg.norm(xyz - first))
+
+    def observe(self, target: Target, xyz, std) -> float:
+        """Take drift target ``target``'s stored reading; its drift (mm), logged."""
+        info = target.info or {}
+        drift = self._add(int(info.get("reference", 1)), xyz, std)
+        bound = default_bound(np.array(self.std), self.bound_mm)
+        log.info("drift check %s, reference %s (%s): %.4f mm from its first reading, %s the "
+                 "bound %.4f mm", info.get("drift_check", "?"), info.get("reference", 1),
+                 info.get("of", target.label), drift, "ABOVE" if drift > bound else "within",
+                 bound)
+        return drift

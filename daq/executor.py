@@ -82,12 +82,21 @@ Every interruption goes to the store's ``interruptions`` table. A point whose
 sample was not committed is simply done again on resume; the store's
 ``UNIQUE(run_id, point_index)`` makes a double write impossible.
 
+Log (``daq.executor``)
+    The executor's decisions at INFO: the run started or resumed, each move (the point,
+    joint or linear, its target in deg or mm), each sample stored, every fault and retry,
+    a point skipped, a measurement repeated for its std, the store lost and found again,
+    the run's end and why; a move the motion guard refuses or a robot not where it was
+    sent at WARNING; a controller's stop that could not be sent at ERROR. Drift checks
+    are logged as they are stored (:class:`~daq.drift_checks.DriftWatch`).
+
 Units: rad, mm, s.
 """
 
 from __future__ import annotations
 
 import contextlib
+import logging
 import signal
 import threading
 import time
@@ -109,6 +118,7 @@ from drivers.errors import (
 from drivers.protocols import CommandedPosition, JointReading, JointTemperatures, Measurement
 
 from .completeness import end_status
+from .drift_checks import DRIFT_SET, DriftWatch
 from .errors import CaptureError, QualityError
 from .motion_guard import MotionGuard, MotionMismatch, MotionRefused
 from .plans import Plan, Target
@@ -124,8 +134,26 @@ from .store import (
     StoreUnavailable,
 )
 
+log = logging.getLogger(__name__)
+
 #: beam breaks retried at one point before it is skipped (and a spare measured in its place)
 BEAM_RETRIES = 3
+
+
+class _Shown:
+    """Numbers for the log, formatted only when a record is written: joints (rad) in deg,
+    or a point in mm."""
+
+    __slots__ = ("unit", "v")
+
+    def __init__(self, v, unit: str = "deg") -> None:
+        self.v, self.unit = v, unit
+
+    def __str__(self) -> str:
+        v = np.asarray(self.v, float)
+        if self.unit == "deg":
+            v = np.rad2deg(v)
+        return "[" + ", ".join(f"{x:.3f}" for x in v) + f"] {self.unit}"
 
 
 class StaleMeasurement(CaptureError):
@@ -310,6 +338,7 @@ class Executor:
         self._entry = True  # no planned move done yet this session (see "Entry move")
         self._last_meas: Measurement | None = None
         self._target: Target | None = None
+        self._drift: DriftWatch | None = None
         #: the robot reports its joints' temperatures (False once it refused to)
         self._temps = isinstance(robot, JointTemperatures)
         #: the signal that stopped the run at once (SIGINT twice, SIGTERM, SIGHUP), or None
@@ -335,6 +364,7 @@ class Executor:
         """Send the controller's stop (reconnecting once if the link is in a bad state);
         what happened, in words. Signals are ignored from now on (the run is ending)."""
         self._halting = True
+        log.info("sending the controller's stop")
         try:
             self.robot.stop(timeout=self.o.io_timeout_s + 1.0)
             return "the controller's stop was sent"
@@ -369,6 +399,10 @@ class Executor:
         self._t0 = time.monotonic()
         n_done = store.n_samples(rid)
         t = None
+        log.info("run %d: %s, %d points planned, %d stored: executing the rest", rid,
+                 self.plan.routine, self.plan.n_planned, n_done)
+        self._drift = DriftWatch.of_run(self.plan, store.samples(rid)) if (
+            self.plan.params.get("drift_check")) else None
         self._report(n_done)
         with stop_handlers(self._stop.set, self._stop.is_set, lambda: self._halting):
             try:
@@ -378,10 +412,13 @@ class Executor:
                     if self._point(t):
                         n_done += 1
                     self._report(n_done)
-                    if self.enough is not None and self.enough(
-                            self.plan, store.samples(rid), store.run(rid)):
+                    if self.enough is not None and (why := self.enough(
+                            self.plan, store.samples(rid), store.run(rid))):
+                        log.info("run %d: %s: ending here, %d points stored", rid, why,
+                                 n_done)
                         break
             except _Pause as p:
+                log.info("run %d %s: %s", rid, p.status, p.reason)
                 kind = (InterruptionKind.SIGINT if p.status == RunStatus.STOPPED
                         else InterruptionKind.PAUSE)
                 self._record_stop(getattr(t, "index", None), kind, p.status, p.reason)
@@ -396,6 +433,7 @@ class Executor:
                 where = f"at point {t.index}" if t is not None else "before the first point"
                 reason = (f"stopped at once by {name} {where}: {what}; resume with "
                           "`cellcal resume`")
+                (log.error if "could NOT" in what else log.info)("run %d paused: %s", rid, reason)
                 self._record_stop(getattr(t, "index", None), InterruptionKind.STOP_NOW,
                                   "paused", reason, summarise=False)
                 self.last_error = reason
@@ -404,12 +442,15 @@ class Executor:
             except StoreUnavailable as e:  # the store went away outside a commit
                 reason = (f"run store unreachable at point {getattr(t, 'index', None)}: {e}; "
                           "`cellcal resume` once it is back")
+                log.info("run %d paused: %s", rid, reason)
                 self._record_stop(getattr(t, "index", None), InterruptionKind.STORE, "paused",
                                   reason)
                 self.last_error = reason
                 self._report(n_done)
                 return "paused"
             except BaseException as e:
+                log.info("run %d failed at point %s: %s: %s", rid, getattr(t, "index", None),
+                         type(e).__name__, e)
                 store.add_interruption(rid, getattr(t, "index", None), InterruptionKind.ERROR,
                                        f"{type(e).__name__}: {e}")
                 store.set_status(rid, "failed", f"{type(e).__name__}: {e}")
@@ -419,6 +460,7 @@ class Executor:
                 extra = self.finalize(self.plan, store.samples(rid), store.run(rid)) or {}
                 store.update_run(rid, **extra)
             except (ValueError, np.linalg.LinAlgError) as e:
+                log.info("run %d failed: finalize: %s", rid, e)
                 store.add_interruption(rid, None, InterruptionKind.FINALIZE, str(e))
                 self._summarise()
                 store.set_status(rid, "failed", f"finalize: {e}")
@@ -426,6 +468,7 @@ class Executor:
         self._summarise()
         status, reason = end_status(self.plan, store.done_indices(rid), self._skipped())
         store.set_status(rid, status, reason)
+        log.info("run %d %s%s", rid, status, f": {reason}" if reason else "")
         return str(status)
 
     # ------------------------------------------------------- skips and spares
@@ -472,6 +515,7 @@ class Executor:
         while True:
             attempt += 1
             phase = ["robot"]
+            log.info("point %d (%s, set %s): attempt %d", t.index, t.label, t.set, attempt)
             try:
                 sample = self._acquire(t, attempt, phase)
                 rejected, revisited, settled = (), (), None
@@ -485,6 +529,8 @@ class Executor:
                 stored = self._commit(t, sample, rejected, revisited)
                 if stored and self.remeasure is not None:
                     self.remeasure.committed(settled)
+                if stored and t.set == DRIFT_SET and self._drift is not None:
+                    self._drift.observe(t, sample.tracker_p_smr, sample.std_mm)
                 return True
             except ProtectiveStop as e:
                 self._fault(t, e)
@@ -494,6 +540,9 @@ class Executor:
                 self._fault(t, e)
                 beams += isinstance(e, BeamBroken)
                 if beams > BEAM_RETRIES and t.move != "zero":
+                    log.info("point %d (%s) skipped: the beam broke %d times; a spare is "
+                             "measured in its place if the plan has one", t.index, t.label,
+                             beams)
                     self.store.add_interruption(
                         self.run_id, t.index, InterruptionKind.SKIPPED,
                         f"point {t.index} ({t.label}) skipped: the beam broke {beams} times, "
@@ -504,7 +553,10 @@ class Executor:
                 if attempt > self.o.max_retries:
                     raise _Pause("paused", f"point {t.index}: {attempt} attempts failed, last: "
                                  f"{fault_kind(e)}: {e}") from e
-                time.sleep(min(self.o.backoff_s * 2 ** (attempt - 1), self.o.backoff_max_s))
+                wait = min(self.o.backoff_s * 2 ** (attempt - 1), self.o.backoff_max_s)
+                log.info("point %d: retrying in %.2f s after reconnecting the %s (attempt %d "
+                         "of %d)", t.index, wait, phase[0], attempt + 1, self.o.max_retries + 1)
+                time.sleep(wait)
                 self._reconnect(t, phase[0])
 
     def _commit(self, t: Target, sample: Sample, rejected=(), revisited=()) -> bool:
@@ -522,6 +574,12 @@ class Executor:
                 stored = self.store.add_sample(self.run_id, sample, rejected, revisited)
                 self.commit_s += time.perf_counter() - t0
                 self.n_committed += 1
+                log.info("point %d (%s) stored: %s, std %.4f mm, %d attempt(s)%s%s%s",
+                         t.index, t.label, _Shown(sample.tracker_p_smr, "mm"),
+                         float(np.max(sample.std_mm)), sample.attempts,
+                         f", verdict {sample.verdict}" if sample.verdict else "",
+                         f", {len(rejected)} reading(s) rejected" if rejected else "",
+                         f", {len(revisited)} warm-up point(s) revisited" if revisited else "")
                 break
             except StoreFull as e:  # a full disk: nothing was stored
                 self.store.release_reserve()  # room to record the pause and why
@@ -531,6 +589,9 @@ class Executor:
                 if lost is None:
                     lost, t_lost = e, time.monotonic()
                     self.n_faults += 1
+                    log.info("point %d: run store unreachable: %s; holding the robot and the "
+                             "sample, reconnecting for up to %.0f s", t.index, e,
+                             self.o.store_wait_s)
                 self.last_error = f"store: {e}"
                 self._report()
                 waited = time.monotonic() - t_lost
@@ -545,6 +606,8 @@ class Executor:
                 time.sleep(min(self.o.backoff_s * 2 ** (attempt - 1), self.o.backoff_max_s,
                                self.o.store_wait_s - waited))
         if lost is not None:
+            log.info("point %d: run store back after %.1f s, sample committed", t.index,
+                     time.monotonic() - t_lost)
             self.store.add_interruption(self.run_id, t.index, InterruptionKind.STORE,
                                         f"connection lost for {time.monotonic() - t_lost:.1f} "
                                         f"s, point kept and committed after reconnecting: "
@@ -578,15 +641,18 @@ class Executor:
     def _fault(self, t: Target, e: DriverError | CaptureError) -> None:
         self.n_faults += 1
         self.last_error = f"{fault_kind(e)}: {e}"
+        log.info("point %d (%s): %s: %s", t.index, t.label, fault_kind(e), e)
         self.store.add_interruption(self.run_id, t.index, fault_kind(e), str(e))
         self._report(self.store.n_samples(self.run_id))
 
     def _reconnect(self, t: Target, which: str) -> None:
         dev = self.robot if which == "robot" else self.tracker
+        log.info("point %d: reconnecting the %s", t.index, which)
         try:
             dev.close()
             dev.connect(timeout=self.o.connect_timeout_s)
         except DriverError as e:  # counted as one more failed attempt by the caller's loop
+            log.info("point %d: reconnecting the %s failed: %s", t.index, which, e)
             self.store.add_interruption(self.run_id, t.index, InterruptionKind.RECONNECT, str(e))
             self.last_error = f"reconnect {which}: {e}"
         if which == "robot":
@@ -601,11 +667,15 @@ class Executor:
 
     def _refuse(self, problems: list[str], move: str) -> None:
         if problems:
+            log.warning("%s: %s refused by the motion guard: %s", self._where() or "run",
+                        move, "; ".join(problems))
             raise MotionRefused(f"robot {getattr(self.robot, 'url', '')}", self._where(),
                                 f"{move} refused: " + "; ".join(problems))
 
     def _mismatch(self, problems: list[str], after: str) -> None:
         if problems:
+            log.warning("%s: the robot is not where it was sent (%s): %s",
+                        self._where() or "run", after, "; ".join(problems))
             raise MotionMismatch(f"robot {getattr(self.robot, 'url', '')}", self._where(),
                                  f"{after}: " + "; ".join(problems))
 
@@ -618,8 +688,9 @@ class Executor:
                                                  adaptive=adaptive), "joint move")
         phase[0] = "robot"
         self._q_now = None  # moving: unknown until read back
+        log.info("%s: %sjoint move to %s", self._where() or "run", "adaptive " if adaptive else "",
+                 _Shown(q))
         self.robot.move_joints(q, speed=o.speed_rad_s, timeout=o.move_timeout_s)
-        self.robot.wait_settled(timeout=o.move_timeout_s)
         jr = self._read_q(phase)
         self._mismatch(self.guard.check_arrival(jr.q, q_cmd=q), "after the joint move")
         return jr
@@ -632,8 +703,8 @@ class Executor:
                      "linear move")
         phase[0] = "robot"
         self._q_now = None
+        log.info("%s: linear move to %s", self._where() or "run", _Shown(xyz, "mm"))
         self.robot.move_linear(xyz, speed=o.speed_mm_s, timeout=o.move_timeout_s)
-        self.robot.wait_settled(timeout=o.move_timeout_s)
         jr = self._read_q(phase)
         self._mismatch(self.guard.check_arrival(jr.q, xyz=xyz, planned=planned),
                        "after the linear move")
@@ -658,6 +729,8 @@ class Executor:
             last, self._last_meas = self._last_meas, m
             if last is not None and (m.timestamp <= last.timestamp or (
                     np.array_equal(m.xyz, last.xyz) and np.array_equal(m.std, last.std))):
+                log.info("%s: the tracker's reply is not newer than the previous one",
+                         self._where() or "run")
                 raise StaleMeasurement(dev, "measure", (
                     f"the reply is not newer than the previous one (t {m.timestamp:.6f} after "
                     f"{last.timestamp:.6f}, xyz {np.round(m.xyz, 5).tolist()}): a repeated "
@@ -665,6 +738,8 @@ class Executor:
             worst = float(np.max(m.std))
             if worst <= o.max_std_mm:
                 return m
+            log.info("%s: std %.4f mm above %g mm: measuring again", self._where() or "run",
+                     worst, o.max_std_mm)
         raise QualityError(dev, "measure", f"std {worst:.4f} mm above {o.max_std_mm} mm after "
                            f"{o.max_remeasure} measurements")
 
@@ -738,13 +813,13 @@ class Executor:
         env = m.env or {}
         joint_temp = self._joint_temperatures()
         return Sample(
-            point_index=t.index, joints_rad=jr.q, tracker_p_smr=m.xyz, std_mm=m.std, n=m.n,
-            t=m.timestamp, pose_id=t.label, set_name=t.set, target=t.to_dict(),
+            point_index=t.index, q=jr.q, tracker_p_smr=m.xyz, std_mm=m.std, n_averaged=m.n,
+            t_s=m.timestamp, pose_id=t.label, set_name=t.set, target=t.to_dict(),
             temp_c=env.get("temp_c"), pressure_hpa=env.get("pressure_hpa"),
-            humidity_pct=env.get("humidity_pct"), base_p_tcp_cmd=cmd, dirs=dirs,
+            humidity_pct=env.get("humidity_pct"), cmd=cmd, dirs=dirs,
             attempts=attempt, joints_t=jr.timestamp, reflector=m.reflector or None,
-            face=m.face or None, cov_mm2=m.cov, joint_temp_c=joint_temp,
-            quat_wxyz=getattr(m, "quat", None), sigma_deg=getattr(m, "sigma_deg", None),
+            face=m.face or None, cov_mm2=m.cov, joint_temp=joint_temp,
+            quat=getattr(m, "quat", None), sigma_deg=getattr(m, "sigma_deg", None),
         )
 
     def _joint_temperatures(self) -> np.ndarray | None:
@@ -756,5 +831,6 @@ class Executor:
         try:
             return np.asarray(self.robot.joint_temperatures(timeout=self.o.io_timeout_s), float)
         except CommandRejected:
+            log.info("the robot reports no joint temperatures: not asked again")
             self._temps = False
             return None

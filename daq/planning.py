@@ -7,6 +7,7 @@ routine's acquisition options, for a new run and for a resumed one.
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 from calibration import load_model
@@ -18,6 +19,8 @@ from .routines import get as get_routine
 from .run_request import CaptureRequest, PlannedRun
 from .sight import estimate_time, frame_from_store, predict, require_tracker, resolve_cell
 from .store import RunStore, StoreError
+
+log = logging.getLogger(__name__)
 
 
 def _open_existing(db) -> RunStore:
@@ -87,8 +90,13 @@ def plan_run(request: CaptureRequest, *, model=None, db: str | Path | None = Non
         raise RequestError(one_line(e)) from None
     res = check_plan(plan, model, limits=request.motion)
     if not res.ok:
+        log.info("plan %s refused by the dry run: %s", plan.hash[:16], res.report())
         raise PlanRefused(res)
-    return PlannedRun(request, model, plan, res, acquire, predict(plan, model, cell))
+    sight = predict(plan, model, cell)
+    log.info("plan %s: %s, %d points (%d spares), dry run passed; %s", plan.hash[:16],
+             plan.routine, plan.n_planned, len(plan) - plan.n_planned,
+             sight.report(limit=0))
+    return PlannedRun(request, model, plan, res, acquire, sight)
 
 
 def acquire_options(mod, given: dict) -> dict:

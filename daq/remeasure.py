@@ -4,9 +4,9 @@ A laser tracker's blunders (0.5-5 mm off: a wrong return, a re-seated SMR, someo
 the beam) leave nothing in the tracker's own statistics: the averaged reading's std is
 as small as any other's (that check, ``max_std_mm``, is the executor's). They show only
 against the robot: the reading is far from where the model fitted so far puts the
-point. :class:`Remeasure` is the capture service's policy (DESIGN.md: "the re-measure
-policy at the cell lives with the capture service, not inside a routine"); the
-executor hands it each new sample before the commit (:meth:`Remeasure.settle`).
+point. :class:`Remeasure` is the capture service's policy, not a routine's (the policy
+at the cell: docs/capture.md, "Blunders: re-measured at the cell"); the executor hands
+it each new sample before the commit (:meth:`Remeasure.settle`).
 
 The running model (:class:`RunningModel`)
     ``geometric,base,tool`` of the run's nominal model (its controller tool),
@@ -66,11 +66,16 @@ reason, in the same transaction as the point's sample (a point killed mid-re-mea
 has nothing stored and is done again on resume); the sample records the verdict, the
 number of re-measurements and its distance from the model.
 
+Log (``daq.remeasure``, INFO): the running model fitted and refitted, each suspect and
+why, each re-measurement's verdict, the warm-up points to revisit, a model no longer
+trusted to call blunders.
+
 Units: mm, rad, s.
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass, field, replace
 
@@ -84,6 +89,8 @@ from calibration.model.kinematics import tool_points
 from .executor import PointContext, approach_dirs
 from .plans import Plan, Target
 from .store import Reading, RunStore, Sample
+
+log = logging.getLogger(__name__)
 
 #: the running model's effects
 EFFECTS = "geometric,base,tool"
@@ -185,7 +192,7 @@ class RunningModel:
 
     def refit(self) -> None:
         rows = self._calib()
-        data = Dataset(q=np.array([s.joints_rad for s in rows]),
+        data = Dataset(q=np.array([s.q for s in rows]),
                        tracker_p_smr=np.array([s.tracker_p_smr for s in rows]),
                        pose_id=[str(s.point_index) for s in rows],
                        sigma_mm=np.array([reading_sigma(s) for s in rows]))
@@ -195,10 +202,16 @@ class RunningModel:
                 fit = identify(self.error_model, data, self.solver,
                                x0=None if self.fit is None else self.fit.values,
                                solver_options=SOLVER_OPTIONS.get(self.solver))
-        except (ValueError, np.linalg.LinAlgError):  # no model this time: keep the last
+        except (ValueError, np.linalg.LinAlgError) as e:  # no model this time: keep the last
+            log.info("running model: the refit on %d rows failed (%s): the last one is kept",
+                     data.n, e)
             fit = self.fit
         self.refits.append((data.n, time.perf_counter() - t0))
+        first = self.fit is None
         self.fit, self.n_fitted = fit, data.n
+        if fit is not None:
+            log.info("running model %s on %d calibration rows in %.2f s (scale %.2f)",
+                     "fitted" if first else "refitted", data.n, self.refits[-1][1], self.scale)
 
     @property
     def scale(self) -> float:
@@ -211,7 +224,7 @@ class RunningModel:
         """A reading against the prediction of the running model."""
         if self.fit is None:
             return Judgement(None)
-        row = Dataset(q=np.asarray(s.joints_rad, float)[None],
+        row = Dataset(q=np.asarray(s.q, float)[None],
                       tracker_p_smr=np.asarray(s.tracker_p_smr, float)[None])
         r = row.tracker_p_smr - self.fit.predict(row)
         M = residual_factors(self.fit, row, np.zeros(1, bool))
@@ -324,6 +337,9 @@ class Remeasure:
             self.pending = [p for p in self.pending if p != new.point_index]
         if self.running.add(settled.sample):
             self.pending = self.running.warmup_suspects()
+            if self.pending:
+                log.info("warm-up readings out of line with the running model, revisited "
+                         "while the next points are done: points %s", self.pending)
 
     def _resolve(self, t: Target, first: Sample, ctx: PointContext, *, revisit: bool
                  ) -> tuple[Sample, list[Reading]]:
@@ -333,26 +349,42 @@ class Remeasure:
             return replace(first, verdict="warmup"), []
         first = _with_model(first, j, first.verdict if revisit else "ok")
         self.judged += 1
-        if not j.suspect or not self.model_trusted():
+        if not j.suspect:
+            return first, []
+        if not self.model_trusted():
+            log.info("point %d (%s): %s, not re-measured: the running model is no longer "
+                     "trusted (%d of %d judged readings confirmed against it)", t.index,
+                     t.label, j.describe(), self.model_off, self.judged)
             return first, []
         note = "warm-up reading, judged once the model was fitted: " if revisit else ""
+        log.info("point %d (%s): %s%s: re-measuring (up to %d times)", t.index, t.label,
+                 "revisited, " if revisit else "", j.describe(), self.n)
         readings = [(first, j, note + j.describe())]
         for k in range(1, self.n + 1):
             s = self._again(t, first, ctx, approach=revisit and k == 1)
             jk = self.running.judge(s)
             s = _with_model(s, jk, "remeasured", k)
             if not jk.suspect:
+                log.info("point %d (%s): re-measurement %d agrees with the model (%s): "
+                         "accepted, %d reading(s) rejected", t.index, t.label, k,
+                         jk.describe(), len(readings))
                 return s, [Reading(r, f"{why}; a re-measurement agrees with the model")
                            for r, _, why in readings]
             same = [self.running.agree(r, s) for r, _, _ in readings]
             if any(same):
                 self.model_off += 1
+                log.info("point %d (%s): re-measurement %d agrees with an earlier reading, "
+                         "not with the model (%s): the model, not the reading, is off there",
+                         t.index, t.label, k, jk.describe())
                 return replace(s, verdict="model"), [Reading(r, f"{why}; " + (
                     "agrees with the accepted re-measurement (the model, not the reading, is "
                     "off)" if agrees else "agrees with no other reading"))
                     for (r, _, why), agrees in zip(readings, same, strict=True)]
             readings.append((s, jk, "re-measurement: " + jk.describe()))
         best = min(range(len(readings)), key=lambda i: readings[i][1].ratio)
+        log.info("point %d (%s): unresolved after %d re-measurements (no two readings agree, "
+                 "none with the model): the closest kept, left out of the export", t.index,
+                 t.label, self.n)
         kept = replace(readings[best][0], verdict="unresolved", remeasures=self.n)
         return kept, [Reading(r, f"{why}; no two readings agree: the one closest to the model "
                                  "was kept") for i, (r, _, why) in enumerate(readings)
@@ -373,16 +405,14 @@ class Remeasure:
         else:
             prev = self.retract(t, ref)
             ctx.move_joints(prev)  # adaptive: near the planned posture
-        if t.move == "linear" and t.via is None:
-            # the posture the point was read in (a linear move fixes only the position)
-            jr = ctx.move_joints(ref.joints_rad)
-        else:
-            jr = ctx.move_target()
+        # a linear move: the posture the point was read in (it fixes only the position)
+        jr = (ctx.move_joints(ref.q) if t.move == "linear" and t.via is None
+              else ctx.move_target())
         jr, m = ctx.measure_at(jr)
         cmd_q = np.asarray(t.q, float) if t.move == "joints" else jr.q
         env = m.env or {}
-        return replace(ref, joints_rad=jr.q, tracker_p_smr=m.xyz, std_mm=m.std, n=m.n,
-                       t=m.timestamp, temp_c=env.get("temp_c"),
+        return replace(ref, q=jr.q, tracker_p_smr=m.xyz, std_mm=m.std, n_averaged=m.n,
+                       t_s=m.timestamp, temp_c=env.get("temp_c"),
                        pressure_hpa=env.get("pressure_hpa"),
                        humidity_pct=env.get("humidity_pct"), joints_t=jr.timestamp,
                        dirs=approach_dirs(prev, cmd_q, self.deadband_rad),
@@ -391,7 +421,7 @@ class Remeasure:
     def retract(self, t: Target, ref: Sample) -> np.ndarray:
         """Joints a small step back from ``t`` against its approach (every joint when it
         was approached without motion), within the joint limits."""
-        q = np.asarray(t.q if t.move == "joints" else ref.joints_rad, float)
+        q = np.asarray(t.q if t.move == "joints" else ref.q, float)
         dirs = np.zeros(len(q)) if ref.dirs is None else np.asarray(ref.dirs, float)
         if not dirs.any():
             dirs = np.ones(len(q))

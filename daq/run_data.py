@@ -19,8 +19,10 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
     effects that are correlated over its samples (interferometer, angle encoders,
     air), which averaging does not reduce as 1/sqrt(n).
 
-    ``cmd``, ``temp_c``, ``pressure_hpa``, ``humidity_pct``, ``reflector``, ``face``,
-    ``dirs`` and ``joint_temp`` (the joints' temperatures) are set only when every sample
+    Every quantity the Dataset shares with the store's record (the column table,
+    :mod:`calibration.data.columns`) is carried over: ``cmd``, ``temp_c``, ``pressure_hpa``,
+    ``humidity_pct``, ``reflector``, ``face``, ``dirs``, ``joint_temp`` (the joints'
+    temperatures), ``quat``, ``sigma_deg`` and ``tool_id`` are set only when every sample
     has them (a column is all or nothing).
 
     Drift checks (:mod:`daq.drift_checks`) are rows of set ``drift`` (``is_drift``).
@@ -32,6 +34,7 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
     ``rejected`` per row and ``reason`` why (the verdict's note for an accepted one).
     """
     from calibration import Dataset
+    from calibration.data.columns import RECORD
 
     from .remeasure import VERDICTS
 
@@ -47,34 +50,25 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
     rows = [s.sample(i) for i in range(len(s))]
     reading = ["rejected" if v == "unresolved" else "accepted" for v in s.verdict]
     reason = [VERDICTS.get(v or "", "") for v in s.verdict]
-    sets = list(s.set_name)
     if not all_readings:
         keep = [i for i, r in enumerate(reading) if r == "accepted"]
         if not keep:
             raise StoreError(f"{store.address}: run {run_id} has no accepted readings")
-        rows, ids, sets = ([a[i] for i in keep] for a in (rows, ids, sets))
+        rows, ids = ([a[i] for i in keep] for a in (rows, ids))
     else:
-        pid = {int(p): (ids[i], sets[i]) for i, p in enumerate(s.point_index)}
-        for r in store.readings(run_id):
+        pid = {int(p): ids[i] for i, p in enumerate(s.point_index)}
+        for r in store.readings(run_id):  # each with its point's pose_id and set_name
             rows.append(r.sample)
-            ids.append(pid[r.sample.point_index][0])
-            sets.append(pid[r.sample.point_index][1])
+            ids.append(pid[r.sample.point_index])
             reading.append("rejected")
             reason.append(r.reason)
-        order = sorted(range(len(rows)), key=lambda i: (rows[i].point_index, rows[i].t))
-        rows, ids, sets, reading, reason = ([a[i] for i in order]
-                                            for a in (rows, ids, sets, reading, reason))
+        order = sorted(range(len(rows)), key=lambda i: (rows[i].point_index, rows[i].t_s))
+        rows, ids, reading, reason = ([a[i] for i in order]
+                                      for a in (rows, ids, reading, reason))
     std = np.array([r.std_mm for r in rows], float)
     sigma = np.sqrt(np.mean(std ** 2, axis=1))
     if sigma_mode == "mean":
-        sigma = sigma / np.sqrt(np.maximum([r.n for r in rows], 1))
-
-    def every(name: str, dtype=float):
-        v = [getattr(r, name) for r in rows]
-        return None if any(x is None for x in v) else np.array(v, dtype)
-
-    reflector = [r.reflector for r in rows]
-    reflector = reflector if all(reflector) else None
+        sigma = sigma / np.sqrt(np.maximum([r.n_averaged for r in rows], 1))
     meta = {"run": str(run.id), "routine": run.routine, **run_meta(store, run, sigma),
             "plan_hash": run.plan_hash, "robot": run.robot_url or "",
             "tracker": run.tracker_url or "", "software": run.software or "",
@@ -83,19 +77,12 @@ def dataset_from_run(store: RunStore, run_id: int, *, sigma_mode: str = "std",
                          else "tracker std / sqrt(n), RMS over axes")}
     if all_readings:
         meta["readings"] = "every reading: the column reading says accepted or rejected"
-    data = Dataset(
-        q=np.array([r.joints_rad for r in rows], float),
-        tracker_p_smr=np.array([r.tracker_p_smr for r in rows], float), pose_id=ids,
-        cmd=every("base_p_tcp_cmd"), temp_c=every("temp_c"),
-        t_s=np.array([r.t for r in rows], float), sigma_mm=sigma,
-        pressure_hpa=every("pressure_hpa"), humidity_pct=every("humidity_pct"),
-        reflector=reflector, face=every("face", int), dirs=every("dirs", int),
-        joint_temp=every("joint_temp_c"), is_valid=np.array([v == "valid" for v in sets]),
-        is_drift=np.array([v == "drift" for v in sets]), meta=meta,
-        source=f"{store.address} run {run_id}",
-        quat=every("quat_wxyz"), sigma_deg=every("sigma_deg"),
-        tool_id=None if any(r.tool_id is None for r in rows) else [r.tool_id for r in rows],
-    )
+    columns: dict = {}
+    for c in RECORD:  # every quantity the Dataset and the record share (column table)
+        if c.dataset:
+            columns.update(c.gather([getattr(r, c.name) for r in rows]))
+    data = Dataset(**{**columns, "pose_id": ids, "sigma_mm": sigma}, meta=meta,
+                   source=f"{store.address} run {run_id}")
     return (data, reading, reason) if all_readings else data
 
 
@@ -146,7 +133,7 @@ def postures_from_run(store: RunStore, run_id: int | None = None, *, to_base: bo
         raise StoreError(f"{store.address}: run {run.id} has {n}/{run.n_points} postures stored "
                          f"(status {run.status}); finish it with `cellcal resume {run.id}`")
     data = dataset_from_run(store, run.id)
-    targets = store.samples(run.id).targets
+    targets = store.samples(run.id).target
     try:
         plane = np.array([int(t["info"]["plane"]) for t in targets])
     except (TypeError, KeyError) as e:

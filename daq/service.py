@@ -35,6 +35,7 @@ checks, :class:`~daq.errors.ConnectFailed` when the devices cannot be reached.
 from __future__ import annotations
 
 import contextlib
+import logging
 import time
 from collections.abc import Callable
 
@@ -57,6 +58,8 @@ from .warm_gate import require_warm
 __all__ = ["CaptureRequest", "ConfirmFn", "OtherCell", "PlannedRun", "ProgressFn",
            "Resumable", "RunOutcome", "execute", "plan_run", "prepare_resume",
            "resume_run", "start_run"]
+
+log = logging.getLogger(__name__)
 
 #: called once a run is stored, before the first move: (run id, points stored)
 StartedFn = Callable[[int, int], None]
@@ -112,6 +115,10 @@ def start_run(store: RunStore, planned: PlannedRun, *, robot_url: str, tracker_u
             tracker=req.tracker, tracker_check=session.tracker_check,
             **session.reflector_context(req.smr_radius_mm))
         run_id = session.create_run(planned.plan, context, robot_id=robot_id)
+        log.info("run %d stored: %s, %d points, plan %s, robot %s, frame run %s, in %s",
+                 run_id, planned.plan.routine, planned.plan.n_planned,
+                 planned.plan.hash[:16], robot_id or "-", context.frame_run,
+                 store.address)
         return _go(session, run_id, 0, planned.plan, planned.model, context, progress,
                    on_started)
 
@@ -165,6 +172,8 @@ def resume_run(store: RunStore, resumable: Resumable, *, executor: dict | None =
         if not r.robot_id and (robot_id := default_robot_id(cell.robot)):
             store.update_run(r.id, robot_id=robot_id)
         done = store.n_samples(r.id)
+        log.info("run %d resumed: %s, %d of %d points stored, in %s", r.id, r.routine, done,
+                 r.n_points, store.address)
         return _go(session, r.id, done, resumable.plan, resumable.model, context, progress,
                    on_started, note=f"resumed with {done}/{r.n_points} points stored; "
                    f"tracker: {session.tracker_check.model_dump_json()}")
@@ -180,6 +189,7 @@ def _repeat_elsewhere(session: CellSession, resumable: Resumable, options, acq,
         "tracker_url": resumable.tracker_url,
         **frame_fields(session.frame_run(None, robot_id))})
     run_id = session.create_run(resumable.plan, context, robot_id=robot_id, source_run=r.id)
+    log.info("run %d not resumed here (%s): its plan runs again as run %d", r.id, why, run_id)
     store.add_interruption(r.id, None, InterruptionKind.OTHER_CELL,
                            f"not resumed here: {why}; its plan runs again as run {run_id}")
     store.add_interruption(run_id, None, InterruptionKind.OTHER_CELL,
@@ -211,6 +221,8 @@ def execute(store: RunStore, run_id: int, plan: Plan, robot, tracker, *, model,
     remeasure = None
     if make_acquisition is None and model is not None:  # a closed loop judges its own
         remeasure = Remeasure.for_run(store, run_id, plan, model, context.executor)
+    log.info("run %d: executor %s; re-measure policy %s", run_id,
+             context.executor.model_dump_json(), "on" if remeasure is not None else "off")
     ex = Executor(store, run_id, plan, robot, tracker, context.executor,
                   acquisition=None if make_acquisition is None
                   else make_acquisition(model, context),

@@ -31,6 +31,7 @@ Units: mm, °C, hPa, %RH.
 
 from __future__ import annotations
 
+import logging
 import time
 
 import numpy as np
@@ -47,6 +48,8 @@ from drivers.protocols import (
 
 from .errors import TrackerRefused
 from .run_context import ExecutorOptions, TrackerCheck, TrackerSetup, TwoFaceCheck
+
+log = logging.getLogger(__name__)
 
 #: the two-face difference's allowance for noise, in standard deviations
 TWO_FACE_K = 2.0
@@ -71,10 +74,16 @@ def check_tracker(tracker, setup: TrackerSetup, options: ExecutorOptions | None 
         attempt += 1
         try:
             return _check(tracker, setup, o, two_face)
+        except TrackerRefused as e:
+            log.info("tracker refused: %s", e)
+            raise
         except DriverError as e:
             if not e.transient or attempt > o.max_retries:
+                log.info("tracker check failed: %s", e)
                 raise TrackerRefused(f"tracker check: {e}; nothing was stored") from e
-            time.sleep(min(o.backoff_s * 2 ** (attempt - 1), o.backoff_max_s))
+            wait = min(o.backoff_s * 2 ** (attempt - 1), o.backoff_max_s)
+            log.info("tracker check: %s; retrying in %.2f s after reconnecting", e, wait)
+            time.sleep(wait)
             try:
                 tracker.close()
                 tracker.connect(timeout=o.connect_timeout_s)

@@ -12,6 +12,7 @@ and what to do; nothing is stored, nothing moves.
 
 from __future__ import annotations
 
+import logging
 import time
 
 import numpy as np
@@ -21,6 +22,8 @@ from drivers.protocols import JointTemperatures
 
 from .errors import RequestError
 from .store import RunStore, StoreError
+
+log = logging.getLogger(__name__)
 
 #: a joint this much colder (K) than at the end of the warm-up has cooled
 COOLED_K = 1.0
@@ -51,12 +54,17 @@ def require_warm(store: RunStore, robot, robot_id: str | None, max_age_min: floa
         raise NotWarm(f"--require-warm: the last warm-up of {who} (run {run.id}) did not "
                       f"settle{why}; {again}")
     if warm.joint_temp_c is None or not isinstance(robot, JointTemperatures):
+        log.info("--require-warm: warm-up run %d of %s ended %.1f min ago and settled",
+                 run.id, who, age_min)
         return
     try:
         temps = np.asarray(robot.joint_temperatures(timeout=timeout), float)
     except CommandRejected:
         return
     cooled = np.asarray(warm.joint_temp_c, float) - temps
+    log.info("--require-warm: warm-up run %d of %s ended %.1f min ago and settled; joints "
+             "now %s °C, at its end %s °C", run.id, who, age_min, np.round(temps, 1).tolist(),
+             np.round(np.asarray(warm.joint_temp_c, float), 1).tolist())
     if len(cooled) == len(temps) and cooled.max() > COOLED_K:
         j = int(np.argmax(cooled))
         raise NotWarm(f"--require-warm: joint {j + 1} of {who} has cooled by "

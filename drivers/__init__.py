@@ -17,11 +17,18 @@ Modules
     ``line_tracker``  a laser tracker over TCP or serial, line protocol
     ``modbus_robot``  a PLC-style robot controller over Modbus TCP
     ``ur_rtde``       Universal Robots over ur-rtde
+    ``leica/``        Leica laser trackers over the emScon TPI (see its package)
+
+Logging: every driver logs its wire traffic decoded at DEBUG to its module's logger
+(``drivers.line_robot``, ``drivers.leica.link``...), its connection, retries and errors at
+INFO; the package configures no handler but a ``NullHandler`` (the application does).
 """
 
 from __future__ import annotations
 
 import importlib
+import logging
+from typing import Any
 
 from drivers.errors import (
     BeamBroken,
@@ -35,6 +42,8 @@ from drivers.errors import (
     ProtocolError,
 )
 from drivers.urls import open_robot, open_tracker, register_scheme, unregister_scheme
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 #: names loaded at their first use: the protocols (a command that opens no device, such
 #: as ``calibrate``, registers ``sim://`` in drivers.urls without loading them) and the
@@ -82,7 +91,7 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name in _LAZY:
         return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(f"module 'drivers' has no attribute {name!r}")

@@ -10,6 +10,7 @@ millimetres at the Python boundary.
 
 from __future__ import annotations
 
+import logging
 import time
 
 import numpy as np
@@ -23,8 +24,10 @@ from drivers.errors import (
     ProtocolError,
 )
 from drivers.protocols import DeviceIdentity, JointReading, RobotStatus
-from drivers.settle import poll_until_settled
+from drivers.settle import poll_until_settled, poll_until_still, settle_move
 from drivers.transport import LineSession, LineTransport, parse_kv
+
+log = logging.getLogger(__name__)  # the wire at DEBUG (drivers.transport)
 
 #: ERR name → error class
 ROBOT_ERRORS: dict[str, type[DriverError]] = {
@@ -62,7 +65,8 @@ class SerialRobot:
         self.model = self.serial = self.firmware = ""
         self.n_joints = 0
         self._hello_kv: dict[str, str] = {}
-        self._transport = LineTransport(port_url, device=f"robot {url}", baudrate=baudrate)
+        self._transport = LineTransport(port_url, device=f"robot {url}", baudrate=baudrate,
+                                        logger=log)
         self._session = LineSession(self._transport, ROBOT_ERRORS, handshake=self._hello)
 
     @property
@@ -80,6 +84,8 @@ class SerialRobot:
         except (KeyError, ValueError) as e:
             raise ProtocolError(self._dev, "HELLO", f"no joints=N in {tok}") from e
         self._hello_kv = kv
+        log.info("%s: controller %s, serial %s, firmware %s, %d joints", self._dev, self.model,
+                 self.serial, self.firmware, self.n_joints)
 
     def identify(self, timeout: float = 2.0) -> DeviceIdentity:
         """Who the controller said it is in ``HELLO`` (``sim=1 kinematics=NAME`` from a
@@ -101,7 +107,7 @@ class SerialRobot:
     def __enter__(self) -> SerialRobot:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # --------------------------------------------------------------- queries
@@ -151,14 +157,10 @@ class SerialRobot:
             raise ProtocolError(self._dev, "STATUS?", f"bad status reply {tok}: {e}") from e
 
     # --------------------------------------------------------------- motion
-    def move_joints(
-        self, q: np.ndarray, speed: float = 0.5, timeout: float = 60.0, *, wait: bool = False
-    ) -> None:
-        """``MOVEJ``: start a joint move to ``q`` (rad, shape (n_joints,)) at ``speed`` rad/s.
-
-        Returns once the controller accepted the move; ``wait=True`` also waits
-        until it is settled (:meth:`wait_settled`) within ``timeout``.
-        """
+    def move_joints(self, q: np.ndarray, speed: float = 0.5, timeout: float = 60.0) -> None:
+        """``MOVEJ`` to ``q`` (rad, shape (n_joints,)) at ``speed`` rad/s, then ``STATUS?``
+        until settled: returns once the robot has arrived and settled within ``timeout``
+        (else ``STOP`` and CommandTimeout)."""
         deadline = time.monotonic() + timeout
         q = np.asarray(q, float)
         if q.shape != (self.n_joints,):
@@ -166,21 +168,18 @@ class SerialRobot:
         args = " ".join(f"{v:.6f}" for v in np.rad2deg(q))
         cmd = f"MOVEJ {args} {np.rad2deg(speed):.6f}"
         self._session.exchange(cmd, "MOVEJ", min(deadline, time.monotonic() + 5.0))
-        if wait:
-            self.wait_settled(max(deadline - time.monotonic(), 0.0))
+        settle_move(self.wait_settled, self.stop, self._dev, "MOVEJ", deadline)
 
-    def move_linear(
-        self, xyz: np.ndarray, speed: float = 100.0, timeout: float = 60.0, *, wait: bool = False
-    ) -> None:
-        """``MOVEL``: start a linear TCP move to ``xyz`` (mm, base frame) at ``speed`` mm/s."""
+    def move_linear(self, xyz: np.ndarray, speed: float = 100.0, timeout: float = 60.0) -> None:
+        """``MOVEL`` to ``xyz`` (mm, base frame) at ``speed`` mm/s, then ``STATUS?`` until
+        settled (as :meth:`move_joints`)."""
         deadline = time.monotonic() + timeout
         xyz = np.asarray(xyz, float)
         if xyz.shape != (3,):
             raise CommandRejected(self._dev, "MOVEL", f"expected x y z, got {xyz}")
         cmd = "MOVEL " + " ".join(f"{v:.4f}" for v in xyz) + f" {speed:.4f}"
         self._session.exchange(cmd, "MOVEL", min(deadline, time.monotonic() + 5.0))
-        if wait:
-            self.wait_settled(max(deadline - time.monotonic(), 0.0))
+        settle_move(self.wait_settled, self.stop, self._dev, "MOVEL", deadline)
 
     def wait_settled(self, timeout: float = 30.0) -> None:
         """Poll ``STATUS?`` until in position and steady.
@@ -191,8 +190,11 @@ class SerialRobot:
         poll_until_settled(lambda t: self.status(timeout=t), self._dev, timeout, self.poll_s)
 
     def stop(self, timeout: float = 2.0) -> None:
-        """``STOP``: halt any motion."""
-        self._session.exchange("STOP", "STOP", time.monotonic() + timeout, retry=True)
+        """``STOP``: halt any motion, then ``STATUS?`` until the robot stands still."""
+        deadline = time.monotonic() + timeout
+        self._session.exchange("STOP", "STOP", deadline, retry=True)
+        poll_until_still(lambda t: self.status(timeout=t), self._dev, "STOP", deadline,
+                         self.poll_s)
 
     def clear_protective_stop(self, timeout: float = 2.0) -> None:
         """``RESET``: clear a protective stop or fault (after the cause is removed)."""

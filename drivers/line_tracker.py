@@ -15,6 +15,7 @@ pose with ``MEAS6D`` (:class:`~drivers.protocols.SixDof`).
 
 from __future__ import annotations
 
+import logging
 import time
 
 import numpy as np
@@ -36,6 +37,8 @@ from drivers.protocols import (
     measure_both_faces,
 )
 from drivers.transport import LineSession, LineTransport, parse_kv
+
+log = logging.getLogger(__name__)  # the wire at DEBUG (drivers.transport)
 
 #: ERR name → error class
 TRACKER_ERRORS: dict[str, type[DriverError]] = {
@@ -83,7 +86,8 @@ class LineTracker:
         #: the last measurement's time and sequence number: a reply not after them is stale
         self._last_t: float | None = None
         self._last_seq: int | None = None
-        self._transport = LineTransport(port_url, device=f"tracker {url}", baudrate=baudrate)
+        self._transport = LineTransport(port_url, device=f"tracker {url}", baudrate=baudrate,
+                                        logger=log)
         self._session = LineSession(self._transport, TRACKER_ERRORS, handshake=self._hello)
 
     # ----------------------------------------------------------- connection
@@ -94,6 +98,8 @@ class LineTracker:
         self.model, self.serial, self.firmware = tok[:3]
         self._hello_kv = dict(t.split("=", 1) for t in tok[3:] if "=" in t)
         self._mode_ms = None
+        log.info("%s: tracker %s, serial %s, firmware %s", self._transport.device, self.model,
+                 self.serial, self.firmware)
 
     def identify(self, timeout: float = 2.0) -> DeviceIdentity:
         """Who the tracker said it is in ``HELLO`` (``sim=1`` from a simulator)."""
@@ -107,6 +113,7 @@ class LineTracker:
         if self.auto_init:
             st = self.status(timeout=max(deadline - time.monotonic(), 0.01))
             if not st.initialised:
+                log.info("%s: not initialised: initialising", self._transport.device)
                 self.initialise(timeout=max(deadline - time.monotonic(), 0.01))
 
     def close(self) -> None:
@@ -116,7 +123,7 @@ class LineTracker:
     def __enter__(self) -> LineTracker:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     @property

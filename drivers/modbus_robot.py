@@ -21,8 +21,9 @@ import contextlib
 import logging
 import struct
 import time
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import ClassVar, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 import yaml
@@ -41,15 +42,21 @@ from drivers.errors import (
     ProtocolError,
 )
 from drivers.protocols import DeviceIdentity, JointReading, RobotStatus
-from drivers.settle import poll_until_settled
+from drivers.settle import poll_until_settled, poll_until_still, settle_move
 
 # pymodbus reports every failure through logging as well as by its return
 # values; we turn those into exceptions, so keep its lines out of stderr unless
 # the application configures logging itself.
 logging.getLogger("pymodbus").addHandler(logging.NullHandler())
+#: the registers read and written, decoded (field names, values), at DEBUG; the connection,
+#: reconnects and Modbus exceptions at INFO
+log = logging.getLogger(__name__)
 
 #: command register values
 CMD_NONE, CMD_MOVE_JOINTS, CMD_MOVE_LINEAR, CMD_STOP, CMD_CLEAR_FAULT = 0, 1, 2, 3, 4
+#: command register value -> name (in the log)
+CMD_NAMES = {CMD_NONE: "NONE", CMD_MOVE_JOINTS: "MOVE_JOINTS", CMD_MOVE_LINEAR: "MOVE_LINEAR",
+             CMD_STOP: "STOP", CMD_CLEAR_FAULT: "CLEAR_FAULT"}
 
 #: error_code register values (same codes as the line protocol)
 ERR_NONE, ERR_BAD_ARGUMENT, ERR_LIMIT, ERR_UNREACHABLE = 0, 11, 20, 21
@@ -128,7 +135,7 @@ class RegisterMap(BaseModel):
 
     @model_validator(mode="before")
     @classmethod
-    def _custom_layout_names_its_temperatures(cls, data):
+    def _custom_layout_names_its_temperatures(cls, data: Any) -> Any:
         if isinstance(data, dict) and "joint_temps" not in data and any(
                 k in data for k in _ADDRESS_FIELDS):
             data = {**data, "joint_temps": None}
@@ -226,7 +233,7 @@ class RegisterMap(BaseModel):
             raise ValueError(f"register map {path}: " + "; ".join(parts)) from None
 
     # -------------------------------------------------------- float helpers
-    def pack_floats(self, values) -> list[int]:
+    def pack_floats(self, values: Iterable[float]) -> list[int]:
         """float32 values → registers (two per value, in this map's word order)."""
         out: list[int] = []
         for v in values:
@@ -235,17 +242,17 @@ class RegisterMap(BaseModel):
         return out
 
     @staticmethod
-    def pack_temps(values) -> list[int]:
+    def pack_temps(values: Iterable[float]) -> list[int]:
         """Temperatures (°C) → registers (signed 16 bit, °C × :data:`TEMP_SCALE`)."""
         return [int(np.clip(round(float(v) * TEMP_SCALE), -32768, 32767)) & 0xFFFF
                 for v in values]
 
     @staticmethod
-    def unpack_temps(regs) -> np.ndarray:
+    def unpack_temps(regs: Iterable[int]) -> np.ndarray:
         """Registers (signed 16 bit) → temperatures (°C)."""
         return np.array([(r - 65536 if r >= 32768 else r) / TEMP_SCALE for r in regs], float)
 
-    def unpack_floats(self, regs) -> np.ndarray:
+    def unpack_floats(self, regs: Iterable[int]) -> np.ndarray:
         """Registers (two per value) → float64 array."""
         regs = list(regs)
         out = []
@@ -308,7 +315,9 @@ class ModbusRobot:
         client = ModbusTcpClient(self.host, port=self.port, timeout=timeout, retries=0)
         if not client.connect():
             client.close()
+            log.info("%s: cannot reach %s:%s", self._dev, self.host, self.port)
             raise ConnectionLost(self._dev, "connect", f"cannot reach {self.host}:{self.port}")
+        log.info("%s: connected to %s:%s, unit %d", self._dev, self.host, self.port, self.unit)
         self._client = client
         self._hb = None
         try:
@@ -324,6 +333,7 @@ class ModbusRobot:
             )
         self.n_joints = n
         self._seq = blk["command_ack"]
+        log.info("%s: %d joints, last command acknowledged %d", self._dev, n, self._seq)
 
     def identify(self, timeout: float = 2.0) -> DeviceIdentity:
         """Who the controller is, from Read Device Identification (function 43/14,
@@ -332,6 +342,7 @@ class ModbusRobot:
         its ProductName and gives the robot model it moves (0x81). A controller that does
         not answer function 43 is an unknown real device."""
         deadline = time.monotonic() + timeout
+        log.debug("%s: > identify: read device identification (43/14, extended)", self._dev)
         try:
             rr = self._call("identify", deadline,
                             self._client_method("read_device_information"), read_code=3)
@@ -339,6 +350,7 @@ class ModbusRobot:
                     for k, v in dict(getattr(rr, "information", {}) or {}).items()}
         except DriverError:
             info = {}
+        log.debug("%s: < identify: %s", self._dev, info)
         sim = info.get(ID_PRODUCT_NAME, "") == SIMULATOR_PRODUCT_NAME
         return DeviceIdentity(
             "robot", info.get(ID_MODEL_NAME) or info.get(ID_PRODUCT_CODE, ""),
@@ -349,16 +361,18 @@ class ModbusRobot:
         """Close the connection (idempotent)."""
         client, self._client = self._client, None
         if client is not None:
+            log.info("%s: connection closed", self._dev)
             client.close()
 
     def __enter__(self) -> ModbusRobot:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # ------------------------------------------------------------- plumbing
-    def _call(self, command: str, deadline: float, fn, *args, **kw):
+    def _call(self, command: str, deadline: float, fn: Callable[..., Any], *args: Any,
+              **kw: Any) -> Any:
         """Run one pymodbus request; every failure becomes a typed error."""
         client = self._client
         if client is None:
@@ -370,20 +384,24 @@ class ModbusRobot:
         try:
             rr = fn(*args, device_id=self.unit, **kw)
         except ConnectionException as e:
+            log.info("%s: %s: connection lost: %s", self._dev, command, e)
             self.close()
             raise ConnectionLost(self._dev, command, str(e)) from e
         except ModbusIOException as e:
             # no (complete) response in time: close the socket so a late reply
             # cannot be taken for the answer to the next request; pymodbus
             # reopens it on the next request
+            log.info("%s: %s: no reply within %.3f s", self._dev, command, left)
             client.close()
             raise CommandTimeout(self._dev, command, f"no reply within {left:.3f} s") from e
         except (ModbusException, OSError) as e:
+            log.info("%s: %s: connection lost: %s", self._dev, command, e)
             self.close()
             raise ConnectionLost(self._dev, command, str(e)) from e
         if rr.isError():
             code = int(getattr(rr, "exception_code", 0))
             cls, name = MODBUS_EXCEPTIONS.get(code, (CommandRejected, "UNKNOWN"))
+            log.info("%s: %s: Modbus exception %d %s", self._dev, command, code, name)
             raise cls(self._dev, command, f"Modbus exception {code} {name}")
         return rr
 
@@ -392,24 +410,28 @@ class ModbusRobot:
         """Read ``count`` holding registers; reconnect and retry once after a lost link."""
         was_connected = self._client is not None  # never reopen a link the caller closed
         read = self._client_method("read_holding_registers")
+        log.debug("%s: > %s: read %d registers at %d", self._dev, command, count, address)
         try:
             rr = self._call(command, deadline, read, address, count=count)
         except ConnectionLost:
             if not (retry and was_connected) or time.monotonic() >= deadline:
                 raise
+            log.info("%s: %s: reconnecting to retry once", self._dev, command)
             self._reconnect(deadline)
             rr = self._call(command, deadline, read, address, count=count)
         regs = list(rr.registers)
+        log.debug("%s: < %s: %s", self._dev, command, regs)
         if len(regs) != count:
             raise ProtocolError(self._dev, command, f"read {len(regs)} registers, wanted {count}")
         return regs
 
-    def _read_block(self, command: str, deadline: float, *, retry: bool = True) -> dict:
+    def _read_block(self, command: str, deadline: float, *,
+                    retry: bool = True) -> dict[str, Any]:
         lo, hi = self.map.read_span()
         regs = self._read(command, deadline, lo, hi - lo, retry=retry)
         f = self.map.fields()
 
-        def get(name):
+        def get(name: str) -> list[int]:
             a, c = f[name]
             return regs[a - lo : a - lo + c]
 
@@ -423,7 +445,7 @@ class ModbusRobot:
                 self._dev, command, f"stale data: heartbeat stuck at {hb} for {stuck:.1f} s"
             )
         n = self.n_joints or self.map.n_joints
-        return {
+        blk: dict[str, Any] = {
             "status": get("status")[0],
             "error_code": get("error_code")[0],
             "heartbeat": hb,
@@ -432,9 +454,17 @@ class ModbusRobot:
             "q": self.map.unpack_floats(get("actual_joints"))[:n],
             "tcp": self.map.unpack_floats(get("actual_tcp")),
         }
+        if log.isEnabledFor(logging.DEBUG):
+            flags = [k for k, on in self._flags(blk["status"]).items() if on]
+            log.debug("%s: < %s: status 0x%04x %s, error %d, heartbeat %d, ack %d, joints %d, "
+                      "q %s rad, tcp %s mm", self._dev, command, blk["status"],
+                      ",".join(flags) or "-", blk["error_code"], hb, blk["command_ack"],
+                      blk["joint_count"], np.round(blk["q"], 6).tolist(),
+                      np.round(blk["tcp"], 4).tolist())
+        return blk
 
-    def _client_method(self, name: str):
-        def call(*args, **kw):
+    def _client_method(self, name: str) -> Callable[..., Any]:
+        def call(*args: Any, **kw: Any) -> Any:
             client = self._client
             if client is None:
                 raise ConnectionException("not connected")
@@ -448,11 +478,31 @@ class ModbusRobot:
         )
         if not client.connect():
             client.close()
+            log.info("%s: reconnect: cannot reach %s:%s", self._dev, self.host, self.port)
             raise ConnectionLost(self._dev, "reconnect", f"cannot reach {self.host}:{self.port}")
+        log.info("%s: reconnected to %s:%s", self._dev, self.host, self.port)
         self._client = client
 
     def _write(self, command: str, deadline: float, address: int, values: list[int]) -> None:
+        if log.isEnabledFor(logging.DEBUG):
+            log.debug("%s: > %s: write %s", self._dev, command, self._decode(address, values))
         self._call(command, deadline, self._client_method("write_registers"), address, values)
+
+    def _decode(self, address: int, values: list[int]) -> str:
+        """Registers written at ``address``, named by the map's fields (floats decoded)."""
+        floats = ("speed", "target_joints", "target_xyz")
+        parts, a, end = [], address, address + len(values)
+        spans = sorted((start, name, count) for name, (start, count) in self.map.fields().items())
+        for start, name, count in spans:
+            if start < a or start >= end:
+                continue
+            regs = values[start - address:start - address + count]
+            shown = (np.round(self.map.unpack_floats(regs), 6).tolist() if name in floats
+                     else regs[0] if len(regs) == 1 else regs)
+            if name == "command":
+                shown = f"{shown} {CMD_NAMES.get(regs[0], '?')}"
+            parts.append(f"{name}={shown}")
+        return f"{', '.join(parts) or values} (at {address})"
 
     def _flags(self, status: int) -> dict[str, bool]:
         return {k: bool(status >> b & 1) for k, b in self.map.bits.model_dump().items()}
@@ -511,6 +561,8 @@ class ModbusRobot:
                 raise CommandTimeout(self._dev, name, f"command {self._seq} not acknowledged")
             time.sleep(self.poll_s)
         err, fl = blk["error_code"], self._flags(blk["status"])
+        log.debug("%s: < %s: command %d acknowledged, error code %d", self._dev, name,
+                  self._seq, err)
         if err in (ERR_PROTECTIVE_STOP, ERR_EMERGENCY_STOP) or (
             code in (CMD_MOVE_JOINTS, CMD_MOVE_LINEAR)
             and (fl["protective_stop"] or fl["emergency_stop"])
@@ -533,14 +585,10 @@ class ModbusRobot:
             return LimitError(self._dev, name, f"{e.detail}, error code {err} LIMIT")
         return CommandRejected(self._dev, name, f"{e.detail}, error code {err}")
 
-    def move_joints(
-        self, q: np.ndarray, speed: float = 0.5, timeout: float = 60.0, *, wait: bool = False
-    ) -> None:
-        """Start a joint move to ``q`` (rad, shape (n_joints,)) at ``speed`` rad/s.
-
-        Returns when the controller acknowledged the command; ``wait=True`` also
-        waits until settled.
-        """
+    def move_joints(self, q: np.ndarray, speed: float = 0.5, timeout: float = 60.0) -> None:
+        """Joint move to ``q`` (rad, shape (n_joints,)) at ``speed`` rad/s: the command, its
+        acknowledgement, then the status block until settled; returns once the robot has
+        arrived and settled within ``timeout`` (else STOP and CommandTimeout)."""
         deadline = time.monotonic() + timeout
         q = np.asarray(q, float)
         if q.shape != (self.n_joints,):
@@ -556,13 +604,11 @@ class ModbusRobot:
             self._command("move_joints", CMD_MOVE_JOINTS, cmd_deadline)
         except CommandRejected as e:
             raise self._refine(e, "move_joints", cmd_deadline) from e
-        if wait:
-            self.wait_settled(max(deadline - time.monotonic(), 0.0))
+        settle_move(self.wait_settled, self.stop, self._dev, "move_joints", deadline)
 
-    def move_linear(
-        self, xyz: np.ndarray, speed: float = 100.0, timeout: float = 60.0, *, wait: bool = False
-    ) -> None:
-        """Start a linear TCP move to ``xyz`` (mm, base frame, shape (3,)) at ``speed`` mm/s."""
+    def move_linear(self, xyz: np.ndarray, speed: float = 100.0, timeout: float = 60.0) -> None:
+        """Linear TCP move to ``xyz`` (mm, base frame, shape (3,)) at ``speed`` mm/s; returns
+        once settled (as :meth:`move_joints`)."""
         deadline = time.monotonic() + timeout
         xyz = np.asarray(xyz, float)
         if xyz.shape != (3,):
@@ -574,16 +620,18 @@ class ModbusRobot:
             self._command("move_linear", CMD_MOVE_LINEAR, cmd_deadline)
         except CommandRejected as e:
             raise self._refine(e, "move_linear", cmd_deadline) from e
-        if wait:
-            self.wait_settled(max(deadline - time.monotonic(), 0.0))
+        settle_move(self.wait_settled, self.stop, self._dev, "move_linear", deadline)
 
     def wait_settled(self, timeout: float = 30.0) -> None:
         """Poll the status block until in position and steady; raise on stops or faults."""
         poll_until_settled(lambda t: self.status(timeout=t), self._dev, timeout, self.poll_s)
 
     def stop(self, timeout: float = 2.0) -> None:
-        """Command STOP."""
-        self._command("stop", CMD_STOP, time.monotonic() + timeout)
+        """Command STOP, then poll the status block until the robot stands still."""
+        deadline = time.monotonic() + timeout
+        self._command("stop", CMD_STOP, deadline)
+        poll_until_still(lambda t: self.status(timeout=t), self._dev, "stop", deadline,
+                         self.poll_s)
 
     def clear_protective_stop(self, timeout: float = 2.0) -> None:
         """Command CLEAR_FAULT (clears a protective stop or fault)."""

@@ -6,6 +6,38 @@ few methods. Units at this boundary: joint angles in **radians**, lengths in
 ``time.monotonic()`` for timeouts). Every call takes an explicit ``timeout``
 in seconds; a call that cannot finish in time raises
 :class:`drivers.errors.CommandTimeout`.
+
+The contract every driver keeps (checked for each one by
+``tests/drivers/conformance/``: its methods' signatures against these protocols, and
+its behaviour against the simulator):
+
+* **Every call blocks** until it is done and returns its result, or raises; nothing
+  goes on in the background when it returns. A robot's ``move_joints`` and
+  ``move_linear`` return once the motion has ended and the robot is *settled* (in
+  position and still: what :meth:`RobotDriver.wait_settled` waits for), so the joints
+  read right after equal the target; ``stop`` returns once the robot stands still; a
+  tracker's ``measure`` returns the finished measurement.
+* **Signatures are the protocol's**: the same parameter names, kinds and defaults; a
+  driver adds no parameter of its own to a protocol method (its options go to its
+  constructor or URL).
+* **Errors** are only those of :mod:`drivers.errors`, each meaning one thing at every
+  driver: :class:`~drivers.errors.CommandTimeout` not done within ``timeout`` (a move
+  that runs out of time is stopped first, so the robot stands still when it is
+  raised; the stop may take up to :data:`STOP_AFTER_TIMEOUT_S` more);
+  :class:`~drivers.errors.ConnectionLost` the link is gone, or the driver is not
+  connected (before ``connect``, after ``close``: a driver never reconnects by itself
+  for a move); :class:`~drivers.errors.LimitError` a target outside the joint limits
+  the controller names or the driver was given (ur-rtde's ``limits=``), nothing moved;
+  :class:`~drivers.errors.CommandRejected` any other refused command (bad shape, an
+  unreachable target, a controller fault, a refusal that does not say why);
+  :class:`~drivers.errors.ProtectiveStop` a protective or emergency stop, before or
+  during the motion;
+  :class:`~drivers.errors.BeamBroken` the tracker lost its beam (or never had it);
+  :class:`~drivers.errors.NotReady` the device cannot do this yet (tracker not
+  initialised or warming up, robot not in its running mode, opened read-only);
+  :class:`~drivers.errors.ProtocolError` an answer the protocol does not allow.
+* ``connect`` opens the link, again after ``close`` (``close()`` then ``connect()`` is how
+  a caller reconnects); ``close`` is idempotent and never raises.
 """
 
 from __future__ import annotations
@@ -169,33 +201,66 @@ class PoseMeasurement(Measurement):
     target: str = ""
 
 
+#: how long a driver may take to stop the robot after a move ran out of its ``timeout``,
+#: before it raises :class:`~drivers.errors.CommandTimeout` (s)
+STOP_AFTER_TIMEOUT_S = 2.0
+
+
 @runtime_checkable
 class RobotDriver(Protocol):
-    """A robot controller that can move to joint or Cartesian targets and report joints."""
+    """A robot controller that can move to joint or Cartesian targets and report joints.
+
+    Moves **block**: they return once the robot has arrived and settled, or raise (module
+    docstring). Errors of a move: :class:`~drivers.errors.LimitError` (target outside the
+    joint limits), :class:`~drivers.errors.CommandRejected` (wrong shape, unreachable,
+    refused), :class:`~drivers.errors.ProtectiveStop`,
+    :class:`~drivers.errors.CommandTimeout` (not settled within ``timeout``: the robot
+    was stopped), :class:`~drivers.errors.ConnectionLost`,
+    :class:`~drivers.errors.NotReady`, :class:`~drivers.errors.ProtocolError`.
+    """
 
     url: str
 
-    def connect(self, timeout: float = 5.0) -> None: ...
+    def connect(self, timeout: float = 5.0) -> None:
+        """Open the link; ConnectionLost when the controller cannot be reached,
+        CommandTimeout when it does not answer in time."""
+        ...
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Close the link; idempotent, never raises. Calls after it raise ConnectionLost
+        ("not connected") until :meth:`connect`."""
+        ...
 
-    def read_joints(self, timeout: float = 1.0) -> JointReading: ...
+    def read_joints(self, timeout: float = 1.0) -> JointReading:
+        """The joints (rad, shape ``(n_joints,)``) and when they were read."""
+        ...
 
     def move_joints(self, q: np.ndarray, speed: float = 0.5, timeout: float = 60.0) -> None:
-        """Start (or perform) a joint move to ``q`` (rad); ``speed`` in rad/s."""
+        """Move the joints to ``q`` (rad) at ``speed`` (rad/s, the leading joint); return
+        once the robot has arrived and settled (:meth:`wait_settled`'s condition), all
+        within ``timeout``."""
         ...
 
     def move_linear(self, xyz: np.ndarray, speed: float = 100.0, timeout: float = 60.0) -> None:
-        """Linear move of the TCP to ``xyz`` (mm, robot base frame), keeping orientation."""
+        """Move the TCP in a line to ``xyz`` (mm, robot base frame; orientation kept) at
+        ``speed`` (mm/s); return once the robot has arrived and settled, all within
+        ``timeout``."""
         ...
 
     def wait_settled(self, timeout: float = 30.0) -> None:
-        """Return once the robot is in position and still; raise on fault or timeout."""
+        """Return once the robot is in position and still (at once after a move, which
+        settles before it returns); ProtectiveStop on a protective or emergency stop,
+        CommandRejected on a controller fault, CommandTimeout when ``timeout`` passes."""
         ...
 
-    def status(self, timeout: float = 1.0) -> RobotStatus: ...
+    def status(self, timeout: float = 1.0) -> RobotStatus:
+        """The controller's motion and safety state now."""
+        ...
 
-    def stop(self, timeout: float = 2.0) -> None: ...
+    def stop(self, timeout: float = 2.0) -> None:
+        """Halt any motion; return once the robot stands still (CommandTimeout when it
+        still moves after ``timeout``)."""
+        ...
 
 
 @runtime_checkable
@@ -204,14 +269,25 @@ class TrackerDriver(Protocol):
 
     url: str
 
-    def connect(self, timeout: float = 5.0) -> None: ...
+    def connect(self, timeout: float = 5.0) -> None:
+        """Open the link and initialise the tracker when it is not (unless the driver was
+        told not to)."""
+        ...
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Close the link; idempotent, never raises. Calls after it raise ConnectionLost
+        ("not connected") until :meth:`connect`."""
+        ...
 
-    def status(self, timeout: float = 1.0) -> TrackerStatus: ...
+    def status(self, timeout: float = 1.0) -> TrackerStatus:
+        """The tracker's state now."""
+        ...
 
     def measure(self, duration_s: float = 0.5, timeout: float = 10.0) -> Measurement:
-        """Measure a stationary target, averaging for ``duration_s``."""
+        """Measure a stationary target, averaging for ``duration_s``; return the finished
+        measurement within ``timeout`` (else CommandTimeout). BeamBroken when the beam is
+        broken or finds no target, NotReady when the tracker is not initialised or still
+        warming up."""
         ...
 
 
@@ -383,7 +459,16 @@ class TwoFace(Protocol):
         ...
 
 
-def measure_both_faces(tracker, duration_s: float, timeout: float):
+class _FaceChanging(Protocol):
+    """What :func:`measure_both_faces` asks of a tracker."""
+
+    def measure(self, duration_s: float = 0.5, timeout: float = 10.0) -> Measurement: ...
+
+    def change_face(self, timeout: float = 30.0) -> int: ...
+
+
+def measure_both_faces(tracker: _FaceChanging, duration_s: float,
+                       timeout: float) -> tuple[Measurement, Measurement]:
     """:meth:`TwoFace.measure_faces` for any tracker with ``measure``, ``change_face``
     and measurements that carry their ``face``: measure, change face, measure;
     returns ``(face 1, face 2)``. The tracker stays in the second face."""

@@ -8,19 +8,29 @@ they go to :attr:`LineTransport.events`, never to a reply. Failures become the
 driver errors: a closed link is :class:`~drivers.errors.ConnectionLost`, a
 missing reply :class:`~drivers.errors.CommandTimeout`, undecodable bytes
 :class:`~drivers.errors.ProtocolError`.
+
+Logging: the wire at DEBUG (``robot socket://...: > MOVEJ ...`` each request,
+``< OK MOVEJ`` each line read, events included), the link opened and closed, an
+error reply, a timeout, garbage, a resynchronisation and a reconnect at INFO, through
+the logger the driver passes (``logger``: its module's, so ``drivers.line_robot``
+shows one driver's wire), else this module's.
 """
 
 from __future__ import annotations
 
 import collections
 import contextlib
+import logging
 import socket
 import threading
 import time
+from collections.abc import Callable
 
 import serial
 
 from drivers.errors import CommandTimeout, ConnectionLost, DriverError, ProtocolError
+
+log = logging.getLogger(__name__)
 
 #: longest line accepted before the peer is declared to speak garbage
 MAX_LINE = 4096
@@ -39,11 +49,15 @@ class LineTransport:
         For real serial ports; ignored by sockets.
     max_events : int
         How many unread events are kept (oldest dropped first).
+    logger : logging.Logger, optional
+        Where the wire and the link's events are logged (default: this module's).
     """
 
     def __init__(
-        self, port_url: str, *, device: str = "", baudrate: int = 115200, max_events: int = 1000
+        self, port_url: str, *, device: str = "", baudrate: int = 115200, max_events: int = 1000,
+        logger: logging.Logger | None = None,
     ) -> None:
+        self.log = logger or log
         self.port_url = port_url
         self.device = device or port_url
         self.baudrate = baudrate
@@ -73,9 +87,11 @@ class LineTransport:
                 ser.write_timeout = timeout
                 ser.open()
             except (serial.SerialException, OSError, ValueError) as e:
+                self.log.info("%s: cannot open %s: %s", self.device, self.port_url, e)
                 raise ConnectionLost(self.device, "connect", str(e)) from e
             self._ser = ser
             self._buf.clear()
+            self.log.info("%s: link open (%s)", self.device, self.port_url)
 
     def close(self) -> None:
         """Close the link (idempotent)."""
@@ -83,6 +99,7 @@ class LineTransport:
             ser, self._ser = self._ser, None
             self._buf.clear()
             if ser is not None:
+                self.log.info("%s: link closed", self.device)
                 # pyserial's socket:// handler skips close() when shutdown() fails
                 # (peer already gone) and then sleeps 0.3 s "for quick reconnects":
                 # close its socket ourselves and mark it closed first.
@@ -91,7 +108,7 @@ class LineTransport:
                     with contextlib.suppress(OSError):
                         sock.shutdown(socket.SHUT_RDWR)
                     sock.close()
-                    ser._socket = None
+                    ser._socket = None  # type: ignore[attr-defined]  # socket:// handler's
                     ser.is_open = False
                 with contextlib.suppress(serial.SerialException, OSError):
                     ser.close()
@@ -105,13 +122,16 @@ class LineTransport:
         """Send ``line`` + ``\\n``; ``command`` names the request in errors."""
         with self._lock:
             ser = self._require(command)
+            self.log.debug("%s: > %s", self.device, line)
             try:
                 ser.write_timeout = max(timeout, 1e-3)
                 ser.write(line.encode("ascii") + b"\n")
                 ser.flush()
             except serial.SerialTimeoutException as e:
+                self.log.info("%s: %s: write timed out: %s", self.device, command, e)
                 raise CommandTimeout(self.device, command, f"write timed out: {e}") from e
             except (serial.SerialException, OSError) as e:
+                self.log.info("%s: %s: write failed: %s", self.device, command, e)
                 self.close()
                 raise ConnectionLost(self.device, command, f"write failed: {e}") from e
 
@@ -126,12 +146,17 @@ class LineTransport:
                 try:
                     text = raw.decode("ascii").strip("\r").strip()
                 except UnicodeDecodeError as e:
+                    self.log.info("%s: %s: garbage %r", self.device, command, raw[:80])
                     raise ProtocolError(self.device, command, f"garbage reply {raw[:40]!r}") from e
                 if any(ord(c) < 32 for c in text):
+                    self.log.info("%s: %s: garbage %r", self.device, command, raw[:80])
                     raise ProtocolError(self.device, command, f"garbage reply {raw[:40]!r}")
+                self.log.debug("%s: < %s", self.device, text)
                 return text
             if len(self._buf) > MAX_LINE:
                 self._buf.clear()
+                self.log.info("%s: %s: line longer than %d bytes", self.device, command,
+                              MAX_LINE)
                 raise ProtocolError(self.device, command, f"line longer than {MAX_LINE} bytes")
             left = deadline - time.monotonic()
             if left <= 0:
@@ -145,6 +170,7 @@ class LineTransport:
                     ser.timeout = 0
                     chunk += ser.read(MAX_LINE)
             except (serial.SerialException, OSError) as e:
+                self.log.info("%s: %s: link lost: %s", self.device, command, e)
                 self.close()
                 raise ConnectionLost(self.device, command, f"link closed: {e}") from e
             self._buf.extend(chunk)
@@ -158,6 +184,7 @@ class LineTransport:
             while True:
                 line = self._read_raw(deadline, command)
                 if line is None:
+                    self.log.info("%s: %s: no reply in time", self.device, command)
                     raise CommandTimeout(self.device, command, "no reply in time")
                 if line.startswith("EVT"):
                     self.events.append((time.time(), line[3:].strip()))
@@ -234,7 +261,9 @@ class LineSession:
     """
 
     def __init__(
-        self, transport: LineTransport, error_map: dict, handshake=None, default_error=None
+        self, transport: LineTransport, error_map: dict[str, type[DriverError]],
+        handshake: Callable[[float], None] | None = None,
+        default_error: type[DriverError] | None = None,
     ) -> None:
         self.t = transport
         self.error_map = error_map
@@ -260,9 +289,15 @@ class LineSession:
                     self.t.close()
                     raise
 
+    @property
+    def log(self) -> logging.Logger:
+        return self.t.log
+
     def _resync(self, deadline: float) -> None:
         if not self._dirty:
             return
+        self.log.info("%s: resynchronising after a timeout or garbage (%s)", self.device,
+                      "reconnecting" if self.t.is_socket else "draining the line")
         if self.t.is_socket:
             self.connect(max(deadline - time.monotonic(), 0.05))
         else:
@@ -294,6 +329,8 @@ class LineSession:
                 if not (retry and was_open) or time.monotonic() >= deadline:
                     raise
             # one automatic reconnect for idempotent queries
+            self.log.info("%s: %s: connection lost, reconnecting to retry once", self.device,
+                          command)
             self.connect(max(deadline - time.monotonic(), 0.05))
             return self._exchange_once(line, keyword, command, deadline)
 
@@ -312,10 +349,13 @@ class LineSession:
             if tokens[0] == "OK":
                 if len(tokens) >= 2 and tokens[1] == keyword:
                     return tokens[2:]
+                self.log.debug("%s: late reply to an earlier command dropped", self.device)
                 continue  # a late reply to an earlier command
             if tokens[0] == "ERR":
+                self.log.info("%s: %s refused: %s", self.device, command, reply)
                 raise self._error(tokens, reply, command)
             self._dirty = True
+            self.log.info("%s: %s: unexpected reply %r", self.device, command, reply[:80])
             raise ProtocolError(self.device, command, f"unexpected reply {reply[:80]!r}")
 
     def _error(self, tokens: list[str], reply: str, command: str) -> Exception:

@@ -32,13 +32,16 @@ handled beside the call it concerns, and split apart the quirks would read out o
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
 import socket
 import time
 from collections.abc import Callable
+from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
+import numpy.typing as npt
 
 from drivers.errors import (
     CommandRejected,
@@ -52,7 +55,13 @@ from drivers.errors import (
 )
 from drivers.protocols import DeviceIdentity, JointReading, RobotStatus
 
+#: the ur-rtde calls with their arguments and results and the samples read, decoded, at
+#: DEBUG (the polled predicates only when false); the connection and refusals at INFO
+log = logging.getLogger(__name__)
+
 RTDE_PORT = 30004
+#: predicates polled in loops: logged only when they answer False
+_POLLED = frozenset({"isConnected", "isProgramRunning", "isSteady"})
 
 #: what the receive interface is asked to stream
 RECEIVE_VARIABLES = [
@@ -73,19 +82,20 @@ RUNTIME_STATES = {0: "STOPPING", 1: "STOPPED", 2: "PLAYING", 3: "PAUSING", 4: "P
                   5: "RESUMING"}
 
 
-def _default_receive(host: str, frequency: float, variables: list[str]):
+# the ur-rtde interfaces are an untyped library's objects: typed Any here
+def _default_receive(host: str, frequency: float, variables: list[str]) -> Any:
     import rtde_receive
 
     return rtde_receive.RTDEReceiveInterface(host, frequency, variables)
 
 
-def _default_control(host: str):
+def _default_control(host: str) -> Any:
     import rtde_control
 
     return rtde_control.RTDEControlInterface(host)
 
 
-def _default_dashboard(host: str):
+def _default_dashboard(host: str) -> Any:
     import dashboard_client
 
     return dashboard_client.DashboardClient(host)
@@ -96,14 +106,32 @@ class _State:
 
     __slots__ = ("q", "qd", "target_q", "tcp_m", "bits", "safety_mode", "robot_mode",
                  "runtime", "rtde_time")
+    q: np.ndarray
+    qd: np.ndarray
+    target_q: np.ndarray
+    tcp_m: np.ndarray
+    bits: int
+    safety_mode: int
+    robot_mode: int
+    runtime: int
+    rtde_time: float
 
-    def __init__(self, **kw) -> None:
+    def __init__(self, **kw: Any) -> None:
         for k, v in kw.items():
             setattr(self, k, v)
 
     @property
     def tcp_mm(self) -> np.ndarray:
         return np.asarray(self.tcp_m[:3], float) * 1000.0
+
+    def __str__(self) -> str:
+        """The sample in one line (the log's: formatted only when a record is written)."""
+        return (f"t={self.rtde_time:.3f} q={np.round(self.q, 6).tolist()} rad "
+                f"qd_max={float(np.max(np.abs(self.qd), initial=0.0)):.2g} "
+                f"tcp={np.round(self.tcp_mm, 3).tolist()} mm robot_mode="
+                f"{ROBOT_MODES.get(self.robot_mode, self.robot_mode)} safety_mode="
+                f"{self.safety_mode} bits=0x{self.bits:03x} "
+                f"runtime={RUNTIME_STATES.get(self.runtime, self.runtime)}")
 
     def bit(self, i: int) -> bool:
         return bool((self.bits >> i) & 1)
@@ -191,7 +219,7 @@ class UrRtdeRobot:
         frequency: float = -1.0,
         n_joints: int = 6,
         read_only: bool = False,
-        limits=None,
+        limits: npt.ArrayLike | None = None,
         acceleration: float = 1.4,
         linear_acceleration: float = 1200.0,
         joint_tol: float = 1e-3,
@@ -222,15 +250,15 @@ class UrRtdeRobot:
         self.auto_reupload = bool(auto_reupload)
         self.poll_s = 0.002
         self.refusal_grace_s = 0.2
-        self._rx = None
-        self._ctrl = None
+        self._rx: Any = None
+        self._ctrl: Any = None
         self._last_ts: float | None = None
         self._last_ts_seen = 0.0
         self._target_q: np.ndarray | None = None
         self._target_tcp: np.ndarray | None = None
 
     @classmethod
-    def from_url(cls, url: str, **kw) -> UrRtdeRobot:
+    def from_url(cls, url: str, **kw: Any) -> UrRtdeRobot:
         """Build a driver from ``ur://host[?frequency=..&joints=..&read_only=1&stale=..]``.
 
         Keyword arguments override the query (and pass factories through).
@@ -271,19 +299,24 @@ class UrRtdeRobot:
         try:
             self._rx = self.receive_factory(self.host, self.frequency, list(RECEIVE_VARIABLES))
         except RuntimeError as e:
+            log.info("%s: RTDE receive: %s", self.url, e)
             raise ConnectionLost(self.url, "connect", f"RTDE receive: {e}") from e
         if not self.read_only:
             try:
                 self._ctrl = self.control_factory(self.host)
             except RuntimeError as e:
+                log.info("%s: RTDE control: %s", self.url, e)
                 self.close()
                 raise ConnectionLost(self.url, "connect", f"RTDE control: {e}") from e
         self._last_ts = None
         try:
-            self._sample("connect", max(0.0, deadline - time.monotonic()))
+            st = self._sample("connect", max(0.0, deadline - time.monotonic()))
         except DriverError:
             self.close()
             raise
+        log.info("%s: connected (%s)", self.url, "receive only" if self.read_only
+                 else "receive and control")
+        log.debug("%s: < connect: %s", self.url, st)
 
     def identify(self, timeout: float = 2.0) -> DeviceIdentity:
         """Model, serial number and PolyScope version from the dashboard server (RTDE
@@ -297,12 +330,14 @@ class UrRtdeRobot:
             model = str(dash.getRobotModel()).strip()
             serial = str(dash.getSerialNumber()).strip()
             version = str(dash.polyscopeVersion()).strip()
-        except (ImportError, RuntimeError, OSError, TypeError):
-            pass
+        except (ImportError, RuntimeError, OSError, TypeError) as e:
+            log.info("%s: dashboard server: %s", self.url, e)
         finally:
             if dash is not None:
                 with contextlib.suppress(RuntimeError, OSError, AttributeError):
                     dash.disconnect()
+        log.debug("%s: < dashboard: model %r, serial %r, PolyScope %r", self.url, model,
+                  serial, version)
         return DeviceIdentity("robot", model, serial, version,
                               simulator="cellcal sim" in version, n_joints=self.n_joints)
 
@@ -311,12 +346,15 @@ class UrRtdeRobot:
             with socket.create_connection((self.host, RTDE_PORT), timeout=max(timeout, 0.01)):
                 pass
         except OSError as e:
+            log.info("%s: no RTDE server at port %d: %s", self.url, RTDE_PORT, e)
             raise ConnectionLost(self.url, "connect", f"no RTDE server at port {RTDE_PORT}: {e}") \
                 from e
 
     def close(self) -> None:
         """Disconnect both interfaces (idempotent)."""
         ctrl, rx, self._ctrl, self._rx = self._ctrl, self._rx, None, None
+        if ctrl is not None or rx is not None:
+            log.info("%s: disconnected", self.url)
         for iface in (ctrl, rx):
             if iface is not None:
                 with contextlib.suppress(RuntimeError):
@@ -326,7 +364,7 @@ class UrRtdeRobot:
         self.connect()
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # -- reading ---------------------------------------------------------------------------
@@ -334,11 +372,14 @@ class UrRtdeRobot:
     def read_joints(self, timeout: float = 1.0) -> JointReading:
         """Actual joint positions (rad, shape (n_joints,)) from ``getActualQ()``."""
         st = self._sample("getActualQ", timeout)
+        log.debug("%s: < getActualQ: %s", self.url, st)
         return JointReading(q=st.q, timestamp=time.time())
 
     def read_tcp(self, timeout: float = 1.0) -> np.ndarray:
         """The controller's TCP position (mm, base frame) from ``getActualTCPPose()``."""
-        return self._sample("getActualTCPPose", timeout).tcp_mm
+        st = self._sample("getActualTCPPose", timeout)
+        log.debug("%s: < getActualTCPPose: %s", self.url, st)
+        return st.tcp_mm
 
     def joint_temperatures(self, timeout: float = 1.0) -> tuple[float, ...]:
         """Each joint's temperature (°C, n_joints values) from ``getJointTemperatures()``
@@ -349,6 +390,7 @@ class UrRtdeRobot:
             temps = np.asarray(rx.getJointTemperatures(), float)[: self.n_joints]
         except RuntimeError as e:  # the recipe lacks the variable: the controller has none
             raise CommandRejected(self.url, "getJointTemperatures", f"RTDE receive: {e}") from e
+        log.debug("%s: < getJointTemperatures: %s °C", self.url, temps)
         if temps.shape != (self.n_joints,) or not np.all(np.isfinite(temps)):
             raise ProtocolError(self.url, "getJointTemperatures",
                                 f"expected {self.n_joints} temperatures, got {temps.tolist()}")
@@ -357,6 +399,7 @@ class UrRtdeRobot:
     def status(self, timeout: float = 1.0) -> RobotStatus:
         """Controller state; ``error_code`` is the safety mode when it is not NORMAL (1)."""
         st = self._sample("status", timeout)
+        log.debug("%s: < status: %s", self.url, st)
         moving = self._moving(st)
         reason = st.stop_reason()
         mode = ROBOT_MODES.get(st.robot_mode, str(st.robot_mode))
@@ -373,9 +416,9 @@ class UrRtdeRobot:
             timestamp=time.time(),
         )
 
-    def _receive(self, command: str):
+    def _receive(self, command: str) -> Any:
         if self._rx is None:
-            raise NotReady(self.url, command, "not connected (call connect() first)")
+            raise ConnectionLost(self.url, command, "not connected (call connect() first)")
         return self._rx
 
     def _sample(self, command: str, timeout: float) -> _State:
@@ -400,6 +443,8 @@ class UrRtdeRobot:
             if now >= deadline:
                 if now - self._last_ts_seen <= self.stale_after:
                     break  # nothing newer within the timeout, but the last one is recent
+                log.info("%s: %s: controller timestamp stuck at %.3f s (stale data)", self.url,
+                         command, ts)
                 raise ConnectionLost(
                     self.url, command,
                     f"controller timestamp stuck at {ts:.3f} s for {now - self._last_ts_seen:.2f} s"
@@ -434,12 +479,14 @@ class UrRtdeRobot:
     def _raise_if_stopped(self, st: _State, command: str) -> None:
         reason = st.stop_reason()
         if reason:
+            log.info("%s: %s: %s", self.url, command, reason)
             raise ProtectiveStop(self.url, command, reason)
 
     # -- motion ----------------------------------------------------------------------------
 
-    def move_joints(self, q, speed: float = 0.5, timeout: float = 60.0) -> None:
-        """Joint move to ``q`` (rad); returns on arrival. ``speed`` of the leading joint, rad/s."""
+    def move_joints(self, q: npt.ArrayLike, speed: float = 0.5, timeout: float = 60.0) -> None:
+        """Joint move to ``q`` (rad); returns once arrived and settled (:meth:`wait_settled`'s
+        condition). ``speed`` of the leading joint, rad/s."""
         deadline = time.monotonic() + timeout
         q = self._check_joints(q, "moveJ")
         _check_speed(self.url, "moveJ", speed)
@@ -452,8 +499,9 @@ class UrRtdeRobot:
             self._refused("moveJ", deadline)
         self._await_arrival("moveJ", deadline, ctrl)
 
-    def move_linear(self, xyz, speed: float = 100.0, timeout: float = 60.0) -> None:
-        """Linear TCP move to ``xyz`` (mm, base frame), orientation kept; ``speed`` in mm/s."""
+    def move_linear(self, xyz: npt.ArrayLike, speed: float = 100.0, timeout: float = 60.0) -> None:
+        """Linear TCP move to ``xyz`` (mm, base frame), orientation kept; ``speed`` in mm/s;
+        returns once arrived and settled."""
         deadline = time.monotonic() + timeout
         xyz = np.asarray(xyz, float)
         if xyz.shape != (3,) or not np.all(np.isfinite(xyz)):
@@ -477,8 +525,7 @@ class UrRtdeRobot:
         while True:
             st = self._sample("wait_settled", max(0.0, deadline - time.monotonic()))
             self._raise_if_stopped(st, "wait_settled")
-            steady = ctrl is None or self._call("isSteady", ctrl.isSteady)
-            if steady and not self._moving(st) and self._in_position(st):
+            if self._settled(st, ctrl):
                 streak += 1
                 if streak >= 2:
                     return
@@ -505,7 +552,7 @@ class UrRtdeRobot:
 
     # -- helpers ---------------------------------------------------------------------------
 
-    def _check_joints(self, q, command: str) -> np.ndarray:
+    def _check_joints(self, q: npt.ArrayLike, command: str) -> np.ndarray:
         q = np.asarray(q, float)
         if q.shape != (self.n_joints,) or not np.all(np.isfinite(q)):
             raise CommandRejected(self.url, command,
@@ -517,18 +564,21 @@ class UrRtdeRobot:
                                  f"joint(s) {(bad + 1).tolist()} outside limits: {q.tolist()}")
         return q
 
-    def _control(self, command: str):
+    def _control(self, command: str) -> Any:
         if self.read_only:
             raise NotReady(self.url, command, "opened read-only (no RTDE control interface)")
         if self._ctrl is None:
-            raise NotReady(self.url, command, "not connected (call connect() first)")
+            raise ConnectionLost(self.url, command, "not connected (call connect() first)")
         if not self._call("isConnected", self._ctrl.isConnected):
             raise ConnectionLost(self.url, command, "RTDE control link is down")
         return self._ctrl
 
-    def _call(self, command: str, fn, *args):
+    def _call(self, command: str, fn: Callable[..., Any], *args: Any) -> Any:
+        polled = command in _POLLED
+        if not polled and log.isEnabledFor(logging.DEBUG):
+            log.debug("%s: > %s%s", self.url, command, _args(args))
         try:
-            return fn(*args)
+            out = fn(*args)
         except RuntimeError as e:
             links = [i for i in (self._ctrl, self._rx) if i is not None]
             try:
@@ -536,9 +586,13 @@ class UrRtdeRobot:
             except RuntimeError:
                 down = True
             cls = ConnectionLost if down else CommandRejected
+            log.info("%s: %s: ur-rtde: %s", self.url, command, e)
             raise cls(self.url, command, f"ur-rtde: {e}") from e
+        if not polled or not out:
+            log.debug("%s: < %s: %r", self.url, command, out)
+        return out
 
-    def _ready(self, command: str, deadline: float):
+    def _ready(self, command: str, deadline: float) -> Any:
         """The control interface, once the robot can take a move (or a typed error)."""
         ctrl = self._control(command)
         st = self._sample(command, max(0.0, deadline - time.monotonic()))
@@ -549,6 +603,7 @@ class UrRtdeRobot:
         if not self._call("isProgramRunning", ctrl.isProgramRunning):
             if not self.auto_reupload:
                 raise NotReady(self.url, command, "RTDE control script is not running")
+            log.info("%s: the RTDE control script is not running: uploading it again", self.url)
             self._call("reuploadScript", ctrl.reuploadScript)
             while not self._call("isProgramRunning", ctrl.isProgramRunning):
                 if time.monotonic() >= deadline:
@@ -558,6 +613,7 @@ class UrRtdeRobot:
 
     def _refused(self, command: str, deadline: float) -> None:
         """``moveJ``/``moveL`` returned False: find out why and raise the matching error."""
+        log.info("%s: %s refused (returned False or the script stopped)", self.url, command)
         end = min(deadline, time.monotonic() + self.refusal_grace_s)
         while True:
             if self._ctrl is not None and not self._call("isConnected", self._ctrl.isConnected):
@@ -574,20 +630,43 @@ class UrRtdeRobot:
                                   "or outside limits?)")
         raise CommandRejected(self.url, command, "refused by the controller (returned False)")
 
-    def _await_arrival(self, command: str, deadline: float, ctrl) -> None:
+    def _settled(self, st: _State, ctrl: Any) -> bool:
+        """In position, joint speeds ≈ 0 and (control side) ``isSteady()``."""
+        steady = ctrl is None or self._call("isSteady", ctrl.isSteady)
+        return bool(steady) and not self._moving(st) and self._in_position(st)
+
+    def _await_arrival(self, command: str, deadline: float, ctrl: Any) -> None:
+        """Until settled over two fresh samples (as :meth:`wait_settled`); a stop, a refusal
+        (the script died) or the deadline (``stopJ`` first) raise."""
+        streak = 0
         while True:
             st = self._sample(command, max(0.0, deadline - time.monotonic()))
             self._raise_if_stopped(st, command)
-            if not self._moving(st) and self._in_position(st):
-                return
-            if not self._call("isProgramRunning", ctrl.isProgramRunning):
-                self._refused(command, deadline)
+            if self._settled(st, ctrl):
+                streak += 1
+                if streak >= 2:
+                    log.debug("%s: < %s arrived: %s", self.url, command, st)
+                    return
+            else:
+                streak = 0
+                if not self._call("isProgramRunning", ctrl.isProgramRunning):
+                    self._refused(command, deadline)
             if time.monotonic() >= deadline:
+                log.info("%s: %s: target not reached in time: stopping (%s)", self.url, command,
+                         st)
                 with contextlib.suppress(DriverError):
                     self._call("stopJ", ctrl.stopJ, 2.0, False)
+                self._target_q = self._target_tcp = None  # stopped short: no target now
                 raise CommandTimeout(self.url, command,
                                      "target not reached within timeout; robot stopped")
             time.sleep(self.poll_s)
+
+
+def _args(args: tuple[Any, ...]) -> str:
+    """A call's arguments as the log shows them (lists rounded)."""
+    def one(a: Any) -> Any:
+        return [round(float(v), 6) for v in a] if isinstance(a, list | tuple) else a
+    return "(" + ", ".join(repr(one(a)) for a in args) + ")"
 
 
 def _check_speed(url: str, command: str, speed: float) -> None:

@@ -31,9 +31,17 @@ from __future__ import annotations
 
 from collections.abc import Callable, Collection
 from dataclasses import dataclass
-from typing import Any, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 from drivers import url_parts as parts
+
+if TYPE_CHECKING:  # the driver modules load when their URL is opened
+    from drivers.leica.driver import EmsconTracker
+    from drivers.line_robot import SerialRobot
+    from drivers.line_tracker import LineTracker
+    from drivers.modbus_robot import ModbusRobot
+    from drivers.protocols import RobotDriver, TrackerDriver
+    from drivers.ur_rtde import UrRtdeRobot
 
 #: what a URL opens
 Kind = Literal["robot", "tracker"]
@@ -73,7 +81,7 @@ _REGISTRY: dict[str, Scheme] = {}
 
 
 def register_scheme(scheme: str, opener: Opener, *,
-                    kinds: Collection[Kind] = ("robot", "tracker"),
+                    kinds: Collection[str] = ("robot", "tracker"),
                     params: Collection[str] | None = None,
                     check: Callable[[str], object] | None = None) -> None:
     """Make ``scheme://...`` URLs open through ``opener(url, kind, **kw)`` (see
@@ -109,12 +117,12 @@ def check_url(url: str, kind: str) -> None:
         scheme.check(url)
 
 
-def open_robot(url: str, **kw):
+def open_robot(url: str, **kw: Any) -> RobotDriver:
     """A robot driver for ``url`` (not yet connected); see the module docstring."""
     return _lookup(url, "robot").opener(url, "robot", **kw)
 
 
-def open_tracker(url: str, **kw):
+def open_tracker(url: str, **kw: Any) -> TrackerDriver:
     """A tracker driver for ``url`` (not yet connected); see the module docstring."""
     return _lookup(url, "tracker").opener(url, "tracker", **kw)
 
@@ -122,7 +130,7 @@ def open_tracker(url: str, **kw):
 # -- the real cell's schemes (driver modules are imported when their URL is opened, so
 # -- pymodbus or ur-rtde load only for the cell that needs them)
 
-def _modbus(url: str) -> dict:
+def _modbus(url: str) -> dict[str, Any]:
     q = parts.query(url)
     host, port = parts.host_port(url, 502)
     return {"host": host, "port": port, "unit": parts.int_param(url, q, "unit", 1, 0, 255),
@@ -137,24 +145,24 @@ def _check_modbus(url: str) -> None:
         RegisterMap.from_yaml(a["map_file"])
 
 
-def _open_modbus(url: str, kind: Kind, /, **kw):
+def _open_modbus(url: str, kind: Kind, /, **kw: Any) -> ModbusRobot:
     a = _modbus(url)
     from drivers.modbus_robot import ModbusRobot
 
     return ModbusRobot(url, a["host"], a["port"], unit=a["unit"], map_file=a["map_file"], **kw)
 
 
-def _serial(url: str) -> dict:
+def _serial(url: str) -> dict[str, Any]:
     return {"port": parts.serial_path(url), "baudrate": parts.baud(url, parts.query(url))}
 
 
-def _socket(url: str) -> dict:
+def _socket(url: str) -> dict[str, Any]:
     host, port = parts.host_port(url)
     return {"port": f"socket://{host}:{port}"}
 
 
-def _open_line_robot(args: Callable[[str], dict]) -> Opener:
-    def opener(url: str, kind: Kind, /, **kw):
+def _open_line_robot(args: Callable[[str], dict[str, Any]]) -> Opener:
+    def opener(url: str, kind: Kind, /, **kw: Any) -> SerialRobot:
         a = args(url)
         from drivers.line_robot import SerialRobot
 
@@ -163,8 +171,8 @@ def _open_line_robot(args: Callable[[str], dict]) -> Opener:
     return opener
 
 
-def _open_line_tracker(args: Callable[[str], dict]) -> Opener:
-    def opener(url: str, kind: Kind, /, **kw):
+def _open_line_tracker(args: Callable[[str], dict[str, Any]]) -> Opener:
+    def opener(url: str, kind: Kind, /, **kw: Any) -> LineTracker:
         a = args(url)
         from drivers.line_tracker import LineTracker
 
@@ -173,13 +181,13 @@ def _open_line_tracker(args: Callable[[str], dict]) -> Opener:
     return opener
 
 
-def _open_ur(url: str, kind: Kind, /, **kw):
+def _open_ur(url: str, kind: Kind, /, **kw: Any) -> UrRtdeRobot:
     from drivers.ur_rtde import UrRtdeRobot
 
     return UrRtdeRobot.from_url(url, **kw)
 
 
-def _emscon(url: str) -> dict:
+def _emscon(url: str) -> dict[str, Any]:
     from drivers.leica.driver import DEFAULT_PORT
 
     q = parts.query(url)
@@ -188,7 +196,7 @@ def _emscon(url: str) -> dict:
             **({"reflector": q["reflector"]} if "reflector" in q else {})}
 
 
-def _open_emscon(url: str, kind: Kind, /, **kw):
+def _open_emscon(url: str, kind: Kind, /, **kw: Any) -> EmsconTracker:
     a = _emscon(url)
     from drivers.leica.driver import EmsconTracker
 

@@ -9,6 +9,7 @@ Every function returns text (lines joined by newlines) and prints nothing.
 from __future__ import annotations
 
 from calibration.data.dataset import Dataset
+from calibration.fit.envelope import Envelope, split_stats
 from calibration.fit.identify import Fit
 from calibration.fit.outliers import BlunderScreen
 from calibration.fit.uncertainty import MonteCarlo, correlations
@@ -69,7 +70,7 @@ def calibration_text(fit: Fit, baseline: Fit, out_path: str | None = None,
     ]
     lines += [f"note      {note}" for note in fit.notes]
     lines += blunder_lines(fit.outliers)
-    lines += ["", _error_table(fit, baseline)]
+    lines += ["", _error_table(fit, baseline), *envelope_lines(fit)]
     floor = fit.noise_floor_mm
     if floor:
         ref = fit.valid or fit.calib
@@ -95,7 +96,46 @@ def _error_table(fit: Fit, baseline: Fit) -> str:
             if s:
                 rows.append([f"{label}, {part}", s["n"], fmt(s["rms_mm"]), fmt(s["mean_mm"]),
                              fmt(s["p95_mm"]), fmt(s["max_mm"])])
+    if fit.valid:
+        split = split_stats(Envelope.of_fit(fit), fit.valid_data, fit.valid_residuals)
+        rows += split_rows(split, "valid ")
     return table(rows, ["position error", "n", "rms mm", "mean mm", "p95 mm", "max mm"])
+
+
+def split_rows(split: dict, prefix: str = "") -> list[list]:
+    """The error table's two rows of :func:`~calibration.fit.envelope.split_stats`: the
+    poses inside the calibrated envelope and those beyond it (``prefix``: ``"valid "``)."""
+    rows = []
+    for where in ("inside", "outside"):
+        s = split[where]
+        rows.append([f"  {prefix}{where} the envelope", s["n"], fmt(s["rms_mm"]),
+                     fmt(s["mean_mm"]), fmt(s["p95_mm"]), fmt(s["max_mm"])])
+    return rows
+
+
+def beyond_line(outside: dict, n: int, what: str) -> str | None:
+    """``outside   2 of 100 validation poses lie beyond the envelope (q4: 1, q5: 1): ...``
+    from the ``outside`` part of :func:`~calibration.fit.envelope.split_stats` (None when
+    no pose lies beyond it); ``n`` the poses, ``what`` their name."""
+    if not outside["n"]:
+        return None
+    return (f"outside   {outside['n']} of {n} {what} lie beyond the envelope ("
+            + ", ".join(f"{k}: {v}" for k, v in outside["by_quantity"].items())
+            + "): the calibration did not measure there")
+
+
+def envelope_lines(fit: Fit) -> list[str]:
+    """The calibrated envelope (the ranges the calibration rows covered) and the
+    validation poses beyond it, by quantity."""
+    env = Envelope.of_fit(fit)
+    lines = [f"envelope  {line}" if k == 0 else f"          {line}"
+             for k, line in enumerate(env.lines())]
+    if fit.valid:
+        by = split_stats(env, fit.valid_data, fit.valid_residuals)["outside"]
+        line = beyond_line(by, fit.valid["n"], "validation poses")
+        if line is not None:
+            lines.append(line)
+    return lines
 
 
 def _parameter_lines(fit: Fit) -> list[str]:

@@ -11,22 +11,41 @@ from __future__ import annotations
 from calibration.diagnosis.auto_diagnosis import AutoDiagnosis, AutoStep
 from calibration.diagnosis.diagnosis import Diagnosis
 from calibration.fit.identify import Fit
+from calibration.fit.model_check import ModelCheck
 
 from .calibration_text import blunder_lines
 from .orientation_text import orientation_lines
 from .text_table import fmt, table
 
 
-def diagnosis_text(diag: Diagnosis, top: int = 12, tool: str | None = None) -> str:
+def given_lines(given: ModelCheck | None, params: str | None, auto: bool = False) -> list[str]:
+    """With ``--params``: the given model's own error first (nothing refitted), and that
+    the figures below are of a refit (``auto``: the steps start from one)."""
+    if given is None:
+        return []
+    s = given.stats
+    then = ("the steps start from it" if auto else "then what it leaves is ranked")
+    return [f"given     RMS {s['rms_mm']:.4f} mm (max {s['max_mm']:.4f} mm) over {s['n']} "
+            f"calibration poses: the model of {params} as calibrated, nothing refitted "
+            "(`cellcal check` for the whole check)",
+            "refit     the figures below are of a refit: every parameter of that model "
+            f"refitted on these poses (warm-started from it); {then}"]
+
+
+def diagnosis_text(diag: Diagnosis, top: int = 12, tool: str | None = None,
+                   given: ModelCheck | None = None, params: str | None = None) -> str:
     """The ranking as tables: the ``top`` candidates, the recommendation, the worst poses
     and what the error correlates with (``tool``: what
-    :func:`~presentation.calibration_text.tool_text` says)."""
+    :func:`~presentation.calibration_text.tool_text` says); with ``given`` (the model of
+    ``--params`` checked as calibrated, :func:`given_lines`) its own error first."""
     fit = diag.fit
     floor = diag.noise_floor_mm
     lines = [
         f"model     {fit.error_model.model.name}, " + (f"{tool}, " if tool else "")
         + f"effects {','.join(fit.error_model.labels)}",
+        *given_lines(given, params),
         f"error     RMS {diag.rms_mm:.4f} mm over {fit.data.n} calibration poses"
+        + (" (refitted)" if given is not None else "")
         + (f"; noise floor {floor:.4f} mm" if floor else "; noise floor unknown (--sigma)"),
         f"screened  {diag.n_screened} candidate effects in {diag.screen_s:.2f} s; "
         f"best refitted and checked on held-out poses in {diag.confirm_s:.2f} s",
@@ -56,13 +75,15 @@ def diagnosis_text(diag: Diagnosis, top: int = 12, tool: str | None = None) -> s
     return "\n".join(lines)
 
 
-def auto_header(fit: Fit) -> str:
-    """The start of ``diagnose --auto``: the model, the data, the noise floor, the
-    blunders the start fit left out."""
+def auto_header(fit: Fit, given: ModelCheck | None = None, params: str | None = None) -> str:
+    """The start of ``diagnose --auto``: the model, the given model's own error (with
+    ``--params``: :func:`given_lines`), the data, the noise floor, the blunders the start
+    fit left out."""
     em = fit.error_model
     valid_n = fit.valid["n"] if fit.valid else 0
     floor = fit.data.noise_floor_mm()
     lines = [f"model     {em.model.name}, start effects {','.join(em.labels)}",
+             *given_lines(given, params, auto=True),
              f"data      {fit.data.n} calibration poses"
              + (f", {valid_n} validation poses" if valid_n else ""),
              "floor     " + (f"noise floor {floor:.4f} mm" if floor
@@ -73,8 +94,10 @@ def auto_header(fit: Fit) -> str:
 
 def auto_step_line(number: int, step: AutoStep) -> str:
     """One accepted step, as it happens (``number`` from 1)."""
-    return (f"step {number:>2}  {step.effect:<14} held-out RMS {step.heldout_rms_mm:.4f} mm  "
-            f"({step.seconds:.1f} s)")
+    beyond = ("" if step.blocked_rms_mm is None
+              else f", range-blocked {step.blocked_rms_mm:.4f} mm")
+    return (f"step {number:>2}  {step.effect:<14} held-out RMS {step.heldout_rms_mm:.4f} mm"
+            f"{beyond}  ({step.seconds:.1f} s)")
 
 
 def auto_text(result: AutoDiagnosis, out: str | None) -> str:
@@ -82,13 +105,16 @@ def auto_text(result: AutoDiagnosis, out: str | None) -> str:
     the params.json written)."""
     start = result.start
     rows = [[" 0 (start) " + ",".join(start.error_model.labels), "",
-             fmt(start.calib["rms_mm"], 4), fmt(result.start_heldout_rms_mm, 4), ""]]
+             fmt(start.calib["rms_mm"], 4), fmt(result.start_heldout_rms_mm, 4),
+             fmt(result.start_blocked_rms_mm, 4), ""]]
     for i, s in enumerate(result.steps, 1):
         rows.append([f"{i:>2} {s.effect}", str(s.n_params), fmt(s.calib_rms_mm, 4),
-                     fmt(s.heldout_rms_mm, 4), f"{s.seconds:.1f}"])
+                     fmt(s.heldout_rms_mm, 4), fmt(s.blocked_rms_mm, 4), f"{s.seconds:.1f}"])
     lines = [table(rows, ["step, effect added", "params", "calib rms mm", "held-out rms mm",
-                          "time s"]),
-             f"held-out error: {result.heldout_method}"]
+                          "range-blocked rms mm", "time s"]),
+             f"held-out error: {result.heldout_method}; range-blocked: the tenth of the "
+             "poses at either end of each joint's range, predicted by the model refitted "
+             "without them (what it does beyond the data)"]
     if result.steps:
         lines.append("")
         lines += [f"{i:>2}. {s.effect}: {s.explanation}" for i, s in enumerate(result.steps, 1)]

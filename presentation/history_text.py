@@ -1,6 +1,7 @@
 """What ``cellcal history`` prints about a robot's calibrations over time: the tables
-(:func:`history_text`), the changes flagged (:func:`flagged_rows`, shared with the plot)
-and the ``--json`` object (:func:`history_summary`, docs/formats.md §4).
+(:func:`history_text`), the changes flagged (:func:`flagged_rows`, shared with the plot),
+the robot's accuracy on new poses (its checks: :func:`checks_text`) and the ``--json``
+object (:func:`history_summary`, docs/formats.md §4).
 
 ``calibrations`` are the store's records (``id``, ``t`` epoch seconds, ``recorded``,
 ``source_file``, ``source_run``, ``software``); every function returns text or a
@@ -63,9 +64,27 @@ def flagged_rows(calibrations, histories: list[ParameterHistory]) -> list[list[s
             for h in histories for k in np.flatnonzero(h.flagged)]
 
 
+def _iso(t: float) -> str:
+    return dt.datetime.fromtimestamp(t, dt.UTC).isoformat(timespec="seconds").replace(
+        "+00:00", "Z")
+
+
+def checks_summary(checks) -> list[dict]:
+    """The ``checks`` list of ``history --json``: each check of a calibration on new poses
+    (``cellcal check --db``), oldest first."""
+    return [{"id": c.id, "t": c.t, "time": _iso(c.t), "recorded": c.recorded,
+             "calibration": c.calibration_id, "params_sha256": c.params_sha256, "n": c.n,
+             "rms_mm": c.rms_mm, "mean_mm": c.mean_mm, "p95_mm": c.p95_mm, "max_mm": c.max_mm,
+             "tolerance_mm": c.tolerance_mm, "within_tolerance": c.within_tolerance,
+             "refitted": list(c.refitted), "source_file": c.source_file,
+             "source_run": c.source_run, "software": c.software} for c in checks]
+
+
 def history_summary(robot_id: str, calibrations, summaries: list[CalibrationSummary],
-                    histories: list[ParameterHistory], threshold: float) -> dict:
-    """The ``history --json`` object (docs/formats.md §4)."""
+                    histories: list[ParameterHistory], threshold: float,
+                    checks=()) -> dict:
+    """The ``history --json`` object (docs/formats.md §4); ``checks``: the robot's checks
+    on new poses (``checks``, :func:`checks_summary`)."""
     ids = [c.id for c in calibrations]
     flagged = []
     params = []
@@ -89,21 +108,47 @@ def history_summary(robot_id: str, calibrations, summaries: list[CalibrationSumm
     return {
         "robot_id": robot_id, "threshold_sigma": threshold,
         "calibrations": [
-            {"id": c.id, "t": c.t, "time": dt.datetime.fromtimestamp(c.t, dt.UTC).isoformat(
-                timespec="seconds").replace("+00:00", "Z"), "recorded": c.recorded,
+            {"id": c.id, "t": c.t, "time": _iso(c.t), "recorded": c.recorded,
              "source_file": c.source_file, "source_run": c.source_run, "software": c.software,
              "model": s.model, "effects": list(s.effects), "calib_rms_mm": s.calib_rms_mm,
              "valid_rms_mm": s.valid_rms_mm}
             for c, s in zip(calibrations, summaries, strict=True)],
-        "parameters": params, "flagged": flagged}
+        "parameters": params, "flagged": flagged, "checks": checks_summary(checks)}
+
+
+def checks_text(checks) -> list[str]:
+    """The robot's accuracy over time: its checks on new poses (``cellcal check --db``),
+    one row each, and the trend of their RMS."""
+    rows = []
+    for c in checks:
+        verdict = "-"
+        if c.tolerance_mm is not None:
+            verdict = f"{c.tolerance_mm:g}: " + ("within" if c.within_tolerance else "BEYOND")
+        rows.append([str(c.id), utc(c.t), "-" if c.calibration_id is None
+                     else str(c.calibration_id),
+                     Path(c.source_file).name if c.source_file else "-", str(c.n),
+                     _num(c.rms_mm), _num(c.max_mm), ",".join(c.refitted) or "-", verdict])
+    lines = ["accuracy on new poses (`cellcal check`):",
+             table(rows, ["check", "measured (UTC)", "calibration", "source", "n", "rms mm",
+                          "max mm", "refitted", "tolerance mm"])]
+    rms = np.array([c.rms_mm for c in checks if c.rms_mm is not None], float)
+    if rms.size >= 2:
+        lines.append(f"RMS over the checks: {spark(rms)}  {_num(rms[0])} -> {_num(rms[-1])} mm")
+    return lines
 
 
 def history_text(robot_id: str, address: str, calibrations,
                  summaries: list[CalibrationSummary], histories: list[ParameterHistory],
-                 shown: list[ParameterHistory], threshold: float) -> str:
+                 shown: list[ParameterHistory], threshold: float, checks=()) -> str:
     """The calibrations, one line per parameter (first and last value, net change,
-    largest step, trend), the changes flagged, and the value over time of the ``shown``
-    parameters."""
+    largest step, trend), the changes flagged, the value over time of the ``shown``
+    parameters, and the robot's accuracy on new poses (``checks``)."""
+    checks = list(checks)
+    if not calibrations:
+        times = np.array([c.t for c in checks])
+        return "\n".join([f"robot {robot_id}: no calibrations, {len(checks)} check(s) from "
+                          f"{utc(times[0])} to {utc(times[-1])} UTC in {address}", "",
+                          *checks_text(checks)])
     times = np.array([c.t for c in calibrations])
     lines = [f"robot {robot_id}: {len(calibrations)} calibrations from {utc(times[0])} to "
              f"{utc(times[-1])} UTC in {address}", ""]
@@ -129,6 +174,8 @@ def history_text(robot_id: str, address: str, calibrations,
         lines.append(f"no change larger than {threshold:g} combined sigma")
     for h in shown:
         lines += ["", f"{h.name} ({h.unit})", _values_table(h, calibrations)]
+    if checks:
+        lines += ["", *checks_text(checks)]
     return "\n".join(lines)
 
 

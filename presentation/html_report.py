@@ -48,6 +48,7 @@ from .html_tables import (
     candidates_table,
     correlations_text,
     effects_html,
+    envelope_section,
     params_table,
     stats_table,
     steps_table,
@@ -286,6 +287,7 @@ def _body(page: _Page, diag: Diagnosis, stages: list[Stage], title: str,
             if e not in story.start.fit.error_model.labels] if story is not None else
            [e for e in stages[-1].fit.error_model.labels if e not in em.labels])
     parts.append(params_table(stages[-1], new))
+    parts.append(envelope_section(stages[-1].fit))
     notes = diag.notes + [n for s in stages for n in s.fit.notes]
     if story is not None:
         notes += story.notes

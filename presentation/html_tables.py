@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from calibration.diagnosis.diagnosis import Diagnosis, describe_effect
+from calibration.fit.envelope import Envelope, split_stats
 from calibration.fit.identify import error_stats
 from calibration.fit.outliers import BlunderScreen
 from calibration.workflow import AutoStory
@@ -28,6 +29,34 @@ def fmt(v, digits: int = 4) -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "–"
     return f"{v:.{digits}f}"
+
+
+def envelope_section(fit) -> str:
+    """The calibrated envelope of ``fit`` (the ranges its calibration rows covered) and its
+    validation error inside and beyond it."""
+    env = Envelope.of_fit(fit)
+    items = "".join(f"<li>{html.escape(line)}</li>" for line in env.lines())
+    table = ""
+    if fit.valid:
+        split = split_stats(env, fit.valid_data, fit.valid_residuals)
+        rows = []
+        for where in ("inside", "outside"):
+            st = split[where]
+            rows.append(f"<tr><td>{where} the envelope</td><td>{st['n']}</td>"
+                        + "".join(f'<td class="num">{fmt(st[k])}</td>'
+                                  for k in ("rms_mm", "mean_mm", "p95_mm", "max_mm"))
+                        + "</tr>")
+        by = split["outside"]["by_quantity"]
+        beyond = (" Beyond it: " + ", ".join(f"{html.escape(k)} {v}" for k, v in by.items())
+                  + " poses." if by else "")
+        table = ('<div class="scroll"><table id="tab-envelope"><caption>Validation poses '
+                 "inside and beyond the calibrated envelope, mm (the final model)."
+                 f"{beyond}</caption><tr><th>validation poses</th><th>n</th><th>RMS</th>"
+                 f"<th>mean</th><th>p95</th><th>max</th></tr>{''.join(rows)}</table></div>")
+    return ("<h2>Where the calibration was measured</h2><p>The calibrated envelope: the "
+            "ranges the calibration poses covered (params.json <code>envelope</code>). A "
+            "target beyond it is compensated with the model held at its edge, and named "
+            f"(<code>outside_range</code>).</p><ul>{items}</ul>{table}")
 
 
 def stats_table(stages: list[Stage], floor: float | None) -> str:
@@ -159,6 +188,7 @@ def steps_table(story: AutoStory, floor: float | None) -> str:
             f'<td class="num">{st.n_params}</td>'
             f'<td class="num">{fmt(st.calib_rms_mm)}</td>'
             f'<td class="num">{fmt(st.heldout_rms_mm)}</td>'
+            f'<td class="num">{fmt(st.blocked_rms_mm)}</td>'
             f'<td class="num">{"" if st.seconds is None else f"{st.seconds:.1f}"}</td>'
             f"<td>{about}</td></tr>")
     final = story.final.heldout_rms_mm
@@ -170,9 +200,12 @@ def steps_table(story: AutoStory, floor: float | None) -> str:
     return (
         '<div class="scroll"><table id="tab-steps"><caption>The automatic diagnosis: the '
         "best missing effect added at each step while the held-out error "
-        f"({html.escape(story.heldout_method)}) falls by more than its standard error."
-        f"{src}</caption><tr><th>step</th><th>model</th><th>params added</th>"
-        "<th>calibration RMS, mm</th><th>held-out RMS, mm</th><th>time, s</th>"
+        f"({html.escape(story.heldout_method)}) falls by more than its standard error "
+        "and the range-blocked error (the tenth of the poses at either end of each joint's "
+        "range, predicted by the model refitted without them: what it does beyond the "
+        f"data) does not rise.{src}</caption><tr><th>step</th><th>model</th>"
+        "<th>params added</th><th>calibration RMS, mm</th><th>held-out RMS, mm</th>"
+        "<th>range-blocked RMS, mm</th><th>time, s</th>"
         f"<th>what it is</th></tr>{''.join(rows)}</table></div>"
         f'<p class="rec">Stopped: {html.escape(story.stop_reason)}.{verdict}</p>')
 
@@ -204,6 +237,7 @@ def blunders_section(screens: list[tuple[str, BlunderScreen]],
     verdict = html.escape(screens[-1][1].message("fit", list_points=False))
     if not named:
         return head + f'<p id="blunders-none">{verdict}</p>' + ref
+    verdict += _earlier_sentence(screens, named)
     everywhere = [label for label, _ in screens]
     rows = []
     for pid, b in named.items():
@@ -226,6 +260,25 @@ def blunders_section(screens: list[tuple[str, BlunderScreen]],
         "<tr><th>pose</th><th>line</th><th>residual, mm</th><th>× threshold</th>"
         "<th>beam</th><th>angle to beam, °</th><th>left out of</th></tr>"
         f"{''.join(rows)}</table></div>{ref}")
+
+
+def _earlier_sentence(screens: list[tuple[str, BlunderScreen]], named: dict) -> str:
+    """The verdict is the last screen's (the fit the diagnosis looks at); the table lists
+    every screen's blunders. A pose only an earlier fit named is said to be so, so that the
+    sentence and the table agree (``No measurement is out of line`` above a table that
+    lists one would contradict it)."""
+    last = screens[-1][1]
+    last_ids = {b.pose_id for b in last.blunders}
+    earlier = [pid for pid in named if pid not in last_ids]
+    if not earlier:
+        return ""
+    who = sorted({label for label, sc in screens[:-1] for b in sc.blunders
+                  if b.pose_id in earlier}, key=[label for label, _ in screens].index)
+    it = "it" if len(earlier) == 1 else "them"
+    return html.escape(
+        f" The table also lists {', '.join(earlier)}: only the fit of {' and of '.join(who)} "
+        f"left {it} out (out of line with a model that still lacked an effect); the last "
+        f"fit keeps {it}.")
 
 
 def _value_std(value: float, std: float | None) -> tuple[str, str]:

@@ -4,7 +4,8 @@ in words (:func:`program_lines`) and as one JSON object (:func:`program_summary`
 A report is any object with the attributes of
 :class:`cellcal.programs.program_report.ProgramReport`: ``source``, ``out``, ``language``,
 ``n_targets``, ``rows`` (one dict per compensated target: ``line``, ``kind``,
-``context``, ``correction_mm``/``_deg``, ``predicted_miss_mm``/``_deg``), ``refusals``
+``context``, ``correction_mm``/``_deg``, ``predicted_miss_mm``/``_deg``,
+``outside_range``: what lies beyond the calibrated envelope), ``refusals``
 (``line``, ``construct``, ``reason``), ``notes`` and ``written``. Nothing is printed here.
 """
 
@@ -35,6 +36,12 @@ def program_lines(report) -> list[str]:
                    f"worst {worst:.3f} mm")
         rms, worst = _stats(report.rows, "correction_mm")
         out.append(f"  correction: RMS {rms:.3f} mm, worst {worst:.3f} mm")
+    beyond = [r for r in report.rows if r.get("outside_range")]
+    if beyond:
+        out.append(f"  beyond the calibrated envelope ({len(beyond)} of {len(report.rows)}): "
+                   + "; ".join(f"line {r['line']} ({', '.join(r['outside_range'])})"
+                               for r in beyond[:10])
+                   + (f"; and {len(beyond) - 10} more" if len(beyond) > 10 else ""))
     if report.refusals:
         out.append(f"  not compensated ({len(report.refusals)}):")
         out += [f"    {_refusal(r)}" for r in report.refusals]
@@ -53,6 +60,7 @@ def program_summary(report) -> dict:
     return {"source": report.source, "out": report.out if report.written else None,
             "language": report.language, "n_targets": report.n_targets,
             "n_compensated": len(report.rows), "targets": report.rows,
+            "n_outside_range": sum(1 for r in report.rows if r.get("outside_range")),
             "refused": [{"line": r.line, "construct": r.construct, "reason": r.reason}
                         for r in report.refusals],
             "notes": report.notes, "written": report.written}

@@ -53,12 +53,13 @@ def _steps(story: AutoStory) -> dict:
     return {"recorded": story.recorded, "heldout_method": story.heldout_method,
             "stop_reason": story.stop_reason,
             "steps": [{"effect": s.effect, "n_params": s.n_params,
-                       "calib_rms_mm": s.calib_rms_mm, "heldout_rms_mm": s.heldout_rms_mm}
+                       "calib_rms_mm": s.calib_rms_mm, "heldout_rms_mm": s.heldout_rms_mm,
+                       "range_blocked_rms_mm": s.blocked_rms_mm}
                       for s in story.steps]}
 
 
 def _outliers(rep: Report) -> list[dict]:
-    """The blunders any shown fit left out (FORMATS.md §4 ``outliers`` entries)."""
+    """The blunders any shown fit left out (docs/formats.md §4 ``outliers`` entries)."""
     seen, out = set(), []
     for sc in [s.fit.outliers for s in rep.stages] + [rep.diagnosis.outliers]:
         for o in (sc.to_json() if sc is not None else []):

@@ -14,7 +14,9 @@ from calibration.diagnosis.diagnosis import Diagnosis
 from calibration.diagnosis.orientation_blindness import Blindness
 from calibration.diagnosis.orientation_view import orientation_view
 from calibration.exports.params_io import params_by_name, solver_summary
+from calibration.fit.envelope import Envelope, split_stats
 from calibration.fit.identify import Fit
+from calibration.fit.model_check import ModelCheck
 from calibration.fit.uncertainty import MonteCarlo, correlations
 from calibration.zero_point import ZeroResult, assess
 
@@ -56,6 +58,18 @@ def fit_summary(fit: Fit) -> dict:
     return out
 
 
+def envelope_summary(fit: Fit) -> dict:
+    """``envelope`` (the ranges the calibration rows covered, as params.json records them)
+    and, with validation rows, ``valid_inside`` and ``valid_outside`` (their statistics
+    inside and beyond it; ``valid_outside.by_quantity``: poses beyond it per quantity)."""
+    env = Envelope.of_fit(fit)
+    out: dict = {"envelope": env.to_json()}
+    if fit.valid is not None:
+        split = split_stats(env, fit.valid_data, fit.valid_residuals)
+        out["valid_inside"], out["valid_outside"] = split["inside"], split["outside"]
+    return out
+
+
 def calibration_summary(fit: Fit, baseline: Fit, *, params_file: str | None,
                         mc: MonteCarlo | None = None, ridge_plot: str | None = None,
                         blindness: Blindness | None = None) -> dict:
@@ -71,6 +85,7 @@ def calibration_summary(fit: Fit, baseline: Fit, *, params_file: str | None,
     if fit.outliers:
         out["outlier_check"] = fit.outliers.check_json()
     out["uncalibrated"] = {"calib": baseline.calib, "valid": baseline.valid}
+    out.update(envelope_summary(fit))
     out["strongest_correlations"] = correlations(fit)["strongest"]
     info = solver_summary(fit)
     if info:
@@ -94,12 +109,18 @@ def orientation_summary(fit: Fit) -> dict | None:
     return {**view.to_json(), "noise_floor_deg": orientation_floor_deg(fit)}
 
 
-def diagnosis_summary(diag: Diagnosis) -> dict:
+def diagnosis_summary(diag: Diagnosis, given: ModelCheck | None = None,
+                      params: str | None = None) -> dict:
     """The ``diagnose --json`` object: :meth:`Diagnosis.to_json` and, when the data have
     orientations, an ``orientation`` object beside it: :func:`orientation_summary` with
     the flange axes ranked (largest RMS first) and the error rows of the calibration and
-    validation poses (rms, mean, max, deg)."""
+    validation poses (rms, mean, max, deg). With ``--params``, ``given``: the given
+    model's own error on the calibration poses, nothing refitted (``rms_mm`` is then of a
+    refit: ``refitted`` true)."""
     out = diag.to_json()
+    if given is not None:
+        out["given"] = {"params_file": params, **given.stats}
+        out["refitted"] = True
     orientation = orientation_summary(diag.fit)
     if orientation is not None:
         axes = sorted(orientation["axis_rms_deg"].items(), key=lambda kv: -kv[1])

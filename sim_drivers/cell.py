@@ -76,8 +76,9 @@ class RobotState:
     ``q`` (rad, shape (n,)) are the reported joints, ``qd`` (rad/s) their
     velocity, ``tcp`` (mm, shape (3,)) the controller's nominal TCP in the base
     frame, ``timestamp`` epoch seconds (wall clock) and ``sim_time`` the
-    simulated clock (s); ``joint_temp`` each joint's temperature (°C) when the cell has a
-    thermal model, else None.
+    simulated clock (s); ``joint_temp`` each joint's temperature (°C) as the controller
+    reports it (the air's, constant, without a thermal model), None for a controller that
+    reports none (``joint_temps=False``).
     """
 
     q: np.ndarray
@@ -182,8 +183,14 @@ class SimCell(SixDofMeasuring):
         type's, or ``acceptance_deg``) replaces the mounted reflector's.
     thermal : JointThermal or str, optional
         The robot's joint temperatures (:mod:`sim_drivers.thermal`): a model, or its start
-        ("cold", "warm"); None (the default) for none. The true robot's hidden thermal
-        effects (``ModelTruth.with_thermal``) see them.
+        ("cold", "warm"); None (the default): they stay at the air's temperature
+        (``temp0_c``), constant, as a real controller's at rest in a steady cell, and
+        nothing drifts. The true robot's hidden thermal effects
+        (``ModelTruth.with_thermal``) see them.
+    joint_temps : bool
+        Whether the controller reports its joints' temperatures (True, the default: a UR
+        always does, and so does every simulated wire); False: a controller without them,
+        whose requests for them are refused (a cell with a thermal model always has them).
     six_dof : SixDofTarget, optional
         A 6-DoF target (a T-Mac) on the tool (:mod:`sim_drivers.six_dof`): the tracker
         measures its pose too, and the line of sight uses its axis and acceptance cone.
@@ -214,6 +221,7 @@ class SimCell(SixDofMeasuring):
         cell: CellSpec | None = None,
         thermal: JointThermal | str | None = None,
         six_dof: SixDofTarget | None = None,
+        joint_temps: bool = True,
     ) -> None:
         if time_scale < 0:
             raise ValueError(f"time_scale must be >= 0, got {time_scale}")
@@ -233,6 +241,8 @@ class SimCell(SixDofMeasuring):
         #: the robot's joint temperatures (None: the cell has no thermal model)
         self.thermal = (thermal_model(thermal, truth.n_joints, self.temp0_c)
                         if isinstance(thermal, str) else thermal)
+        #: the controller reports its joints' temperatures (with a thermal model: always)
+        self.reports_joint_temps = bool(joint_temps) or self.thermal is not None
         self._rng = np.random.default_rng(seed)
         self._lock = threading.RLock()
         self._epoch0 = time.time()
@@ -468,10 +478,13 @@ class SimCell(SixDofMeasuring):
                                joint_temp=self.joint_temperatures(t))
 
     def joint_temperatures(self, t_s: float | None = None) -> np.ndarray | None:
-        """Each joint's temperature (°C) at simulated time ``t_s`` (default now), or None
-        when the cell has no thermal model (its controller reports none)."""
-        if self.thermal is None:
+        """Each joint's temperature (°C) at simulated time ``t_s`` (default now): the
+        thermal model's, else the air's (``temp0_c``), constant; None for a controller that
+        reports none (``joint_temps=False``)."""
+        if not self.reports_joint_temps:
             return None
+        if self.thermal is None:
+            return np.full(self.truth.n_joints, self.temp0_c)
         with self._lock:
             return self.thermal.at(self.now() if t_s is None else t_s)
 

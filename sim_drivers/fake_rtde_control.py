@@ -12,6 +12,9 @@ Same method names, signatures and units as ur-rtde 1.6.5 (metres, radians,
 - after ``disconnect()`` the commands raise ``RuntimeError`` (as the C++
   layer does on a closed socket) until ``reconnect()``.
 
+The cell's fault injector applies as at the robot servers: ``pstop`` makes a move
+command trigger a protective stop (:mod:`sim_drivers.faults`).
+
 Joint vectors have 6 entries as on a UR; a cell with fewer joints uses the
 first ``cell.n_joints`` and ignores the rest. With ``server`` (an
 :class:`~sim_drivers.rtde_server.RtdeSimServer`) every command republishes
@@ -145,6 +148,10 @@ class FakeRTDEControl:
     def _command(self, fn) -> bool:
         if not self._script_running:
             return False  # ur-rtde: "RTDE control script is not running!"
+        faults = getattr(self.cell, "faults", None)
+        if faults is not None and faults.fires("pstop"):  # the move meets an obstacle
+            with self.lock:
+                self.cell.trigger_protective_stop()
         st = self._state()
         if st.protective_stop or st.emergency_stop or st.fault:
             return self._refuse()

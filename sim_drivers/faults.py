@@ -23,7 +23,8 @@ slow      any line server: the reply is held back ``delay`` seconds (longer
 drop      TCP servers: the server closes the connection instead of replying
           (ignored on a pty; the Modbus server drops the connection too)
 garbage   line servers: a line of random non-protocol bytes instead of the reply
-pstop     robot servers: a move command triggers a protective stop
+pstop     robot servers (and FakeRTDEControl, the in-process robot): a move command
+          triggers a protective stop
 modbus    Modbus server: the request gets exception response 4
           (SERVER_DEVICE_FAILURE)
 stale     Modbus server: the heartbeat register stops counting for that read
@@ -41,10 +42,13 @@ may also :meth:`FaultInjector.arm` a fault for the next applicable command(s).
 
 from __future__ import annotations
 
+import logging
 import threading
 from dataclasses import dataclass, field
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 #: every fault name the spec language knows
 FAULT_NAMES = ("beam", "slow", "drop", "garbage", "pstop", "modbus", "stale", "blunder")
@@ -183,4 +187,5 @@ class FaultInjector:
                 hit = p > 0 and float(self._rng.random()) < p
             if hit:
                 self.log.append((self.command_index, name))
+                log.info("fault %s fired (command %d)", name, self.command_index)
             return hit

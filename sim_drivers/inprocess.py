@@ -20,7 +20,7 @@ on a 60 mm holder), ``time_scale`` (default 0), ``faults`` (only ``beam``, ``pst
 for one with no facing limit; :data:`calibration.cell.cell.REFLECTOR_ACCEPTANCE_DEG`) and
 ``thermal=cold|warm`` (the robot warms up with its work, from cold or already warm, and its
 joint zeros and links drift with the temperatures: :mod:`sim_drivers.thermal`; off by
-default).
+default: the joints then report the air's temperature, constant, and nothing drifts).
 
 The drivers identify themselves as simulators (:meth:`SimRobot.identify`).
 """
@@ -35,7 +35,7 @@ from urllib.parse import parse_qs, urlsplit
 import numpy as np
 
 from drivers import urls
-from drivers.errors import CommandRejected, CommandTimeout, ProtectiveStop
+from drivers.errors import CommandRejected, CommandTimeout, ConnectionLost
 from drivers.line_robot import ROBOT_ERRORS
 from drivers.line_tracker import TRACKER_ERRORS
 from drivers.protocols import (
@@ -49,6 +49,7 @@ from drivers.protocols import (
     TrackerStatus,
     measure_both_faces,
 )
+from drivers.settle import poll_until_settled, poll_until_still, settle_move
 from sim_drivers.cell import CellRefused, SimCell
 from sim_drivers.faults import FaultInjector
 from sim_drivers.truth import ToyArm, TrueRobot
@@ -124,6 +125,13 @@ def _refused(e: CellRefused, device: str, command: str, table: dict) -> Exceptio
     return cls(device, command, f"{e.name} {e.detail}".strip())
 
 
+def _need_link(driver, command: str) -> None:
+    """ConnectionLost "not connected" before ``connect`` and after ``close`` (as over a
+    wire)."""
+    if not driver.connected:
+        raise ConnectionLost(driver._dev, command, "not connected")
+
+
 class SimRobot:
     """RobotDriver (+ ``read_tcp``) acting directly on a :class:`SimCell`."""
 
@@ -149,21 +157,26 @@ class SimRobot:
 
     def read_joints(self, timeout: float = 1.0) -> JointReading:
         """Reported joints (rad)."""
+        _need_link(self, "read_joints")
         return JointReading(q=self.cell.robot_state().q, timestamp=time.time())
 
     def read_tcp(self, timeout: float = 1.0) -> np.ndarray:
         """Nominal TCP (mm, base frame)."""
+        _need_link(self, "read_tcp")
         return self.cell.robot_state().tcp
 
     def joint_temperatures(self, timeout: float = 1.0) -> tuple[float, ...]:
-        """Each joint's temperature (°C); CommandRejected when the cell has no thermal model."""
+        """Each joint's temperature (°C): the thermal model's, else the air's (constant);
+        CommandRejected from a cell whose controller reports none."""
+        _need_link(self, "joint_temperatures")
         temps = self.cell.joint_temperatures()
         if temps is None:
             raise CommandRejected(self._dev, "joint_temperatures",
-                                  "the simulated robot reports no joint temperatures (thermal=)")
+                                  "the simulated robot reports no joint temperatures")
         return tuple(float(v) for v in temps)
 
     def status(self, timeout: float = 1.0) -> RobotStatus:
+        _need_link(self, "status")
         s = self.cell.robot_state()
         return RobotStatus(
             connected=self.connected,
@@ -173,11 +186,13 @@ class SimRobot:
             protective_stop=s.protective_stop,
             emergency_stop=s.emergency_stop,
             error_code=s.error_code,
+            message=f"error code {s.error_code}" if s.error_code else "",
             timestamp=s.timestamp,
         )
 
-    def _move(self, command: str, fn, wait: bool, timeout: float) -> None:
+    def _move(self, command: str, fn, timeout: float) -> None:
         deadline = time.monotonic() + timeout
+        _need_link(self, command)
         faults = self.cell.faults
         if faults is not None and faults.fires("pstop"):
             self.cell.trigger_protective_stop()
@@ -185,33 +200,26 @@ class SimRobot:
             fn()
         except CellRefused as e:
             raise _refused(e, self._dev, command, ROBOT_ERRORS) from e
-        if wait:
-            self.wait_settled(max(deadline - time.monotonic(), 0.0))
+        settle_move(self.wait_settled, self.stop, self._dev, command, deadline)
 
-    def move_joints(self, q, speed: float = 0.5, timeout: float = 60.0, *, wait: bool = False):
-        """Start a joint move to ``q`` (rad) at ``speed`` rad/s."""
+    def move_joints(self, q, speed: float = 0.5, timeout: float = 60.0) -> None:
+        """Joint move to ``q`` (rad) at ``speed`` rad/s; returns once settled."""
         q = np.asarray(q, float)
-        self._move("move_joints", lambda: self.cell.command_move_joints(q, speed), wait, timeout)
+        self._move("move_joints", lambda: self.cell.command_move_joints(q, speed), timeout)
 
-    def move_linear(self, xyz, speed: float = 100.0, timeout: float = 60.0, *, wait: bool = False):
-        """Start a linear TCP move to ``xyz`` (mm) at ``speed`` mm/s."""
+    def move_linear(self, xyz, speed: float = 100.0, timeout: float = 60.0) -> None:
+        """Linear TCP move to ``xyz`` (mm) at ``speed`` mm/s; returns once settled."""
         xyz = np.asarray(xyz, float)
-        self._move("move_linear", lambda: self.cell.command_move_linear(xyz, speed), wait, timeout)
+        self._move("move_linear", lambda: self.cell.command_move_linear(xyz, speed), timeout)
 
     def wait_settled(self, timeout: float = 30.0) -> None:
-        deadline = time.monotonic() + timeout
-        while True:
-            s = self.cell.robot_state()
-            if s.protective_stop or s.emergency_stop:
-                raise ProtectiveStop(self._dev, "wait_settled", f"error code {s.error_code}")
-            if s.in_position and s.steady:
-                return
-            if time.monotonic() >= deadline:
-                raise CommandTimeout(self._dev, "wait_settled", f"not settled after {timeout} s")
-            time.sleep(self.poll_s)
+        poll_until_settled(self.status, self._dev, timeout, self.poll_s)
 
     def stop(self, timeout: float = 2.0) -> None:
+        _need_link(self, "stop")
         self.cell.command_stop()
+        poll_until_still(self.status, self._dev, "stop", time.monotonic() + timeout,
+                         self.poll_s)
 
     def identify(self, timeout: float = 2.0) -> DeviceIdentity:
         """A simulator of the cell's robot model."""
@@ -220,6 +228,7 @@ class SimRobot:
                               simulator=True, kinematics=c.kinematics, n_joints=c.n_joints)
 
     def clear_protective_stop(self, timeout: float = 2.0) -> None:
+        _need_link(self, "clear_protective_stop")
         self.cell.clear_protective_stop()
 
 
@@ -252,6 +261,7 @@ class SimTracker:
         self.close()
 
     def status(self, timeout: float = 1.0) -> TrackerStatus:
+        _need_link(self, "status")
         c = self.cell
         return TrackerStatus(
             connected=self.connected,
@@ -262,7 +272,14 @@ class SimTracker:
         )
 
     def measure(self, duration_s: float = 0.5, timeout: float = 10.0) -> Measurement:
-        """Measure the target (mm, tracker frame)."""
+        """Measure the target (mm, tracker frame); CommandTimeout when the measurement
+        would take longer than ``timeout`` at the cell's time scale."""
+        _need_link(self, "measure")
+        if duration_s * self.cell.time_scale > timeout:
+            raise CommandTimeout(self._dev, "measure",
+                                 f"a {duration_s} s measurement takes "
+                                 f"{duration_s * self.cell.time_scale:.3g} s here, over the "
+                                 f"{timeout} s timeout")
         faults = self.cell.faults
         try:
             if faults is not None and faults.fires("beam"):
@@ -285,6 +302,7 @@ class SimTracker:
         )
 
     def ready(self, timeout: float = 2.0) -> Readiness:
+        _need_link(self, "ready")
         c = self.cell
         return Readiness.of(c.tracker_initialised, c.tracker_warmed_up(), c.weather_station,
                             c.tracker_target_visible())
@@ -293,25 +311,30 @@ class SimTracker:
         return self.ready(timeout).raise_if_not_ok(self._dev)
 
     def environment(self, timeout: float = 2.0) -> Environment:
+        _need_link(self, "environment")
         return Environment(*self.cell.tracker_environment())
 
     def set_environment(self, temp_c, pressure_hpa, humidity_pct, timeout: float = 2.0) -> None:
+        _need_link(self, "set_environment")
         try:
             self.cell.set_tracker_environment(temp_c, pressure_hpa, humidity_pct)
         except CellRefused as e:
             raise _refused(e, self._dev, "set_environment", TRACKER_ERRORS) from e
 
     def reflectors(self, timeout: float = 2.0) -> list[Reflector]:
+        _need_link(self, "reflectors")
         from sim_drivers.tracker_optics import TRACKER_REFLECTORS
 
         return [Reflector(r.name, r.id, r.target_type, r.surface_offset_mm)
                 for r in TRACKER_REFLECTORS]
 
     def reflector(self, timeout: float = 2.0) -> Reflector:
+        _need_link(self, "reflector")
         r = self.cell.tracker_reflector
         return Reflector(r.name, r.id, r.target_type, r.surface_offset_mm)
 
     def set_reflector(self, name: str, timeout: float = 2.0) -> Reflector:
+        _need_link(self, "set_reflector")
         try:
             self.cell.select_reflector(name)
         except CellRefused as e:
@@ -319,9 +342,11 @@ class SimTracker:
         return self.reflector()
 
     def face(self, timeout: float = 2.0) -> int:
+        _need_link(self, "face")
         return self.cell.tracker_face
 
     def change_face(self, timeout: float = 30.0) -> int:
+        _need_link(self, "change_face")
         try:
             return self.cell.tracker_change_face()
         except CellRefused as e:

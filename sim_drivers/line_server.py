@@ -18,6 +18,7 @@ sends every reply in pieces of that many bytes (a slow or fragmenting link).
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import select
 import socket
@@ -28,6 +29,8 @@ from collections.abc import Callable
 import numpy as np
 
 from sim_drivers.faults import FaultInjector
+
+log = logging.getLogger(__name__)
 
 #: the bytes a ``garbage`` fault sends (no newline inside, one at the end)
 GARBAGE = bytes([0x8F, 0x00, 0xFF, 0x1B, 0x23, 0x40, 0xC3, 0x28, 0x07, 0xFE]) + b"\n"
@@ -225,9 +228,10 @@ class LineServer:
                 r, _, _ = select.select([ls], [], [], 0.05)
                 if not r:
                     continue
-                sock, _ = ls.accept()
+                sock, addr = ls.accept()
             except (OSError, ValueError):
                 return
+            log.info("%s: a client connected from %s", type(self).__name__, addr)
             # replies may go out in several sends (an answer, then a result): no Nagle delay
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             conn = _Conn(sock=sock)

@@ -6,9 +6,10 @@ the status block on every read (the heartbeat counts reads) and executes a
 command when the ``command`` register is written. Runs its own asyncio loop on
 a background thread; ``start()``/``stop()`` or ``with``.
 
-Joint temperatures (``joint_temps``) are served when the cell has a thermal model; without
-one, a read that touches them gets exception 2 (ILLEGAL_DATA_ADDRESS), as from a controller
-that does not have them.
+Joint temperatures (``joint_temps``) are served as the cell's controller reports them (its
+thermal model's, else the air's, constant); from a cell whose controller reports none
+(``SimCell(joint_temps=False)``) a read that touches them gets exception 2
+(ILLEGAL_DATA_ADDRESS), as from a controller that does not have them.
 
 Faults (per request): ``modbus`` → exception 4 (SERVER_DEVICE_FAILURE),
 ``slow`` → the response is held back ``delay`` s, ``drop`` → every client
@@ -139,9 +140,9 @@ class ModbusRobotServer:
         return self
 
     def stop(self) -> None:
-        """Stop serving, close connections and join the thread."""
+        """Stop serving, close connections and join the thread (idempotent)."""
         self._stopping = True
-        if self._loop is not None and self._stop is not None:
+        if self._thread is not None and self._loop is not None and self._stop is not None:
             self._loop.call_soon_threadsafe(self._stop.set)
         if self._thread is not None:
             self._thread.join(10.0)

@@ -47,7 +47,8 @@ SAFETY_BIT_FAULT, SAFETY_BIT_STOPPED_BY_SAFETY = 1 << 9, 1 << 10
 ROBOT_BIT_POWER_ON, ROBOT_BIT_PROGRAM_RUNNING = 1 << 0, 1 << 1
 
 N_WIRE_JOINTS = 6
-#: the joint temperature (°C) a cell without a thermal model reports (as it always has)
+#: the joint temperature (°C) on the wire of a joint the cell does not report (a cell of
+#: fewer joints, or whose controller reports none: a UR always streams six)
 IDLE_JOINT_TEMP_C = 30.0
 
 
@@ -63,8 +64,9 @@ def controller_fields(state, program_running: bool = True) -> dict[str, object]:
     state : RobotState-like
         ``q`` and ``qd`` (rad, rad/s, n joints), ``tcp`` (mm; 3 values, or 6 with a
         rotation vector in rad), ``protective_stop``, ``emergency_stop``, ``fault``;
-        ``joint_temp`` (°C, n joints) when the cell has a thermal model (else every joint
-        reports :data:`IDLE_JOINT_TEMP_C`).
+        ``joint_temp`` (°C, n joints) as the cell's controller reports them (the thermal
+        model's, else the air's; a cell that reports none: every joint
+        :data:`IDLE_JOINT_TEMP_C`).
     program_running : bool
         Whether the (simulated) control script runs; cleared by any stop.
 

@@ -14,9 +14,11 @@ model on, :meth:`~sim_drivers.model_truth.ModelTruth.with_thermal` adds the hidd
 that move with each joint's own), fed by :attr:`~sim_drivers.truth.PoseContext.joint_temp`.
 
 Off unless asked for (``thermal="cold"`` or ``"warm"`` on :class:`~sim_drivers.cell.SimCell`,
-``sim://robot?...&thermal=cold``, ``ServeConfig(thermal=...)``): without it the cell and
-every server behave as before, and the controllers report no joint temperatures (the RTDE
-server keeps its constant 30 °C).
+``sim://robot?...&thermal=cold``, ``ServeConfig(thermal=...)``): without it nothing drifts,
+and the controllers report the air's temperature for every joint, constant, over every wire
+(RTDE, Modbus, the line protocol, in process), as a real UR reports its joints'
+temperatures whether or not they change; ``SimCell(joint_temps=False)`` is a controller
+that reports none.
 """
 
 from __future__ import annotations

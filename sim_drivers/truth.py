@@ -20,7 +20,8 @@ class PoseContext:
     ``direction``: per joint, the sign of the last motion that approached the
     pose (-1, 0, +1), for backlash. ``temp_c``: robot temperature.
     ``t_s``: simulated time. ``payload_kg``: payload mass, None for the model's.
-    ``joint_temp``: each joint's temperature (°C), None when the cell has no thermal model.
+    ``joint_temp``: each joint's temperature (°C) as the controller reports it (constant
+    without a thermal model), None when it reports none.
     """
 
     direction: np.ndarray | None = None

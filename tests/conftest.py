@@ -23,6 +23,19 @@ def sim_scheme():
     register_schemes()
 
 
+@pytest.fixture(autouse=True, scope="session")
+def run_log_dir(tmp_path_factory):
+    """The logs of PostgreSQL stores' runs (written in the current directory by default:
+    cellcal.logs.run_log_path) go to a folder of the session's own, subprocesses included."""
+    old = os.environ.get("CELLCAL_RUN_LOG_DIR")
+    os.environ["CELLCAL_RUN_LOG_DIR"] = str(tmp_path_factory.mktemp("run_logs"))
+    yield
+    if old is None:
+        os.environ.pop("CELLCAL_RUN_LOG_DIR", None)
+    else:
+        os.environ["CELLCAL_RUN_LOG_DIR"] = old
+
+
 def pytest_addoption(parser):
     parser.addoption("--robot-url", default=None, help="URL of a real robot controller")
     parser.addoption("--tracker-url", default=None, help="URL of a real laser tracker")

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
+import numpy.typing as npt
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
@@ -61,7 +62,7 @@ class Box(_Strict):
 
     @field_validator("size")
     @classmethod
-    def _positive(cls, v):
+    def _positive(cls, v: tuple[float, float, float]) -> tuple[float, float, float]:
         if min(v) <= 0:
             raise ValueError("every edge must be > 0 mm")
         return v
@@ -120,7 +121,7 @@ class Smr(_Strict):
 
     @field_validator("axis")
     @classmethod
-    def _nonzero(cls, v):
+    def _nonzero(cls, v: tuple[float, float, float]) -> tuple[float, float, float]:
         if float(np.linalg.norm(v)) < 1e-9:
             raise ValueError("the axis must not be zero")
         return v
@@ -170,7 +171,7 @@ class CellSpec(_Strict):
         """The tracker head in the robot base frame, (3,) mm, or None."""
         return None if self.tracker is None else np.asarray(self.tracker.position, float)
 
-    def with_tracker(self, position_mm, source: str) -> CellSpec:
+    def with_tracker(self, position_mm: npt.ArrayLike, source: str) -> CellSpec:
         """A copy with the tracker at ``position_mm`` (robot base frame, mm)."""
         p = tuple(float(v) for v in np.asarray(position_mm, float).ravel())
         if len(p) != 3 or not np.all(np.isfinite(p)):
@@ -183,21 +184,21 @@ class CellSpec(_Strict):
                               default_flow_style=None)
 
 
-def tracker_in_base(tracker_T_base) -> np.ndarray:
+def tracker_in_base(tracker_T_base: npt.ArrayLike) -> np.ndarray:
     """The tracker origin in the robot base frame (mm) from the measurement frame
     ``tracker_T_base`` (4x4): ``-Rᵀ t``."""
     T = np.asarray(tracker_T_base, float)
     return -T[:3, :3].T @ T[:3, 3]
 
 
-def cell_from_dict(data, source: str = "<cell>") -> CellSpec:
+def cell_from_dict(data: object, source: str = "<cell>") -> CellSpec:
     """Validate a cell mapping; errors name ``source`` and the field."""
     return validate_file_mapping(CellSpec, {} if data is None else data, source, CellError,
                                  "a cell file")
 
 
 def load_cell(path: str | Path) -> CellSpec:
-    """Read a cell YAML file (FORMATS.md §7)."""
+    """Read a cell YAML file (docs/formats.md §7)."""
     from ..files import read_text
     from ..model.robot_model import parse_yaml
 

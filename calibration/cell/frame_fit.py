@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 
 @dataclass(frozen=True)
@@ -46,7 +47,7 @@ class Line:
     n: int
 
 
-def _points(points, k: int, what: str) -> np.ndarray:
+def _points(points: npt.ArrayLike, k: int, what: str) -> np.ndarray:
     P = np.asarray(points, float)
     if P.ndim != 2 or P.shape[1] != 3:
         raise ValueError(f"{what}: points must have shape (n, 3), got {P.shape}")
@@ -57,7 +58,7 @@ def _points(points, k: int, what: str) -> np.ndarray:
     return P
 
 
-def fit_plane(points) -> tuple[np.ndarray, np.ndarray]:
+def fit_plane(points: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares plane: (centroid (3,), unit normal (3,)) of points (n, 3)."""
     P = _points(points, 3, "plane fit")
     c = P.mean(axis=0)
@@ -67,7 +68,7 @@ def fit_plane(points) -> tuple[np.ndarray, np.ndarray]:
     return c, vt[2]
 
 
-def fit_line(points) -> Line:
+def fit_line(points: npt.ArrayLike) -> Line:
     """Least-squares 3-D line through points (n, 3) (total least squares, SVD).
 
     The direction is oriented from the first point towards the last.
@@ -83,7 +84,7 @@ def fit_line(points) -> Line:
     return Line(c, d, float(np.sqrt(np.mean(dist**2))), float(dist.max()), len(P))
 
 
-def fit_circle(points, iterations: int = 20) -> Circle:
+def fit_circle(points: npt.ArrayLike, iterations: int = 20) -> Circle:
     """Geometric least-squares circle through points (n, 3).
 
     A plane fit, an algebraic (Kåsa) circle fit in that plane as the start, then
@@ -157,7 +158,8 @@ class FrameFit:
         }
 
 
-def measurement_frame(circle_points, line_points, origin_height_mm: float = 0.0) -> FrameFit:
+def measurement_frame(circle_points: npt.ArrayLike, line_points: npt.ArrayLike,
+                      origin_height_mm: float = 0.0) -> FrameFit:
     """The base frame from the joint-1 circle and the x-line (see the module docstring).
 
     Parameters
@@ -185,7 +187,7 @@ def measurement_frame(circle_points, line_points, origin_height_mm: float = 0.0)
     return FrameFit(T, circle, line, float(origin_height_mm), ortho)
 
 
-def axis_angle_deg(a, b) -> float:
+def axis_angle_deg(a: npt.ArrayLike, b: npt.ArrayLike) -> float:
     """Angle between two vectors, degrees (robust for tiny angles)."""
     a, b = np.asarray(a, float), np.asarray(b, float)
     return float(np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b)), a @ b)))

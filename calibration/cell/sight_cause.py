@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model.kinematics import tool_points
+from ..model.robot_model import RobotModel
 from .cell import CellSpec
 from .visibility import assess, draw_facing, link_capsules, segment_distance
 
@@ -32,7 +33,7 @@ class Hiding:
     n: int
 
 
-def smr_inside_link(model, clearance_mm: float = 0.0, q: np.ndarray | None = None
+def smr_inside_link(model: RobotModel, clearance_mm: float = 0.0, q: np.ndarray | None = None
                     ) -> tuple[int, float] | None:
     """The link (1-based) of the last row whose capsule, grown by ``clearance_mm``, holds the
     SMR centre (the model's tool point), and that capsule's radius (mm); None when the SMR is
@@ -51,7 +52,7 @@ def smr_inside_link(model, clearance_mm: float = 0.0, q: np.ndarray | None = Non
     return int(caps.link[k]), float(caps.radius[k])
 
 
-def what_hides(model, cell: CellSpec, rng: np.random.Generator, *, n: int = 256,
+def what_hides(model: RobotModel, cell: CellSpec, rng: np.random.Generator, *, n: int = 256,
                floor_z_mm: float | None = 0.0, max_reach_mm: float | None = None) -> Hiding:
     """The single constraint that hides the most of ``n`` poses drawn facing the tracker
     straight on (:func:`calibration.cell.visibility.draw_facing`, within the workspace), with the

@@ -28,12 +28,15 @@ Lengths mm, angles rad inside (degrees only in :class:`Sight`'s reports).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..model.inverse import ChainFK, solve_ik, wrap_to_pi
 from ..model.kinematics import run_chain
-from .cell import Box, CellSpec, Cylinder
+from ..model.robot_model import RobotModel
+from .cell import Box, CellSpec, Cylinder, Fixture
 
 _EPS = 1e-12
 
@@ -58,7 +61,7 @@ class Capsules:
     link: np.ndarray
 
 
-def _row_segments(model) -> list[tuple[int, int]]:
+def _row_segments(model: RobotModel) -> list[tuple[int, int]]:
     """The (row, part) segments that make the capsules; part 0 is the row's first
     elementary translation (dh: d, mdh: a), part 1 the second. A zero-length part is kept
     only when its whole row is zero-length (a sphere at the joint)."""
@@ -71,7 +74,7 @@ def _row_segments(model) -> list[tuple[int, int]]:
     return out
 
 
-def link_capsules(model, q: np.ndarray) -> Capsules:
+def link_capsules(model: RobotModel, q: np.ndarray) -> Capsules:
     """The capsules of ``model``'s links at joints ``q`` (rad, (n, N)).
 
     Row i's segments run from frame i's origin along its first translation (dh: d along
@@ -123,7 +126,8 @@ def segment_distance(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray,
 
 
 # --------------------------------------------------------------- fixtures
-def _interval(lo, hi, s_lo, s_hi):
+def _interval(lo: np.ndarray, hi: np.ndarray, s_lo: np.ndarray,
+              s_hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.maximum(lo, s_lo), np.minimum(hi, s_hi)
 
 
@@ -203,11 +207,11 @@ class Sight:
 
     @property
     def links_ok(self) -> np.ndarray:
-        return (self.clearance_mm >= self.clearance_min_mm).all(axis=1)
+        return np.asarray((self.clearance_mm >= self.clearance_min_mm).all(axis=1))
 
     @property
     def fixtures_ok(self) -> np.ndarray:
-        return ~self.fixture_hit.any(axis=1)
+        return np.asarray(~self.fixture_hit.any(axis=1))
 
     @property
     def visible(self) -> np.ndarray:
@@ -238,21 +242,22 @@ class Sight:
         return "; ".join(out)
 
 
-def smr_pose(model, q: np.ndarray, axis_flange) -> tuple[np.ndarray, np.ndarray]:
+def smr_pose(model: RobotModel, q: np.ndarray,
+             axis_flange: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """SMR centre (n, 3) mm and its opening direction (n, 3) unit, base frame."""
     r = run_chain(model.convention, model.dh_table(), np.atleast_2d(q), model.tool_mm(),
                   jacobian=False, prismatic=model.prismatic_mask())
     return r.base_p_tcp, _unit(r.base_R_flange @ np.asarray(axis_flange, float))
 
 
-def facing_angle(p_smr: np.ndarray, axis: np.ndarray, tracker_mm) -> np.ndarray:
+def facing_angle(p_smr: np.ndarray, axis: np.ndarray, tracker_mm: npt.ArrayLike) -> np.ndarray:
     """Angle (rad, (n,)) between each SMR axis and the direction from the SMR to the tracker."""
     to = _unit(np.asarray(tracker_mm, float) - p_smr)
     return np.arccos(np.clip(_dot(_unit(axis), to), -1.0, 1.0))
 
 
-def assess(model, q: np.ndarray, cell: CellSpec, *, margins: bool = True,
-           smr_p: np.ndarray | None = None, smr_axis=None) -> Sight:
+def assess(model: RobotModel, q: np.ndarray, cell: CellSpec, *, margins: bool = True,
+           smr_p: np.ndarray | None = None, smr_axis: npt.ArrayLike | None = None) -> Sight:
     """Whether the tracker at ``cell.tracker`` sees the SMR at joints ``q`` (rad, (n, N)).
 
     ``margins``: keep the cell's margins (a plan's prediction) or none (the physics).
@@ -271,21 +276,30 @@ def assess(model, q: np.ndarray, cell: CellSpec, *, margins: bool = True,
     tr = np.broadcast_to(T, p.shape)
     clear = (segment_distance(p[:, None], tr[:, None], caps.a, caps.b) - caps.radius)
     grow = cell.margins.clearance_mm if margins else 0.0
-    hits = [box_blocks(p, tr, f.box, grow) if f.box is not None
-            else cylinder_blocks(p, tr, f.cylinder, grow) for f in cell.fixtures]
+    hits = [_fixture_blocks(f, p, tr, grow) for f in cell.fixtures]
     fix = np.stack(hits, axis=1) if hits else np.zeros((len(q), 0), bool)
     limit = cell.smr.half_angle_deg - (cell.margins.facing_deg if margins else 0.0)
     return Sight(facing, clear, caps.link, fix, [f.name for f in cell.fixtures], limit, grow)
 
 
+def _fixture_blocks(f: Fixture, p0: np.ndarray, p1: np.ndarray, grow_mm: float) -> np.ndarray:
+    """Whether each segment p0-p1 passes through the fixture ``f`` (its box or cylinder)."""
+    if f.box is not None:
+        return box_blocks(p0, p1, f.box, grow_mm)
+    assert f.cylinder is not None  # a fixture has exactly one shape (Fixture checks it)
+    return cylinder_blocks(p0, p1, f.cylinder, grow_mm)
+
+
 # ------------------------------------------------------- facing the tracker
-def facing_rotations(direction: np.ndarray, roll: np.ndarray, axis_flange) -> np.ndarray:
+def facing_rotations(direction: np.ndarray, roll: np.ndarray,
+                     axis_flange: npt.ArrayLike) -> np.ndarray:
     """Flange orientations (n, 3, 3) that turn the SMR axis (flange frame, (3,)) onto each
     unit ``direction`` (n, 3), turned by ``roll`` (n,) rad about it."""
     a = _unit(np.asarray(axis_flange, float))
     d = _unit(np.atleast_2d(direction))
 
-    def frame(z, hint):  # columns x, y, z with z given and x as near the hint as may be
+    # columns x, y, z with z given and x as near the hint as may be
+    def frame(z: np.ndarray, hint: np.ndarray) -> np.ndarray:
         alt = np.where(np.abs(_dot(hint, z))[..., None] > 0.9, np.roll(hint, 1, axis=-1), hint)
         x = _unit(alt - _dot(alt, z)[..., None] * z)
         return np.stack([x, np.cross(z, x), z], axis=-1)
@@ -314,8 +328,8 @@ def sample_cone(centre: np.ndarray, half_angle_rad: float, rng: np.random.Genera
                                                    + np.sin(phi)[:, None] * e2))
 
 
-def solve_facing(model, p_smr: np.ndarray, direction: np.ndarray, roll: np.ndarray,
-                 seeds: np.ndarray, axis_flange) -> tuple[np.ndarray, np.ndarray]:
+def solve_facing(model: RobotModel, p_smr: np.ndarray, direction: np.ndarray, roll: np.ndarray,
+                 seeds: np.ndarray, axis_flange: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Joints (n, N) that put the SMR at ``p_smr`` (n, 3) with its axis along ``direction``
     (n, 3) and ``roll`` (n,), from the starts ``seeds`` (n, N); and (n,) bool success.
 
@@ -331,7 +345,7 @@ def solve_facing(model, p_smr: np.ndarray, direction: np.ndarray, roll: np.ndarr
     return q, res.success
 
 
-def workspace_ok(model, q: np.ndarray, *, floor_z_mm: float | None = 0.0,
+def workspace_ok(model: RobotModel, q: np.ndarray, *, floor_z_mm: float | None = 0.0,
                  max_reach_mm: float | None = None) -> np.ndarray:
     """(n,) bool: every link origin after the first joint and the tool point at
     ``z >= floor_z_mm``, the tool point within ``max_reach_mm`` of the base origin."""
@@ -345,7 +359,8 @@ def workspace_ok(model, q: np.ndarray, *, floor_z_mm: float | None = 0.0,
     return ok
 
 
-def draw_facing(model, cell: CellSpec, m: int, rng: np.random.Generator, *, cone_rad: float,
+def draw_facing(model: RobotModel, cell: CellSpec, m: int, rng: np.random.Generator, *,
+                cone_rad: float,
                 floor_z_mm: float | None = 0.0, max_reach_mm: float | None = None,
                 max_abs_deg: float = 180.0) -> np.ndarray:
     """Joint poses (rad, (k, N), k <= m) drawn to face the tracker, before the line of sight
@@ -353,7 +368,7 @@ def draw_facing(model, cell: CellSpec, m: int, rng: np.random.Generator, *, cone
     orients its tool (6+ joints) each turned by pose IK so that the SMR axis lies in the
     cone of ``cone_rad`` about the direction to the tracker (a uniform roll about it)."""
     lim = np.clip(model.limits_rad(), -np.radians(max_abs_deg), np.radians(max_abs_deg))
-    kw = {"floor_z_mm": floor_z_mm, "max_reach_mm": max_reach_mm}
+    kw: dict[str, Any] = {"floor_z_mm": floor_z_mm, "max_reach_mm": max_reach_mm}
     axis = cell.smr.axis_unit()
     q = rng.uniform(lim[:, 0], lim[:, 1], size=(m, model.n_joints))
     q = q[workspace_ok(model, q, **kw)]
@@ -365,7 +380,7 @@ def draw_facing(model, cell: CellSpec, m: int, rng: np.random.Generator, *, cone
     return q[workspace_ok(model, q, **kw)] if len(q) else q
 
 
-def sample_visible(model, cell: CellSpec, n: int, rng: np.random.Generator, *,
+def sample_visible(model: RobotModel, cell: CellSpec, n: int, rng: np.random.Generator, *,
                    floor_z_mm: float | None = 0.0, max_reach_mm: float | None = None,
                    max_abs_deg: float = 180.0, rounds: int = 40) -> np.ndarray:
     """Up to ``n`` joint poses (rad, (m, N), m <= n) that the tracker sees, with margins.

@@ -22,13 +22,16 @@ Lengths mm, angles rad.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..data.dataset import Dataset
 from ..fit.error_model import ErrorModel
 from ..model.inverse import ChainFK, IKResult, solve_ik, solve_ik_multistart
-from ..model.kinematics import run_chain
+from ..model.kinematics import ChainResult, run_chain
+from ..model.robot_model import RobotModel
 
 
 class CalibratedFK:
@@ -53,14 +56,15 @@ class CalibratedFK:
     #: :func:`~calibration.model.inverse.solve_ik` passes the target rows it evaluates
     takes_rows = True
 
-    def __init__(self, error_model: ErrorModel, x: np.ndarray, columns: dict | None = None,
-                 tool: np.ndarray | None = None):
+    def __init__(self, error_model: ErrorModel, x: np.ndarray,
+                 columns: dict[str, Any] | None = None,
+                 tool: np.ndarray | None = None) -> None:
         self.em = error_model
         self.x = np.asarray(x, float)
         self.columns = columns or {}
         self.tool = None if tool is None else np.asarray(tool, float)
 
-    def chain(self, q: np.ndarray, rows: np.ndarray | None = None):
+    def chain(self, q: np.ndarray, rows: np.ndarray | None = None) -> ChainResult:
         """The :class:`~calibration.model.kinematics.ChainResult` of the calibrated robot."""
         em = self.em
         q = np.atleast_2d(np.asarray(q, float))
@@ -78,7 +82,8 @@ class CalibratedFK:
                          c.length_scale, jacobian=False,
                          prismatic=em.model.prismatic_mask())
 
-    def __call__(self, q: np.ndarray, rows: np.ndarray | None = None):
+    def __call__(self, q: np.ndarray, rows: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         r = self.chain(q, rows)
         return r.base_p_tcp, r.base_R_flange, r.dP_dq, r.dR_dq
 
@@ -120,7 +125,7 @@ class Compensation:
     reason: str
 
 
-def nominal_solution(model, target: np.ndarray, q_start: np.ndarray | None = None, *,
+def nominal_solution(model: RobotModel, target: np.ndarray, q_start: np.ndarray | None = None, *,
                      limits: np.ndarray | None = None, n_seeds: int = 24) -> IKResult:
     """Nominal joints for target points: minimum-norm position IK on the nominal model.
 
@@ -248,21 +253,15 @@ class Targets:
     lines: list[int] | None = None
 
 
-def load_targets(path, model) -> Targets:
+def load_targets(path: str | Path, model: RobotModel) -> Targets:
     """Read a targets CSV: ``x, y, z`` (mm, robot base frame) required; optional
     ``pose_id``, ``q1..qN`` (deg, nominal/seed joints, all or none), ``dir1..dirN`` (the
     direction each joint will approach the target from, -1/0/+1, all or none: for a model
     with backlash), ``temp_c``, ``payload_kg``, and the thermal state a target will be
     reached at: ``joint_temp1..N`` (°C, all or none) and ``t_s`` (s, the measurement
     CSV's clock). Strict like the measurement CSV: errors name file, line and column."""
-    from ..data.dataset import (
-        MAX_LENGTH_MM,
-        OPTIONAL_RANGES,
-        PLAUSIBLE_LENGTH,
-        CsvTable,
-        DataError,
-        _joint_temperatures,
-    )
+    from ..data.columns import CsvContext, column
+    from ..data.dataset import MAX_LENGTH_MM, PLAUSIBLE_LENGTH, CsvTable
 
     t = CsvTable(path)
     N = model.n_joints
@@ -273,21 +272,9 @@ def load_targets(path, model) -> Targets:
         t.within(c, xyz[:, k], -MAX_LENGTH_MM, MAX_LENGTH_MM, PLAUSIBLE_LENGTH)
     q = np.radians(t.joints_deg(model)) if has_q else None
     pose_id = t.ids("pose_id")
-    columns = {c: t.numeric(c) for c in ("temp_c", "payload_kg") if c in t}
-    for c, v in columns.items():
-        lo, hi, what = OPTIONAL_RANGES[c]
-        t.within(c, v, lo, hi, what)
-    dir_cols = [f"dir{j + 1}" for j in range(N)]
-    if t.all_or_none(dir_cols, "direction columns"):
-        dirs = np.column_stack([t.numeric(c) for c in dir_cols])
-        if not np.isin(dirs, (-1.0, 0.0, 1.0)).all():
-            r, j = map(int, np.argwhere(~np.isin(dirs, (-1.0, 0.0, 1.0)))[0])
-            raise DataError(f"{t.source}: line {t.lines[r]}, column dir{j + 1}: "
-                            f"{dirs[r, j]:g} is not -1, 0 or +1")
-        columns["dirs"] = dirs.astype(int)
-    joint_temp = _joint_temperatures(t, N)
-    if joint_temp is not None:
-        columns["joint_temp"] = joint_temp
-    if "t_s" in t:
-        columns["t_s"] = t.numeric("t_s")
+    ctx = CsvContext(N, model)
+    columns: dict[str, Any] = {}
+    for name in ("temp_c", "payload_kg", "dirs", "joint_temp", "t_s"):  # the table's readers
+        columns.update(column(name).read_csv(t, ctx, columns))
+    columns = {k: v for k, v in columns.items() if v is not None}
     return Targets(xyz, q, pose_id, columns, [int(v) for v in t.lines])

@@ -26,13 +26,15 @@ model with backlash sees the motion the program makes. Lengths mm, angles rad, p
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ..effects.physical import derive_directions
 from ..fit.error_model import ErrorModel
 from ..model.inverse import IKResult, rotation_error, solve_ik, solve_ik_multistart
-from ..model.kinematics import run_chain
+from ..model.kinematics import ChainResult, run_chain
+from ..model.robot_model import RobotModel
 from .compensation import CalibratedFK
 
 
@@ -47,18 +49,19 @@ class NominalTcpFK:
 
     takes_rows = True
 
-    def __init__(self, model, tool: np.ndarray):
+    def __init__(self, model: RobotModel, tool: np.ndarray) -> None:
         self.model = model
         self.table = model.dh_table()
         self.tool = np.asarray(tool, float)
         self.prismatic = model.prismatic_mask()
 
-    def chain(self, q: np.ndarray, rows: np.ndarray | None = None):
+    def chain(self, q: np.ndarray, rows: np.ndarray | None = None) -> ChainResult:
         tool = self.tool if self.tool.ndim == 1 or rows is None else self.tool[rows]
         return run_chain(self.model.convention, self.table, np.atleast_2d(q), tool,
                          jacobian=False, prismatic=self.prismatic)
 
-    def __call__(self, q: np.ndarray, rows: np.ndarray | None = None):
+    def __call__(self, q: np.ndarray, rows: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         r = self.chain(q, rows)
         return r.base_p_tcp, r.base_R_flange, r.dP_dq, r.dR_dq
 
@@ -143,7 +146,8 @@ def _per_target(flange_T_tcp: np.ndarray | None, n: int) -> np.ndarray:
     return np.broadcast_to(T, (n, 4, 4)).copy()
 
 
-def nominal_pose_ik(model, target: np.ndarray, seeds: np.ndarray, flange_T_tcp: np.ndarray,
+def nominal_pose_ik(model: RobotModel, target: np.ndarray, seeds: np.ndarray,
+                    flange_T_tcp: np.ndarray,
                     *, n_seeds: int = 24) -> IKResult:
     """The nominal controller's joints for TCP poses: pose IK from ``seeds`` ((n, N)); a
     target not reached from its seed is tried from ``n_seeds`` fixed starts over the joint
@@ -241,7 +245,7 @@ def compensate_targets(
 
 
 def compensate_joint_targets(error_model: ErrorModel, x: np.ndarray, q: np.ndarray,
-                             flange_T_tcp: np.ndarray | None = None, **options
+                             flange_T_tcp: np.ndarray | None = None, **options: Any
                              ) -> PoseCompensation:
     """:func:`compensate_targets` for joint targets only: ``q`` (n, N) rad."""
     return compensate_targets(error_model, x, q, flange_T_tcp=flange_T_tcp, **options)
@@ -249,7 +253,7 @@ def compensate_joint_targets(error_model: ErrorModel, x: np.ndarray, q: np.ndarr
 
 def compensate_pose_targets(error_model: ErrorModel, x: np.ndarray, base_T_tcp: np.ndarray,
                             seeds: np.ndarray, flange_T_tcp: np.ndarray | None = None,
-                            **options) -> PoseCompensation:
+                            **options: Any) -> PoseCompensation:
     """:func:`compensate_targets` for pose targets only: ``base_T_tcp`` (n, 4, 4), each
     solved near its seed (``seeds`` (N,) or (n, N) rad)."""
     T = np.asarray(base_T_tcp, float).reshape(-1, 4, 4)

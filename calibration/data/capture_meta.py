@@ -26,10 +26,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import DataError
+
+if TYPE_CHECKING:
+    from ..model.robot_model import RobotModel
 
 #: the header keys this module reads (others are kept in ``Dataset.meta`` untouched)
 KEYS = ("run", "store", "model", "tool_mm", "smr_radius_mm", "reflector", "frame_run",
@@ -100,7 +104,7 @@ class CaptureMeta:
     def from_meta(cls, meta: dict[str, str], source: str = "<data>") -> CaptureMeta:
         """Parse the ``# key: value`` metadata of a file (:class:`DataError` when bad)."""
 
-        def get(key):
+        def get(key: str) -> str | None:
             v = meta.get(key)
             return v if v not in (None, "") else None
 
@@ -168,7 +172,7 @@ class CaptureMeta:
         """True when the file said anything about its capture."""
         return any(getattr(self, k) is not None for k in KEYS)
 
-    def with_tool(self, model):
+    def with_tool(self, model: RobotModel) -> RobotModel:
         """``model`` with the capture's tool (the controller's TCP) as its nominal tool;
         ``model`` itself when the capture did not record one."""
         if self.tool_mm is None:

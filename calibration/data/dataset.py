@@ -11,8 +11,10 @@ from __future__ import annotations
 import csv
 import io
 import math
-from dataclasses import dataclass, field, replace
+from collections.abc import Sequence
+from dataclasses import Field, dataclass, field, fields, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -20,7 +22,29 @@ from ..errors import DataError
 from ..files import TextLines, write_atomic
 from ..model.robot_model import RobotModel
 from .capture_meta import CaptureMeta
-from .orientation_columns import QUAT_COLUMNS, read_orientation_columns
+from .columns import (
+    COLUMNS,
+    CSV_READ,
+    MAX_LENGTH_MM,
+    OPTIONAL_RANGES,
+    PLAUSIBLE_LENGTH,
+    CsvContext,
+)
+
+__all__ = ["MAX_LENGTH_MM", "OPTIONAL_RANGES", "PLAUSIBLE_LENGTH", "CsvTable", "DataError",
+           "Dataset", "load_csv", "read_meta"]
+
+#: a field of one value per point (``subset``/``concat`` select and join them); each is a
+#: quantity of the column table (:mod:`calibration.data.columns`)
+PER_POINT = {"per_point": True}
+#: a per-point field whose None means "False on every row" (``is_drift``)
+PER_POINT_FALSE = {"per_point": True, "absent": False}
+
+
+def _per_point(metadata: dict[str, Any] = PER_POINT) -> Any:
+    """A per-point field, None by default (typed as its field says: ``is_valid`` and
+    ``lines`` are arrays once a Dataset is made, see ``__post_init__``)."""
+    return field(default=None, metadata=metadata)
 
 
 @dataclass
@@ -53,28 +77,28 @@ class Dataset:
     lines : (n,) file line number of each row (0 when not from a file)
     """
 
-    q: np.ndarray
-    tracker_p_smr: np.ndarray
-    pose_id: list[str] = field(default_factory=list)
-    cmd: np.ndarray | None = None
-    temp_c: np.ndarray | None = None
-    t_s: np.ndarray | None = None
-    payload_kg: np.ndarray | None = None
-    sigma_mm: np.ndarray | None = None
-    pressure_hpa: np.ndarray | None = None
-    humidity_pct: np.ndarray | None = None
-    reflector: np.ndarray | None = None
-    face: np.ndarray | None = None
-    dirs: np.ndarray | None = None
-    is_valid: np.ndarray | None = None
-    joint_temp: np.ndarray | None = None
-    is_drift: np.ndarray | None = None
-    quat: np.ndarray | None = None
-    sigma_deg: np.ndarray | None = None
-    tool_id: np.ndarray | None = None
+    q: np.ndarray = field(metadata=PER_POINT)
+    tracker_p_smr: np.ndarray = field(metadata=PER_POINT)
+    pose_id: list[str] = field(default_factory=list, metadata=PER_POINT)
+    cmd: np.ndarray | None = _per_point()
+    temp_c: np.ndarray | None = _per_point()
+    t_s: np.ndarray | None = _per_point()
+    payload_kg: np.ndarray | None = _per_point()
+    sigma_mm: np.ndarray | None = _per_point()
+    pressure_hpa: np.ndarray | None = _per_point()
+    humidity_pct: np.ndarray | None = _per_point()
+    reflector: np.ndarray | None = _per_point()
+    face: np.ndarray | None = _per_point()
+    dirs: np.ndarray | None = _per_point()
+    is_valid: np.ndarray = _per_point()  # None: no validation row
+    joint_temp: np.ndarray | None = _per_point()
+    is_drift: np.ndarray | None = _per_point(PER_POINT_FALSE)
+    quat: np.ndarray | None = _per_point()
+    sigma_deg: np.ndarray | None = _per_point()
+    tool_id: np.ndarray | None = _per_point()
     meta: dict[str, str] = field(default_factory=dict)
     source: str = "<arrays>"
-    lines: np.ndarray | None = None
+    lines: np.ndarray = _per_point()  # None: not read from a file (zeros)
 
     def __post_init__(self) -> None:
         self.q = np.atleast_2d(np.asarray(self.q, float))
@@ -119,36 +143,21 @@ class Dataset:
     def n_joints(self) -> int:
         return self.q.shape[1]
 
-    def subset(self, mask_or_index) -> Dataset:
+    @classmethod
+    def per_point_fields(cls) -> list[str]:
+        """The fields holding one value per point (see :data:`PER_POINT`)."""
+        return [f.name for f in fields(cls) if f.metadata.get("per_point")]
+
+    def subset(self, mask_or_index: np.ndarray | Sequence[int] | Sequence[bool]) -> Dataset:
         """Rows selected by a boolean mask or an index array (order kept)."""
         idx = np.arange(self.n)[mask_or_index]
 
-        def pick(a):
-            return None if a is None else a[idx]
+        def pick(a: Any) -> Any:  # a per-point field's value: an array, a list or None
+            if a is None:
+                return None
+            return a[idx] if isinstance(a, np.ndarray) else [a[i] for i in idx.tolist()]
 
-        return replace(
-            self,
-            q=self.q[idx],
-            tracker_p_smr=self.tracker_p_smr[idx],
-            pose_id=[self.pose_id[i] for i in idx.tolist()],
-            cmd=pick(self.cmd),
-            temp_c=pick(self.temp_c),
-            t_s=pick(self.t_s),
-            payload_kg=pick(self.payload_kg),
-            sigma_mm=pick(self.sigma_mm),
-            pressure_hpa=pick(self.pressure_hpa),
-            humidity_pct=pick(self.humidity_pct),
-            reflector=pick(self.reflector),
-            face=pick(self.face),
-            dirs=pick(self.dirs),
-            is_valid=pick(self.is_valid),
-            joint_temp=pick(self.joint_temp),
-            is_drift=pick(self.is_drift),
-            quat=pick(self.quat),
-            sigma_deg=pick(self.sigma_deg),
-            tool_id=pick(self.tool_id),
-            lines=pick(self.lines),
-        )
+        return replace(self, **{f: pick(getattr(self, f)) for f in self.per_point_fields()})
 
     def drift_rows(self) -> np.ndarray:
         """(n,) bool: the drift checks (``set=drift``), all False when there are none."""
@@ -199,70 +208,33 @@ class Dataset:
     def concat(self, other: Dataset) -> Dataset:
         """This data set followed by ``other`` (columns missing in either become None)."""
 
-        def cat(a, b):
-            return None if a is None or b is None else np.concatenate([a, b])
+        def cat(f: Field[Any], a: Any, b: Any) -> Any:  # as pick in subset
+            if a is None and b is None:
+                return None
+            if a is None or b is None:
+                if "absent" not in f.metadata:
+                    return None
+                a = np.full(self.n, f.metadata["absent"]) if a is None else a
+                b = np.full(other.n, f.metadata["absent"]) if b is None else b
+            if isinstance(a, np.ndarray):
+                return np.concatenate([a, b])
+            return [*a, *b]
 
-        return Dataset(
-            q=np.vstack([self.q, other.q]),
-            tracker_p_smr=np.vstack([self.tracker_p_smr, other.tracker_p_smr]),
-            pose_id=self.pose_id + other.pose_id,
-            cmd=cat(self.cmd, other.cmd),
-            temp_c=cat(self.temp_c, other.temp_c),
-            t_s=cat(self.t_s, other.t_s),
-            payload_kg=cat(self.payload_kg, other.payload_kg),
-            sigma_mm=cat(self.sigma_mm, other.sigma_mm),
-            pressure_hpa=cat(self.pressure_hpa, other.pressure_hpa),
-            humidity_pct=cat(self.humidity_pct, other.humidity_pct),
-            reflector=cat(self.reflector, other.reflector),
-            face=cat(self.face, other.face),
-            dirs=cat(self.dirs, other.dirs),
-            is_valid=np.concatenate([self.is_valid, other.is_valid]),
-            joint_temp=cat(self.joint_temp, other.joint_temp),
-            is_drift=(None if self.is_drift is None and other.is_drift is None else
-                      np.concatenate([self.drift_rows(), other.drift_rows()])),
-            quat=cat(self.quat, other.quat),
-            sigma_deg=cat(self.sigma_deg, other.sigma_deg),
-            tool_id=cat(self.tool_id, other.tool_id),
-            meta={**other.meta, **self.meta},
-            source=self.source,
-            lines=np.concatenate([self.lines, other.lines]),
-        )
+        return Dataset(**{f.name: cat(f, getattr(self, f.name), getattr(other, f.name))
+                          for f in fields(self) if f.metadata.get("per_point")},
+                       meta={**other.meta, **self.meta}, source=self.source)
 
     # ---- writing -----------------------------------------------------------
     def to_csv(self, path: str | Path | None = None, extra: dict | None = None) -> str:
         """Write the measurement CSV (deg, mm); returns the text, writes it when a path is
         given. ``extra``: more columns (name -> n values), written last."""
-        N = self.n_joints
-        cols: dict[str, np.ndarray | list] = {"pose_id": self.pose_id}
-        for j in range(N):
-            cols[f"q{j + 1}"] = np.degrees(self.q[:, j])
-        for k, c in enumerate("xyz"):
-            cols[c] = self.tracker_p_smr[:, k]
-        if self.cmd is not None:
-            for k, c in enumerate("xyz"):
-                cols[f"cmd_{c}"] = self.cmd[:, k]
-        for name in ("temp_c", "t_s", "payload_kg", "sigma_mm", *_TRACKER_COLUMNS):
-            if getattr(self, name) is not None:
-                cols[name] = getattr(self, name)
-        if self.dirs is not None:
-            for j in range(N):
-                cols[f"dir{j + 1}"] = self.dirs[:, j].astype(int)
-        if self.joint_temp is not None:
-            for j in range(N):
-                cols[f"joint_temp{j + 1}"] = self.joint_temp[:, j]
-        if self.quat is not None:  # full precision (repr), far beyond 10 decimals
-            for k, c in enumerate(QUAT_COLUMNS):
-                cols[c] = self.quat[:, k]
-        for name in ("sigma_deg", "tool_id"):
-            if getattr(self, name) is not None:
-                cols[name] = getattr(self, name)
-        if self.is_valid.any() or self.is_drift is not None:
-            cols["set"] = np.where(self.is_valid, "valid",
-                                   np.where(self.drift_rows(), "drift", "calib"))
+        cols: dict[str, np.ndarray | list] = {}
+        for c in COLUMNS:  # the table's order (docs/formats.md §1)
+            cols.update(c.write_csv(self))
         cols.update(extra or {})
         buf = io.StringIO()
-        for k, v in self.meta.items():
-            buf.write(f"# {k}: {v}\n")
+        for key, text in self.meta.items():
+            buf.write(f"# {key}: {text}\n")
         w = csv.writer(buf, lineterminator="\n")
         w.writerow(cols.keys())
         w.writerows(zip(*(_column_text(c) for c in cols.values()), strict=True))
@@ -272,7 +244,7 @@ class Dataset:
         return text
 
 
-def _column_text(c) -> list[str]:
+def _column_text(c: Any) -> list[str]:
     """The CSV text of a column's values: floats at full precision (``repr``), integers
     as integers, anything else as ``str``; a numeric array converted at once."""
     kind = getattr(getattr(c, "dtype", None), "kind", "")
@@ -280,7 +252,7 @@ def _column_text(c) -> list[str]:
         return list(map(repr, np.asarray(c, float).tolist()))
     if kind in "iu" and kind:
         return list(map(str, np.asarray(c).tolist()))
-    out = []
+    out: list[str] = []
     for v in c:
         if isinstance(v, (float, np.floating)):
             out.append(repr(float(v)))
@@ -292,21 +264,6 @@ def _column_text(c) -> list[str]:
 
 
 # ---- reading ----------------------------------------------------------------
-_OPTIONAL_FLOAT = ("temp_c", "t_s", "payload_kg", "sigma_mm", "pressure_hpa", "humidity_pct")
-#: the tracker's own columns, written after ``sigma_mm``
-_TRACKER_COLUMNS = ("pressure_hpa", "humidity_pct", "reflector", "face")
-
-#: lengths beyond 1 km are no measurement of a robot cell
-MAX_LENGTH_MM = 1e6
-PLAUSIBLE_LENGTH = "a plausible length (|value| <= 1e6 mm)"
-#: plausible ranges of the optional columns: (low, high, expected form)
-OPTIONAL_RANGES = {
-    "temp_c": (-100.0, 200.0, "a plausible temperature (-100 to 200 °C)"),
-    "payload_kg": (0.0, 10000.0, "a payload mass (0 to 10000 kg)"),
-    "sigma_mm": (0.0, 1000.0, "a plausible tracker uncertainty (0 to 1000 mm)"),
-}
-
-
 #: the largest CSV file read (bytes) and the longest field (characters)
 MAX_CSV_BYTES = 500 << 20
 MAX_FIELD_CHARS = 1000
@@ -341,7 +298,10 @@ def read_meta(path: str | Path) -> dict[str, str]:
     return meta
 
 
-def _read_rows(path: Path, source: str):
+_Rows = tuple[dict[str, str], list[str], int, list[tuple[int, list[str]]]]
+
+
+def _read_rows(path: Path, source: str) -> _Rows:
     """Metadata, header, its line number and the data rows as (line_no, fields); the file
     is read a block at a time (:class:`calibration.files.TextLines`), never held whole."""
     lines = TextLines(path, DataError, "CSV file", MAX_CSV_BYTES)
@@ -352,12 +312,12 @@ def _read_rows(path: Path, source: str):
         raise
 
 
-def _parse_rows(lines, source: str):
+def _parse_rows(lines: TextLines, source: str) -> _Rows:
     meta: dict[str, str] = {}
     meta_line: dict[str, int] = {}
     header = None
     header_line = 0
-    rows = []
+    rows: list[tuple[int, list[str]]] = []
     in_preamble = True
     plain = csv.field_size_limit()  # below it, a line without quotes is split on commas
     for line_no, line in lines:
@@ -394,7 +354,7 @@ def _parse_rows(lines, source: str):
         rows.append((line_no, [f.strip() for f in fields]))
     if header is None:
         raise DataError(f"{source}: empty: no header row (comma-separated values with a "
-                        "header, FORMATS.md §1)")
+                        "header, docs/formats.md §1)")
     return meta, header, header_line, rows
 
 
@@ -406,10 +366,10 @@ def _check_separator(header: list[str], source: str, line_no: int) -> None:
         if sep in header[0]:
             raise DataError(f"{source}: line {line_no}: the fields are separated by {name}; "
                             "cellcal reads comma-separated values with '.' as the decimal "
-                            "point (FORMATS.md §1)")
+                            "point (docs/formats.md §1)")
 
 
-def _float(source, line_no, col, text) -> float:
+def _float(source: str, line_no: int, col: str, text: str) -> float:
     try:
         v = float(text)
     except ValueError:
@@ -557,90 +517,13 @@ def load_csv(path: str | Path, model: RobotModel | int, *, check_limits: bool = 
                                 "neither 'accepted' nor 'rejected'")
         t.keep(np.array([v != "rejected" for v in values]))
     N = model if isinstance(model, int) else model.n_joints
-    t.require([f"q{j + 1}" for j in range(N)] + ["x", "y", "z"],
-              f"the model has {N} joints: q1..q{N}, and x, y, z are required")
-    q = t.joints_deg(model, check_limits)
-    xyz = np.column_stack([t.numeric(c) for c in "xyz"])
-    for k, c in enumerate("xyz"):
-        t.within(c, xyz[:, k], -MAX_LENGTH_MM, MAX_LENGTH_MM, PLAUSIBLE_LENGTH)
-    pose_id = t.ids("pose_id")
-    cmd_cols = ["cmd_x", "cmd_y", "cmd_z"]
-    if any(c in t for c in cmd_cols) and not all(c in t for c in cmd_cols):
-        raise t.error("cmd_x, cmd_y, cmd_z must come together")
-    cmd = np.column_stack([t.numeric(c) for c in cmd_cols]) if "cmd_x" in t else None
-    if cmd is not None:
-        for k, c in enumerate(cmd_cols):
-            t.within(c, cmd[:, k], -MAX_LENGTH_MM, MAX_LENGTH_MM, PLAUSIBLE_LENGTH)
-    opt = {name: t.numeric(name) if name in t else None for name in _OPTIONAL_FLOAT}
-    for name, bad, rule in (("sigma_mm", lambda v: v <= 0, "must be positive"),
-                            ("pressure_hpa", lambda v: v <= 0, "must be positive"),
-                            ("humidity_pct", lambda v: (v < 0) | (v > 100),
-                             "must be within 0..100")):
-        if opt[name] is not None and bad(opt[name]).any():
-            r = int(np.argmax(bad(opt[name])))
-            raise DataError(f"{source}: line {t.lines[r]}, column {name}: {rule}")
-    reflector = face = None
-    if "reflector" in t:
-        reflector = np.array(t.text("reflector"), dtype=object)
-        if (reflector == "").any():
-            r = int(np.argmax(reflector == ""))
-            raise DataError(f"{source}: line {t.lines[r]}, column reflector: empty value")
-    if "face" in t:
-        face = t.numeric("face")
-        if (~np.isin(face, (1.0, 2.0))).any():
-            r = int(np.argmax(~np.isin(face, (1.0, 2.0))))
-            raise DataError(f"{source}: line {t.lines[r]}, column face: {face[r]:g} is neither "
-                            "1 nor 2")
-        face = face.astype(int)
-    for name, (lo, hi, what) in OPTIONAL_RANGES.items():
-        if opt[name] is not None:
-            t.within(name, opt[name], lo, hi, what)
-
-    dirs = None
-    dir_cols = [f"dir{j + 1}" for j in range(N)]
-    if t.all_or_none(dir_cols, "direction columns"):
-        dirs = np.column_stack([t.numeric(c) for c in dir_cols])
-        bad = ~np.isin(dirs, (-1.0, 0.0, 1.0))
-        if bad.any():
-            r, j = map(int, np.argwhere(bad)[0])
-            raise DataError(
-                f"{source}: line {t.lines[r]}, column dir{j + 1}: {dirs[r, j]:g} is not -1, 0 "
-                "or +1"
-            )
-        dirs = dirs.astype(int)
-
-    joint_temp = _joint_temperatures(t, N)
-    orientation = read_orientation_columns(t)
-
-    is_valid, is_drift = np.zeros(len(t), bool), np.zeros(len(t), bool)
-    if "set" in t:
-        for r, v in enumerate(t.text("set")):
-            if v not in ("calib", "valid", "drift", ""):
-                raise DataError(f"{source}: line {t.lines[r]}, column set: {v!r} is not "
-                                "'calib', 'valid' or 'drift'")
-            is_valid[r], is_drift[r] = v == "valid", v == "drift"
-
+    required = [name for c in COLUMNS if c.required for name in c.csv_names(N)]
+    t.require(required, f"the model has {N} joints: q1..q{N}, and x, y, z are required")
+    ctx = CsvContext(N, None if isinstance(model, int) else model, check_limits)
+    got: dict = {}
+    for c in CSV_READ:  # the required columns first, then the table's order
+        got.update(c.read_csv(t, ctx, got))
     meta = t.meta
     CaptureMeta.from_meta(meta, source)  # refuses malformed capture metadata now
+    return Dataset(**got, meta=meta, source=source, lines=t.lines)
 
-    return Dataset(q=np.radians(q), tracker_p_smr=xyz, pose_id=pose_id, cmd=cmd, dirs=dirs,
-                   is_valid=is_valid, is_drift=is_drift, meta=meta, source=source, lines=t.lines,
-                   reflector=reflector, face=face, joint_temp=joint_temp,
-                   quat=orientation.quat, sigma_deg=orientation.sigma_deg,
-                   tool_id=orientation.tool_id, **opt)
-
-
-def _joint_temperatures(t: CsvTable, n_joints: int) -> np.ndarray | None:
-    """``joint_temp1..N`` (°C, all or none), shape (n, N); refuses a part, a column beyond
-    the model's joints and an implausible temperature."""
-    extra = [h for h in t.header if h.startswith("joint_temp") and h[10:].isdigit()
-             and not 1 <= int(h[10:]) <= n_joints]
-    if extra:
-        raise t.error(f"column(s) {', '.join(extra)} but the model has {n_joints} joints")
-    cols = [f"joint_temp{j + 1}" for j in range(n_joints)]
-    if not t.all_or_none(cols, "joint temperatures"):
-        return None
-    lo, hi, what = OPTIONAL_RANGES["temp_c"]
-    for c in cols:
-        t.within(c, t.numeric(c), lo, hi, what)
-    return np.column_stack([t.numeric(c) for c in cols])

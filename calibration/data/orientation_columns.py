@@ -24,10 +24,14 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import DataError
+
+if TYPE_CHECKING:
+    from .dataset import CsvTable
 
 #: the quaternion columns, scalar first
 QUAT_COLUMNS = ("qw", "qx", "qy", "qz")
@@ -55,11 +59,11 @@ class OrientationColumns:
     tool_id: np.ndarray | None = None
 
 
-def _line_error(table, r: int, column: str, message: str) -> DataError:
+def _line_error(table: CsvTable, r: int, column: str, message: str) -> DataError:
     return DataError(f"{table.source}: line {table.lines[r]}, column {column}: {message}")
 
 
-def read_quaternions(table) -> np.ndarray | None:
+def read_quaternions(table: CsvTable) -> np.ndarray | None:
     """The ``qw, qx, qy, qz`` columns as (n, 4) unit quaternions, or None when absent.
 
     Refuses a part of the four, an empty or non-numeric value, and a quaternion whose
@@ -79,7 +83,7 @@ def read_quaternions(table) -> np.ndarray | None:
     return q / norm[:, None]
 
 
-def read_sigma_deg(table, has_quat: bool) -> np.ndarray | None:
+def read_sigma_deg(table: CsvTable, has_quat: bool) -> np.ndarray | None:
     """The ``sigma_deg`` column (positive, finite, at most :data:`MAX_SIGMA_DEG`), or None.
 
     Refused without the quaternion columns: an uncertainty of orientations that are not
@@ -100,7 +104,7 @@ def read_sigma_deg(table, has_quat: bool) -> np.ndarray | None:
     return s
 
 
-def read_tool_ids(table) -> np.ndarray | None:
+def read_tool_ids(table: CsvTable) -> np.ndarray | None:
     """The ``tool_id`` column as an object array of str, or None when absent.
 
     Every row names its target with a short token (:data:`TOOL_ID`): an empty value or
@@ -118,7 +122,7 @@ def read_tool_ids(table) -> np.ndarray | None:
     return np.array(ids, dtype=object)
 
 
-def read_orientation_columns(table) -> OrientationColumns:
+def read_orientation_columns(table: CsvTable) -> OrientationColumns:
     """Every orientation column of ``table`` (see :class:`OrientationColumns`)."""
     quat = read_quaternions(table)
     return OrientationColumns(quat, read_sigma_deg(table, quat is not None),

@@ -15,7 +15,15 @@ Every step (see :func:`auto_diagnose`):
 3. **Accept** the refit with the lowest held-out error (validation rows when there are at
    least :data:`~calibration.diagnosis.diagnosis.MIN_HELDOUT`, else k-fold cross-validation of the
    linearised fit on the calibration rows) only if it lowers the held-out mean squared
-   error by more than its standard error (paired over the held-out poses); else stop.
+   error by more than its standard error (paired over the held-out poses), and does not
+   raise the **range-blocked** error by more than its standard error; else stop.
+
+Random folds and validation rows drawn from the same workspace sit inside the calibrated
+ranges: they cannot see what a model does beyond them. The range-blocked folds
+(:func:`~calibration.diagnosis.screening.blocked_errors`) leave out the tenth of the
+poses at either end of each joint's range, refit without them (every table constant
+beyond the knots the rest support, as it would be fitted) and predict them: an effect
+that helps inside but hurts just beyond the data is not added. Both figures are shown.
 
 It also stops when no candidate is significant (saying whether the residual sits at the
 instrument's noise floor, by a chi-square test when the tracker's uncertainty is known), after
@@ -29,16 +37,26 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any, cast
 
 import numpy as np
 
 from ..data.dataset import Dataset
 from ..effects import Effect, EffectError, parse_effect
 from ..effects.physical import derive_directions
-from ..effects.table import gcv_smoothing
+from ..effects.table import Table, gcv_smoothing
 from ..fit.identify import Fit, identify
+from ..model.robot_model import RobotModel
 from .diagnosis import ALPHA, MIN_HELDOUT, candidate_names
-from .screening import Screened, kfold_errors, linearise, screen
+from .screening import (
+    Linearised,
+    Screened,
+    blocked_errors,
+    kfold_with,
+    linear_problem,
+    linearise,
+    screen,
+)
 
 
 @dataclass
@@ -50,10 +68,19 @@ class Heldout:
     sq: np.ndarray
     method: str
     ids: np.ndarray | None = None
+    #: the range-blocked folds' squared errors (mm²) and their labels (pose and fold), or
+    #: None when not computed
+    blocked: Heldout | None = None
 
     @property
     def rms_mm(self) -> float:
         return float(np.sqrt(self.sq.mean()))
+
+    @property
+    def blocked_rms_mm(self) -> float | None:
+        """RMS of the range-blocked folds (mm), None without them."""
+        b = self.blocked
+        return None if b is None or not b.sq.size else b.rms_mm
 
 
 @dataclass
@@ -65,10 +92,18 @@ class Tried:
     heldout: Heldout
     gain: float
     gain_se: float
+    #: the same over the range-blocked folds
+    blocked_gain: float = 0.0
+    blocked_gain_se: float = 0.0
 
     @property
     def effect(self) -> str:
         return self.screened.label
+
+    @property
+    def hurts_beyond(self) -> bool:
+        """It raises the range-blocked error by more than its standard error."""
+        return self.blocked_gain + self.blocked_gain_se < 0
 
 
 @dataclass
@@ -81,6 +116,8 @@ class AutoStep:
     heldout_rms_mm: float
     seconds: float
     explanation: str
+    #: the range-blocked folds' RMS after this step (mm), None without them
+    blocked_rms_mm: float | None = None
     #: held-out mean-squared-error drop (mm²) and its standard error
     gain: float = 0.0
     gain_se: float = 0.0
@@ -94,6 +131,7 @@ class AutoStep:
     def to_json(self) -> dict:
         return {"effect": self.effect, "n_params": self.n_params,
                 "calib_rms_mm": self.calib_rms_mm, "heldout_rms_mm": self.heldout_rms_mm,
+                "range_blocked_rms_mm": self.blocked_rms_mm,
                 "seconds": self.seconds, "explanation": self.explanation}
 
 
@@ -112,13 +150,15 @@ class AutoDiagnosis:
     #: a step that was tried last and rejected: (effect, held-out RMS mm) per candidate
     rejected: list[tuple[str, float]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    #: the start model's range-blocked RMS (mm), None without range-blocked folds
+    start_blocked_rms_mm: float | None = None
 
     @property
     def effects(self) -> list[str]:
         return list(self.fit.error_model.labels)
 
     def to_json(self, params_file: str | None = None) -> dict:
-        """The ``diagnose --auto --json`` object (FORMATS.md §4)."""
+        """The ``diagnose --auto --json`` object (docs/formats.md §4)."""
         return {
             "model": self.start.error_model.model.name,
             "start_effects": list(self.start.error_model.labels),
@@ -146,9 +186,11 @@ class AutoDiagnosis:
 _PER_TURN = {1: "once", 2: "twice"}
 
 
-def explain_effect(effect: Effect | str, model=None) -> str:
+def explain_effect(effect: Effect | str, model: RobotModel | None = None) -> str:
     """One line of physics for an effect: what it is and where it typically comes from."""
     if isinstance(effect, str):
+        if model is None:
+            raise ValueError(f"explain_effect({effect!r}): an effect's name needs its model")
         effect = parse_effect(effect, model)
     j, fam = effect.joint, effect.family
     if fam == "harmonic":
@@ -162,9 +204,10 @@ def explain_effect(effect: Effect | str, model=None) -> str:
         return (f"a {k}-per-turn periodic error of joint {j} — typical of a strain-wave "
                 "gear's tooth meshing or a cyclic error of the motor-side encoder")
     if fam == "table":
-        lo, hi = effect.knots_deg[0], effect.knots_deg[-1]
+        table = cast(Table, effect)
+        lo, hi = table.knots_deg[0], table.knots_deg[-1]
         return (f"an irregular error of joint {j} that follows its angle (knots every "
-                f"{effect.spacing_deg:g}° from {lo:g}° to {hi:g}°) — local gear or "
+                f"{table.spacing_deg:g}° from {lo:g}° to {hi:g}°) — local gear or "
                 "encoder defects no formula captures")
     texts = {
         "compliance": f"joint {j} yields in proportion to the gravity torque on it — the "
@@ -187,14 +230,33 @@ def explain_effect(effect: Effect | str, model=None) -> str:
 
 
 # ---- held-out error ---------------------------------------------------------------------
-def heldout_errors(fit: Fit, folds: int = 10, seed: int = 0) -> Heldout:
+def heldout_errors(fit: Fit, folds: int = 10, seed: int = 0, blocked: bool = True
+                   ) -> Heldout:
     """Per pose squared error on held-out poses: the validation rows when there are at
-    least :data:`MIN_HELDOUT`, else ``folds``-fold cross-validation of the linearised fit."""
-    if fit.valid is not None and fit.valid["n"] >= MIN_HELDOUT:
-        return Heldout(np.sum(fit.valid_residuals**2, axis=1), "validation poses",
-                       np.asarray(fit.valid_data.pose_id, dtype=object))
-    return Heldout(kfold_errors(fit, folds, seed), f"{folds}-fold cross-validation",
-                   np.asarray(fit.data.pose_id, dtype=object))
+    least :data:`MIN_HELDOUT`, else ``folds``-fold cross-validation of the linearised fit;
+    with ``blocked`` also the range-blocked folds'
+    (:func:`~calibration.diagnosis.screening.blocked_errors`)."""
+    lp = None
+    if (fit.valid is not None and fit.valid["n"] >= MIN_HELDOUT
+            and fit.valid_residuals is not None and fit.valid_data is not None):
+        ho = Heldout(np.sum(fit.valid_residuals**2, axis=1), "validation poses",
+                     np.asarray(fit.valid_data.pose_id, dtype=object))
+    else:
+        lp = linear_problem(fit)
+        ho = Heldout(kfold_with(lp, folds, seed), f"{folds}-fold cross-validation",
+                     np.asarray(fit.data.pose_id, dtype=object))
+    if blocked:
+        sq, labels = blocked_errors(fit, lp=lp)
+        if sq.size:
+            ho.blocked = Heldout(sq, "range-blocked folds", labels)
+    return ho
+
+
+def blocked_gain(before: Heldout, after: Heldout) -> tuple[float, float]:
+    """:func:`paired_gain` over the range-blocked folds; (0, 0) without them."""
+    if before.blocked is None or after.blocked is None:
+        return 0.0, 0.0
+    return paired_gain(before.blocked, after.blocked)
 
 
 def paired_gain(before: Heldout, after: Heldout) -> tuple[float, float]:
@@ -256,11 +318,12 @@ def _parsimonious(tried: list[Tried]) -> Tried:
     return min(equivalent, key=lambda t: (t.screened.edf, t.heldout.sq.mean()))
 
 
-def _retune_tables(fit: Fit, ho: Heldout, data: Dataset, folds: int, seed: int):
+def _retune_tables(fit: Fit, ho: Heldout, data: Dataset, folds: int,
+                   seed: int) -> tuple[Fit, Heldout]:
     """Re-choose the tables' smoothing by GCV at the new fit (what a table should smooth
     changes as other effects take their share) and refit; kept when the held-out error
     does not grow."""
-    tables = [e for e in fit.error_model.effects if hasattr(e, "penalty_matrix")]
+    tables: list[Any] = [e for e in fit.error_model.effects if hasattr(e, "penalty_matrix")]
     before = [e.smoothing for e in tables]
     if not gcv_smoothing(fit, tables):
         return fit, ho
@@ -286,7 +349,8 @@ def _significant(s: Screened, n_screened: int, alpha: float) -> bool:
     return s.edf >= 0.5 and s.log10_p + math.log10(max(n_screened, 1)) < math.log10(alpha)
 
 
-def at_noise_floor(lin, sigma: float | None, alpha: float = ALPHA) -> tuple[bool, float | None]:
+def at_noise_floor(lin: Linearised, sigma: float | None,
+                   alpha: float = ALPHA) -> tuple[bool, float | None]:
     """(at the floor, p-value): the residual is consistent with the instrument's noise."""
     import scipy.special  # here: scipy's import is half of `cellcal calibrate`'s start-up
 
@@ -331,7 +395,9 @@ def auto_diagnose(
         return _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress)
 
 
-def _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress):
+def _auto(fit: Fit, data: Dataset | None, max_steps: int, budget_s: float | None, confirm: int,
+          folds: int, alpha: float, seed: int,
+          progress: Callable[[AutoStep], None] | None) -> AutoDiagnosis:
     t0 = time.perf_counter()
     if data is None:
         data = fit.data if fit.valid_data is None else fit.data.concat(fit.valid_data)
@@ -396,18 +462,29 @@ def _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress)
             x0 = np.concatenate([cur.values, np.zeros(s.effect.n_params)])
             refit = identify(ext, data, cur.solver, x0=x0)
             ho = heldout_errors(refit, folds, seed)
-            tried.append(Tried(s, refit, ho, *paired_gain(cur_ho, ho)))
+            tried.append(Tried(s, refit, ho, *paired_gain(cur_ho, ho),
+                               *blocked_gain(cur_ho, ho)))
             refit_s.append(time.perf_counter() - tr)
-        ok = [t for t in tried if t.gain > t.gain_se and t.gain > 0]
+        helps = [t for t in tried if t.gain > t.gain_se and t.gain > 0]
+        ok = [t for t in helps if not t.hurts_beyond]
+        for t in helps:
+            if t.hurts_beyond:
+                notes.append(
+                    f"{t.effect} lowers the held-out error ({cur_ho.rms_mm:.4f} -> "
+                    f"{t.heldout.rms_mm:.4f} mm) but raises it beyond the data's range "
+                    f"(range-blocked folds {cur_ho.blocked_rms_mm:.4f} -> "
+                    f"{t.heldout.blocked_rms_mm:.4f} mm): not added")
         best = _parsimonious(ok) if ok else None
         if best is None:
             rejected = [(t.effect, t.heldout.rms_mm) for t in tried]
             reason = ("no candidate lowers the held-out error by more than its standard "
-                      "error")
+                      "error" + (" without raising it beyond the data's range "
+                                 "(range-blocked folds)" if helps else ""))
             break
         step = AutoStep(
             effect=best.effect, n_params=best.screened.n_params,
             calib_rms_mm=best.fit.calib["rms_mm"], heldout_rms_mm=best.heldout.rms_mm,
+            blocked_rms_mm=best.heldout.blocked_rms_mm,
             seconds=time.perf_counter() - ts, explanation=explain_effect(best.screened.effect),
             gain=best.gain, gain_se=best.gain_se,
             tried=[(t.effect, t.heldout.rms_mm) for t in tried], screen_s=screen_s,
@@ -415,9 +492,11 @@ def _auto(fit, data, max_steps, budget_s, confirm, folds, alpha, seed, progress)
         )
         cur, cur_ho = _retune_tables(best.fit, best.heldout, data, folds, seed)
         step.calib_rms_mm, step.heldout_rms_mm = cur.calib["rms_mm"], cur_ho.rms_mm
+        step.blocked_rms_mm = cur_ho.blocked_rms_mm
         step.seconds, step.fit = time.perf_counter() - ts, cur
         steps.append(step)
         if progress is not None:
             progress(step)
     return AutoDiagnosis(start, cur, start_ho.rms_mm, start_ho.method, steps, reason, floor,
-                         time.perf_counter() - t0, rejected, notes)
+                         time.perf_counter() - t0, rejected, notes,
+                         start_blocked_rms_mm=start_ho.blocked_rms_mm)

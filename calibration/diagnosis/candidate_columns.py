@@ -4,12 +4,12 @@ effect's from the fit's predictions, others by evaluating the extended model."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from ..data.dataset import Dataset
-from ..effects import Effect
+from ..effects import Effect, JointEffect
 from ..effects.physical import Harmonic
 from ..fit.error_model import Bound, ErrorModel
 
@@ -24,9 +24,11 @@ def effect_columns(effect: Effect, data: Dataset, bound: Bound, G: np.ndarray, e
     last to act, takes its columns from them instead of a new pass along the chain)."""
     if effect.stage == "joint":
         partials = joint_partials(effect, data, bound)
-        return G[:, :, effect.joint - 1, None] * partials[:, None, :]
+        joint = cast(JointEffect, effect).joint
+        return G[:, :, joint - 1, None] * partials[:, None, :]
     if effect.stage == "measure" and P is not None:
-        return effect.measure(np.zeros(effect.n_params), P)[2]
+        measure: Any = effect  # a measure-stage effect: it has ``measure``
+        return measure.measure(np.zeros(effect.n_params), P)[2]
     # other stages: evaluate the extended model once
     ext = ErrorModel(em.model, em.effects + [effect])
     xe = np.concatenate([x, np.zeros(effect.n_params)])
@@ -34,15 +36,18 @@ def effect_columns(effect: Effect, data: Dataset, bound: Bound, G: np.ndarray, e
     return J[:, :, em.n_params :]
 
 
-def harmonic_columns(lin: Linearised, effects: list[Harmonic]) -> dict:
+def harmonic_columns(lin: Linearised, effects: list[Harmonic]
+                     ) -> dict[int, tuple[np.ndarray, np.ndarray | None]]:
     """The columns of many harmonic candidates at once, ``{id(effect): (C, Cv)}``: per
     joint, the sines and cosines of every order in one call each (what
     :func:`effect_columns` gives one effect at a time: ``Harmonic.bind``'s ``K θ``)."""
-    out: dict[int, tuple] = {}
+    out: dict[int, tuple[np.ndarray, np.ndarray | None]] = {}
     by_joint: dict[int, list[Harmonic]] = {}
     for e in effects:
         by_joint.setdefault(e.joint, []).append(e)
-    sets = [(lin.calib, lin.G)] + ([] if lin.valid is None else [(lin.valid, lin.Gv)])
+    sets = [(lin.calib, lin.G)]
+    if lin.valid is not None and lin.Gv is not None:
+        sets.append((lin.valid, lin.Gv))
     for j, group in by_joint.items():
         orders = np.array([float(e.order) for e in group])
         cols = []
@@ -58,4 +63,12 @@ def harmonic_columns(lin: Linearised, effects: list[Harmonic]) -> dict:
 def joint_partials(effect: Effect, data: Dataset, bound: Bound) -> np.ndarray:
     """d(joint correction)/d(parameters) of a joint effect on ``data``, (n, k)."""
     state = effect.bind(data, bound.nominal)
-    return effect.delta(np.zeros(effect.n_params), data, state)[1]
+    return cast(JointEffect, effect).delta(np.zeros(effect.n_params), data, state)[1]
+
+
+def valid_columns(effect: Effect, lin: Linearised, em: ErrorModel, x: np.ndarray,
+                  P: np.ndarray | None = None) -> np.ndarray | None:
+    """:func:`effect_columns` on the validation poses of ``lin``, None without them."""
+    if lin.valid is None or lin.bound_v is None or lin.Gv is None:
+        return None
+    return effect_columns(effect, lin.valid, lin.bound_v, lin.Gv, em, x, P)

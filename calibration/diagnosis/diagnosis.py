@@ -35,13 +35,14 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
 from ..data.dataset import Dataset
 from ..effects import Effect, EffectError, parse_effect
 from ..effects.physical import derive_directions
-from ..fit.error_model import ErrorModel
+from ..fit.error_model import Bound, ErrorModel
 from ..fit.identify import Fit, identify, screen_for_diagnosis
 from ..fit.outliers import BlunderScreen, concentration, concentration_of
 from ..model.gravity import gravity_torques, has_mass_model
@@ -302,7 +303,7 @@ def diagnose(
         data = replace(data, dirs=derive_directions(data.q),
                        meta={**data.meta, "dirs_derived": "consecutive rows in capture order"})
     fit = screen_for_diagnosis(fit)
-    if fit.outliers.excluded:
+    if fit.outliers is not None and fit.outliers.excluded:  # set by the screening
         data = data.subset(~np.isin(data.pose_id, fit.outliers.ids))
     em = fit.error_model
     calib = data.calib() if data.is_valid.any() else data
@@ -364,16 +365,17 @@ def diagnose(
         ))
 
     # one harmonic per joint in the table: the best order (the periodogram keeps them all)
-    periodogram: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    seen: dict[int, tuple[list[int | None], list[float]]] = {}
     best_harmonic: dict[int, Candidate] = {}
     for c in cands:
-        if c.family == "harmonic":
-            orders, frac = periodogram.get(c.joint, ([], []))
-            periodogram[c.joint] = ([*orders, c.order], [*frac, c.explained_fraction])
+        if c.family == "harmonic" and c.joint is not None:  # a harmonic has its joint
+            orders, frac = seen.get(c.joint, ([], []))
+            seen[c.joint] = ([*orders, c.order], [*frac, c.explained_fraction])
             if c.joint not in best_harmonic or c.score > best_harmonic[c.joint].score:
                 best_harmonic[c.joint] = c
-    periodogram = {j: (np.array(o), np.array(f)) for j, (o, f) in periodogram.items()}
-    cands = [c for c in cands if c.family != "harmonic" or best_harmonic.get(c.joint) is c]
+    periodogram = {j: (np.array(o), np.array(f)) for j, (o, f) in seen.items()}
+    cands = [c for c in cands if c.family != "harmonic"
+             or (c.joint is not None and best_harmonic.get(c.joint) is c)]
     # a table only when no single harmonic does the job (parsimony): the p-value ranks
     cands.sort(key=lambda c: (not c.significant, -c.score))
     screen_s = time.perf_counter() - t0
@@ -414,8 +416,9 @@ _KEPT_SHARE = 1e-6
 _GRAM_RCOND = 1e-4
 
 
-def _screen(effects: list[Effect], calib: Dataset, bound, G: np.ndarray, em: ErrorModel,
-            x: np.ndarray, Q: np.ndarray, r: np.ndarray, notes: list[str]) -> list[tuple]:
+def _screen(effects: list[Effect], calib: Dataset, bound: Bound, G: np.ndarray,
+            em: ErrorModel, x: np.ndarray, Q: np.ndarray, r: np.ndarray, notes: list[str]
+            ) -> list[tuple]:
     """Every candidate's (effect, columns kept, explained sum of squares, note): its
     columns projected out of the span of Q (the current model's), the residual ``r``
     projected on what is left.
@@ -428,12 +431,13 @@ def _screen(effects: list[Effect], calib: Dataset, bound, G: np.ndarray, em: Err
     Q3 = Q.reshape(n, 3, m)
     Rq = np.einsum("nim,ni->nm", Q3, r.reshape(n, 3))  # Q_iᵀ r_i
     Qtr = Rq.sum(axis=0)
-    per_joint: dict[int, tuple] = {}
+    per_joint: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     out: list[tuple] = []
     for eff in effects:
         try:
             if eff.stage == "joint" and eff.family != "table":
                 partials = joint_partials(eff, calib, bound)
+                assert eff.joint is not None  # a joint effect
                 j = eff.joint - 1
                 if j not in per_joint:
                     g = G[:, :, j]
@@ -454,7 +458,8 @@ def _screen(effects: list[Effect], calib: Dataset, bound, G: np.ndarray, em: Err
 
 
 def _explained_joint(eff: Effect, Pj: np.ndarray, U: np.ndarray, gg: np.ndarray,
-                     gr: np.ndarray, Rq: np.ndarray, Qtr: np.ndarray, n: int):
+                     gr: np.ndarray, Rq: np.ndarray, Qtr: np.ndarray, n: int
+                     ) -> tuple | None:
     """:func:`_explained` of a joint effect with partials ``Pj`` (n, k) from per-pose
     products (see :func:`_screen`); None when they cannot decide it to rounding (a column
     almost absorbed, or nearly dependent ones): then its columns are formed."""
@@ -489,7 +494,7 @@ def _explained(eff: Effect, C: np.ndarray, Q: np.ndarray, r: np.ndarray, n: int)
     (3n, k): projected out of the span of ``Q``, the residual on what is left."""
     Cp = C - Q @ (Q.T @ C)
     norms = np.linalg.norm(Cp, axis=0)
-    keep = norms > 1e-9 * max(np.linalg.norm(C), 1e-300)
+    keep = norms > 1e-9 * max(float(np.linalg.norm(C)), 1e-300)
     if not keep.any():
         return eff, 0, 0.0, "no effect beyond what the model already absorbs"
     Cp = Cp[:, keep] / norms[keep]
@@ -507,7 +512,8 @@ def _confirm(c: Candidate, fit: Fit, data: Dataset, folds: int, seed: int,
     """Refit with the candidate; judge it on held-out poses."""
     em = fit.error_model
     ext = em.with_effects(c.effect)
-    for e in ext.effects:
+    effects: list[Any] = ext.effects  # tables have a ``smoothing``
+    for e in effects:
         if getattr(e, "smoothing", 0.0) is None:
             e.smoothing = 1.0  # screening only: the final fit chooses it by cross-validation
     refit = identify(ext, data, fit.solver)
@@ -527,17 +533,17 @@ def _confirm(c: Candidate, fit: Fit, data: Dataset, folds: int, seed: int,
                     sq[i] += before[f]
                     continue
                 ft = identify(model, train, fit.solver)
-                e = float(np.sum((test.tracker_p_smr - ft.predict(test)) ** 2))
-                sq[i] += e
+                err = float(np.sum((test.tracker_p_smr - ft.predict(test)) ** 2))
+                sq[i] += err
                 if i == 0:
-                    before[f] = e
+                    before[f] = err
         c.heldout_before_mm, c.heldout_after_mm = np.sqrt(sq / calib.n)
     # a real effect lowers the held-out error by more than estimation noise does
     c.confirmed = bool(c.heldout_after_mm < c.heldout_before_mm * 0.995)
 
 
 def where_it_fails(fit: Fit, calib: Dataset, G: np.ndarray, resid: np.ndarray,
-                   periodogram) -> WhereItFails:
+                   periodogram: dict[int, tuple[np.ndarray, np.ndarray]]) -> WhereItFails:
     """Per-pose errors, worst poses, and the residual seen from every joint."""
     err = np.linalg.norm(resid, axis=1)
     worst_idx = np.argsort(-err)[:5]

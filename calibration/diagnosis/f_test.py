@@ -4,11 +4,14 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 
-def log10_f_sf(d_rss, rss1, k, dof):
+def log10_f_sf(d_rss: npt.ArrayLike, rss1: npt.ArrayLike, k: npt.ArrayLike,
+               dof: npt.ArrayLike) -> Any:
     """log10 of the F-test's p-value (explained ``d_rss`` with ``k`` degrees of freedom
     against the remaining ``rss1`` with ``dof``), with an asymptotic tail where scipy
     underflows; scalars or arrays."""

@@ -41,7 +41,7 @@ class CalibrationSummary:
     def of(cls, params: dict) -> CalibrationSummary:
         stats = params.get("stats") or {}
 
-        def rms(part):
+        def rms(part: str) -> float | None:
             v = (stats.get(part) or {}).get("rms_mm")
             return None if v is None else float(v)
 

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -230,7 +231,7 @@ def evaluate_candidates(lin: Linearised, C: np.ndarray, Cv: np.ndarray | None,
     out["loo_gain"] = gain.mean(axis=0)
     out["loo_gain_se"] = gain.std(axis=0, ddof=1) / math.sqrt(n) if n > 1 else np.zeros(M)
     out["loo_rms"] = np.sqrt(loo.mean(axis=0))
-    if Cv is not None:
+    if Cv is not None and lin.rv is not None and lin.Wv is not None:  # validation rows
         nv = Cv.shape[0]
         Cvf = Cv.reshape(3 * nv, M, k)
         WtCc = np.einsum("jak,ak->ja", WtC.reshape(-1, M, k), c)  # Wᵀ C c, (m, M)
@@ -240,7 +241,8 @@ def evaluate_candidates(lin: Linearised, C: np.ndarray, Cv: np.ndarray | None,
     return out
 
 
-def as_screened(lin: Linearised, eff: Effect, res: dict, note: str = "", **extra) -> Screened:
+def as_screened(lin: Linearised, eff: Effect, res: dict[str, Any], note: str = "",
+                **extra: Any) -> Screened:
     rss1 = max(float(res["rss"]), 1e-300)
     d_rss = max(lin.rss0 - rss1, 0.0)
     k_eff = float(res["edf"])

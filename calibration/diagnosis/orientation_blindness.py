@@ -25,6 +25,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..fit.error_model import ErrorModel
+from ..fit.identify import Fit
+
 #: the prior's standard deviation, in units of each parameter's typical scale
 PRIOR_FACTOR = 3.0
 #: families without a prior: absolute values, not errors
@@ -73,7 +76,7 @@ class Blindness:
                 "blind": self.blind, "advice": ADVICE}
 
 
-def orientation_blindness(fit, sigma_deg: float | None = None) -> Blindness | None:
+def orientation_blindness(fit: Fit, sigma_deg: float | None = None) -> Blindness | None:
     """How much tool orientation the position-only ``fit`` leaves undetermined (see the
     module docstring); None for a full-pose fit or a model without a chain to turn."""
     if fit.orientation_fitted:
@@ -113,7 +116,7 @@ def orientation_blindness(fit, sigma_deg: float | None = None) -> Blindness | No
                      hidden > WARN_FACTOR * sigma_deg)
 
 
-def _prior_precision(em) -> np.ndarray:
+def _prior_precision(em: ErrorModel) -> np.ndarray:
     """(p,) the prior's precision per parameter: zero for absolute ones."""
     out = np.zeros(em.n_params)
     for e, sl in zip(em.effects, em.slices, strict=True):

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..fit.identify import Fit
 from ..model.kinematics import run_chain
 
 
@@ -57,7 +58,7 @@ class OrientationView:
                 "joints": self.ranked_joints()}
 
 
-def orientation_view(fit) -> OrientationView | None:
+def orientation_view(fit: Fit) -> OrientationView | None:
     """``fit``'s orientation residuals seen per flange axis and per joint; None when its
     data have no orientations."""
     r = fit.orientation_residuals
@@ -65,6 +66,7 @@ def orientation_view(fit) -> OrientationView | None:
         return None
     em = fit.error_model
     c = em.perturb(fit.values, em.bind(fit.data))
+    assert c.q is not None  # perturbed with bound data: the joints as they really are
     chain = run_chain(em.model.convention, c.table, c.q, c.tool, c.length_scale,
                       jacobian=False, prismatic=em.model.prismatic_mask())
     R_base = np.eye(3) if c.tracker_T_base is None else c.tracker_T_base[0]

@@ -4,10 +4,12 @@ from per-pose products without forming its 3n x k columns."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from ..effects.table import SMOOTHING_GRID, Table, penalised_path
-from .candidate_columns import effect_columns, joint_partials
+from .candidate_columns import joint_partials, valid_columns
 from .linear_screen import Linearised, Screened, as_screened, evaluate_candidates
 
 #: knot spacings (degrees) a table candidate is tried at; GCV picks one per joint
@@ -33,15 +35,16 @@ def data_gap_deg(theta_rad: np.ndarray, trim: float = 1.0) -> float:
     return float(np.diff(mid).max()) if mid.size > 1 else float("inf")
 
 
-def screen_table(lin: Linearised, joint: int, spacings) -> Screened | None:
-    """The best table on ``joint``: knots over the data's angles, spacing (no finer than the
-    data's widest gap, :func:`data_gap_deg`; a finer one only when its GCV is lower by more
-    than :data:`GCV_TIE_RTOL`) and smoothing by GCV on the linearised problem."""
+def screen_table(lin: Linearised, joint: int,
+                 spacings: Sequence[int]) -> Screened | None:
+    """The best table on ``joint``: knots over the calibration rows' angles, only those the
+    rows support (:meth:`Table.supported`: constant beyond; validation rows, which the
+    table is not fitted to, add no knot), spacing (no finer than the data's widest gap,
+    :func:`data_gap_deg`; a finer one only when its GCV is lower by more than
+    :data:`GCV_TIE_RTOL`) and smoothing by GCV on the linearised problem."""
     fit = lin.fit
     em = fit.error_model
     theta = lin.calib.q[:, joint - 1]
-    if lin.valid is not None:
-        theta = np.concatenate([theta, lin.valid.q[:, joint - 1]])
     n = lin.n
     best = None
     curves = {}
@@ -51,7 +54,7 @@ def screen_table(lin: Linearised, joint: int, spacings) -> Screened | None:
     for spacing in usable:
         if np.ptp(np.degrees(theta)) < 2 * spacing:
             continue
-        table = Table.covering(em.model, joint, theta, spacing)
+        table = Table.supported(em.model, joint, theta, spacing)
         B = joint_partials(table, lin.calib, lin.bound)
         if products is None:
             products = _joint_products(lin, joint)
@@ -69,8 +72,9 @@ def screen_table(lin: Linearised, joint: int, spacings) -> Screened | None:
     C = lin.G[:, :, joint - 1, None] * B[:, None, :]  # effect_columns of a joint effect
     table.smoothing = s
     table.cv_curve = curves[int(table.spacing_deg)]
-    Cv = (None if lin.valid is None else
-          effect_columns(table, lin.valid, lin.bound_v, lin.Gv, em, fit.values)[:, :, None])
+    Cv = valid_columns(table, lin, em, fit.values)
+    if Cv is not None:
+        Cv = Cv[:, :, None]
     res = evaluate_candidates(lin, C[:, :, None], Cv, table.penalty_matrix(), s)
     return as_screened(lin, table, {k: v[0] for k, v in res.items()},
                      gcv_by_spacing={sp: min(v for _, v in cv) for sp, cv in curves.items()})

@@ -23,6 +23,7 @@ import inspect
 import re
 import sys
 from pathlib import Path
+from typing import Any
 
 from ..files import check_regular_file
 from ..model.robot_model import RobotModel
@@ -38,7 +39,10 @@ REGISTRY: dict[str, type[Effect]] = {**BUILTIN, **TOOL_FRAME, **PHYSICAL, "table
 
 DEFAULT_EFFECTS = "geometric,base,tool"
 
-_NAME = re.compile(r"^(?P<family>[a-z][a-z_]*?)(?P<order>\d*)(?::(?P<joint>\d+))?$")
+_NAME = re.compile(r"^(?P<family>[a-z][a-z_]*?)(?P<order>\d*)(?::(?P<joint>\d+))?"
+                   r"(?:@(?P<range>[^@]*))?$")
+#: the range of an effect that takes one (``table2:2@-186..-126``): LO..HI, degrees
+_RANGE = re.compile(r"^(?P<lo>[-+]?\d+(?:\.\d+)?)\.\.(?P<hi>[-+]?\d+(?:\.\d+)?)$")
 
 __all__ = [
     "DEFAULT_EFFECTS",
@@ -93,7 +97,8 @@ def effect_source(cls: type[Effect]) -> tuple[str, str] | None:
 
 
 def parse_effect(name: str, model: RobotModel) -> Effect:
-    """One effect from its command-line name (``compliance:3``, ``harmonic12:1``)."""
+    """One effect from its command-line name (``compliance:3``, ``harmonic12:1``, a table
+    with its knots' range ``table2:2@-186..-126``)."""
     m = _NAME.match(name.strip())
     if not m:
         raise EffectError(f"bad effect name {name!r}: expected family or family:J")
@@ -105,7 +110,18 @@ def parse_effect(name: str, model: RobotModel) -> Effect:
         )
     if cls.family == family + order:  # a family whose name ends in digits
         order = ""
-    return cls(model, int(joint) if joint else None, int(order) if order else None)
+    args = (model, int(joint) if joint else None, int(order) if order else None)
+    if m["range"] is None:
+        return cls(*args)
+    if not getattr(cls, "takes_range", False):
+        raise EffectError(f"effect {cls.family!r} takes no range ('@...' in {name!r})")
+    r = _RANGE.match(m["range"])
+    if not r or not float(r["lo"]) < float(r["hi"]):
+        raise EffectError(f"bad range in {name!r}: expected @LO..HI in degrees, LO < HI "
+                          "(e.g. table2:2@-186..-126)")
+    # a family that takes a range (a table) takes these keywords
+    ranged: Any = cls
+    return ranged(*args, range_deg=(float(r["lo"]), float(r["hi"])), explicit_range=True)
 
 
 def parse_effects(spec: str | list[str], model: RobotModel) -> list[Effect]:
@@ -138,6 +154,8 @@ def load_effect_file(path: str | Path) -> list[type[Effect]]:
     digest = hashlib.sha256(source).hexdigest()
     mod_name = f"cellcal_user_effect_{path.stem}"
     spec = importlib.util.spec_from_file_location(mod_name, path)
+    if spec is None or spec.loader is None:  # a name Python does not import (no .py)
+        raise EffectError(f"{path}: not a Python file (.py)")
     module = importlib.util.module_from_spec(spec)
     sys.modules[mod_name] = module
     no_bytecode = sys.dont_write_bytecode

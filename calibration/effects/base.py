@@ -62,8 +62,12 @@ class Effect:
     takes_order: ClassVar[bool] = False
     #: one line of physics for listings
     summary: ClassVar[str] = ""
+    #: a user's effect file's (name, sha256), set by ``load_effect_file`` (absent otherwise)
+    _cellcal_source: ClassVar[tuple[str, str]]
 
-    def __init__(self, model: RobotModel, joint: int | None = None, order: int | None = None):
+    def __init__(
+        self, model: RobotModel, joint: int | None = None, order: int | None = None
+    ) -> None:
         if self.per_joint:
             if joint is None:
                 raise EffectError(f"effect {self.family!r} needs a joint: {self.family}:J")
@@ -144,6 +148,7 @@ class JointEffect(Effect):
 
     stage: ClassVar[str] = "joint"
     per_joint: ClassVar[bool] = True
+    joint: int  # 1-based, always given for a per-joint family
 
     def delta(self, p: np.ndarray, data: Dataset, state: Any) -> tuple[np.ndarray, np.ndarray]:
         """Joint correction for every pose.

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..data.dataset import Dataset
+from ..model.robot_model import RobotModel
 from .base import Effect, EffectError, JointEffect
 
 #: the reference temperature (°C) when the data's metadata name none (``temp_ref_c``)
@@ -56,7 +57,8 @@ class _OneParameter(Effect):
     #: record), which the data's own ``temp_ref_c`` does not override; None: the data's
     temp_ref_c: float | None = None
 
-    def __init__(self, model, joint=None, order=None):
+    def __init__(self, model: RobotModel, joint: int | None = None,
+                 order: int | None = None) -> None:
         super().__init__(model, joint, order)
         name, unit, scale = self.parameter
         self.param_names, self.units, self.scales = [name], [unit], np.array([scale])
@@ -79,10 +81,11 @@ class ThermalGrowth(_OneParameter):
     def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
         return joint_temperature_rise(data, self.family, self.temp_ref_c).mean(axis=1)
 
-    def length_scale(self, p, data, dT):
+    def length_scale(self, p: np.ndarray, data: Dataset, dT: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
         return p[0] * dT, dT[:, None]
 
-    def typical(self, rng):
+    def typical(self, rng: np.random.Generator) -> np.ndarray:
         return np.array([rng.uniform(10e-6, 20e-6)])
 
 
@@ -100,10 +103,11 @@ class ThermalZero(_OneParameter, JointEffect):
     def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
         return joint_temperature_rise(data, self.label, self.temp_ref_c)[:, self.joint - 1]
 
-    def delta(self, p, data, dT):
+    def delta(self, p: np.ndarray, data: Dataset, dT: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
         return p[0] * dT, dT[:, None]
 
-    def typical(self, rng):
+    def typical(self, rng: np.random.Generator) -> np.ndarray:
         return np.array([rng.uniform(2e-6, 6e-6) * rng.choice([-1.0, 1.0])])
 
 
@@ -130,8 +134,10 @@ class _OverTime(Effect):
     #: per order k, parameters ``{component}{k}`` in ``unit``, of typical size ``scale``
     components: tuple[str, ...] = ()
     unit, scale = "", 1.0
+    order: int  # always given (1 when the family is named without one)
 
-    def __init__(self, model, joint=None, order=None):
+    def __init__(self, model: RobotModel, joint: int | None = None,
+                 order: int | None = None) -> None:
         super().__init__(model, joint, order)
         self.order = 1 if order is None else int(order)
         if not 1 <= self.order <= MAX_DRIFT_ORDER:
@@ -188,10 +194,11 @@ class TimeGrowth(_OverTime):
 
     components, unit, scale = ("g",), "1", 1e-4
 
-    def length_scale(self, p, data, basis):
+    def length_scale(self, p: np.ndarray, data: Dataset, basis: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
         return basis @ np.asarray(p, float), basis
 
-    def typical(self, rng):
+    def typical(self, rng: np.random.Generator) -> np.ndarray:
         out = np.zeros(self.n_params)
         out[0] = rng.uniform(1e-4, 3e-4)
         return out
@@ -213,7 +220,8 @@ class BaseDrift(_OverTime):
 
     components, unit, scale = ("x", "y", "z"), "mm", 0.05
 
-    def drift(self, p: np.ndarray, data: Dataset, basis: np.ndarray):
+    def drift(self, p: np.ndarray, data: Dataset,
+              basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The drift of every pose and its partials.
 
         Returns
@@ -228,7 +236,7 @@ class BaseDrift(_OverTime):
             partials[:, c, c::3] = basis
         return delta, partials
 
-    def typical(self, rng):
+    def typical(self, rng: np.random.Generator) -> np.ndarray:
         direction = rng.normal(size=3)
         out = np.zeros(self.n_params)
         out[:3] = direction / np.linalg.norm(direction) * rng.uniform(0.1, 0.3)

@@ -25,7 +25,8 @@ class Geometric(Effect):
     stage = "table"
     summary = "errors of the kinematic parameters (DH/MDH table, Hayati beta)"
 
-    def __init__(self, model: RobotModel, joint=None, order=None):
+    def __init__(self, model: RobotModel, joint: int | None = None,
+                 order: int | None = None) -> None:
         super().__init__(model, joint, order)
         parallel = set(model.parallel_rows())
         self.entries: list[tuple[int, int]] = []  # (row, column)
@@ -64,7 +65,8 @@ class Base(Effect):
     stage = "base"
     summary = "pose of the robot base in the measurement frame"
 
-    def __init__(self, model, joint=None, order=None):
+    def __init__(self, model: RobotModel, joint: int | None = None,
+                 order: int | None = None) -> None:
         super().__init__(model, joint, order)
         self.param_names = ["x", "y", "z", "rx", "ry", "rz"]
         self.units = ["mm"] * 3 + ["rad"] * 3
@@ -108,13 +110,14 @@ class Tool(Effect):
     stage = "tool"
     summary = "target (SMR) position in the flange frame"
 
-    def __init__(self, model, joint=None, order=None):
+    def __init__(self, model: RobotModel, joint: int | None = None,
+                 order: int | None = None) -> None:
         super().__init__(model, joint, order)
         self.param_names = ["x", "y", "z"]
         self.units = ["mm"] * 3
         self.scales = np.ones(3)
 
-    def initial(self, data, nominal, state) -> np.ndarray:
+    def initial(self, data: Dataset, nominal: Any, state: Any) -> np.ndarray:
         return self.model.tool_mm().copy()
 
     def tool_point(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -133,7 +136,7 @@ class NestedTool(Tool):
     The first nest is the tool where one point is asked for (exports, perturbations
     without data). Rows without a ``tool_id`` measured the first nest."""
 
-    def __init__(self, model, nests: list[str]):
+    def __init__(self, model: RobotModel, nests: list[str]) -> None:
         super().__init__(model)
         self.nests = [str(k) for k in nests]
         if not self.nests or len(set(self.nests)) != len(self.nests):
@@ -142,7 +145,7 @@ class NestedTool(Tool):
         self.units = ["mm"] * self.n_params
         self.scales = np.ones(self.n_params)
 
-    def initial(self, data, nominal, state) -> np.ndarray:
+    def initial(self, data: Dataset, nominal: Any, state: Any) -> np.ndarray:
         return np.tile(self.model.tool_mm(), len(self.nests))
 
     def bind(self, data: Dataset, nominal: Any) -> np.ndarray:

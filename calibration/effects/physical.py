@@ -15,6 +15,7 @@ import numpy as np
 
 from ..data.dataset import Dataset
 from ..model.gravity import gravity_torques, has_mass_model
+from ..model.robot_model import RobotModel
 from .base import Effect, EffectError, JointEffect
 
 # typical sizes at the tool of a hidden effect when simulating: 0.05-0.5 mm
@@ -44,7 +45,8 @@ class Compliance(JointEffect):
     family = "compliance"
     summary = "joint deflection proportional to the gravity torque on that joint"
 
-    def __init__(self, model, joint=None, order=None):
+    def __init__(self, model: RobotModel, joint: int | None = None,
+                 order: int | None = None) -> None:
         super().__init__(model, joint, order)
         if not has_mass_model(model):
             raise EffectError(
@@ -58,10 +60,11 @@ class Compliance(JointEffect):
     def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
         return gravity_torques(self.model, nominal, data.payload_kg)[:, self.joint - 1]
 
-    def delta(self, p, data, tau):
+    def delta(self, p: np.ndarray, data: Dataset, tau: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
         return p[0] * tau, tau[:, None]
 
-    def typical(self, rng):
+    def typical(self, rng: np.random.Generator) -> np.ndarray:
         # a joint carrying ~50 N·m, deflected by a realistic angle
         return np.array([abs(_angle_for_tool_error(rng)) / 50.0])
 
@@ -73,9 +76,11 @@ class Harmonic(JointEffect):
 
     family = "harmonic"
     takes_order = True
+    order: int  # 1 when the family is named without one
     summary = "periodic joint error a·sin(Kθ) + b·cos(Kθ) (gears, encoders)"
 
-    def __init__(self, model, joint=None, order=None):
+    def __init__(self, model: RobotModel, joint: int | None = None,
+                 order: int | None = None) -> None:
         super().__init__(model, joint, order)
         self.order = 1 if order is None else int(order)
         if not 1 <= self.order <= 1000:
@@ -84,14 +89,15 @@ class Harmonic(JointEffect):
         self.units = ["rad", "rad"]
         self.scales = np.array([1e-5, 1e-5])
 
-    def bind(self, data, nominal):
+    def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
         k_theta = self.order * data.q[:, self.joint - 1]
         return np.column_stack([np.sin(k_theta), np.cos(k_theta)])
 
-    def delta(self, p, data, basis):
+    def delta(self, p: np.ndarray, data: Dataset, basis: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
         return basis @ p, basis
 
-    def typical(self, rng):
+    def typical(self, rng: np.random.Generator) -> np.ndarray:
         amp = abs(_angle_for_tool_error(rng))
         phase = rng.uniform(0, 2 * np.pi)
         return np.array([amp * np.cos(phase), amp * np.sin(phase)])
@@ -104,19 +110,21 @@ class Scale(JointEffect):
     family = "scale"
     summary = "joint angle scale error (gear ratio)"
 
-    def __init__(self, model, joint=None, order=None):
+    def __init__(self, model: RobotModel, joint: int | None = None,
+                 order: int | None = None) -> None:
         super().__init__(model, joint, order)
         self.param_names = ["s"]
         self.units = ["1"]
         self.scales = np.array([1e-4])
 
-    def bind(self, data, nominal):
+    def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
         return data.q[:, self.joint - 1].copy()
 
-    def delta(self, p, data, theta):
+    def delta(self, p: np.ndarray, data: Dataset, theta: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
         return p[0] * theta, theta[:, None]
 
-    def typical(self, rng):
+    def typical(self, rng: np.random.Generator) -> np.ndarray:
         return np.array([_angle_for_tool_error(rng) / 1.5])
 
 
@@ -129,7 +137,8 @@ class Backlash(JointEffect):
     family = "backlash"
     summary = "constant joint error whose sign follows the approach direction"
 
-    def __init__(self, model, joint=None, order=None):
+    def __init__(self, model: RobotModel, joint: int | None = None,
+                 order: int | None = None) -> None:
         super().__init__(model, joint, order)
         self.param_names = ["b"]
         self.units = ["rad"]
@@ -144,12 +153,12 @@ class Backlash(JointEffect):
             meta={**data.meta, "dirs_derived": "consecutive rows in capture order"},
         )
 
-    def bind(self, data, nominal):
+    def bind(self, data: Dataset, nominal: Any) -> tuple[np.ndarray, bool]:
         derived = data.dirs is None or "dirs_derived" in data.meta
         dirs = derive_directions(data.q) if data.dirs is None else data.dirs
         return dirs[:, self.joint - 1].astype(float), derived
 
-    def describe(self, state) -> list[str]:
+    def describe(self, state: tuple[np.ndarray, bool]) -> list[str]:
         if state[1]:
             return [
                 f"{self.label}: the data have no dir columns; approach directions were "
@@ -157,11 +166,12 @@ class Backlash(JointEffect):
             ]
         return []
 
-    def delta(self, p, data, state):
+    def delta(self, p: np.ndarray, data: Dataset, state: tuple[np.ndarray, bool]
+              ) -> tuple[np.ndarray, np.ndarray]:
         direction = state[0]
         return p[0] * direction, direction[:, None]
 
-    def typical(self, rng):
+    def typical(self, rng: np.random.Generator) -> np.ndarray:
         return np.array([abs(_angle_for_tool_error(rng))])
 
 
@@ -172,7 +182,8 @@ class Coupling(JointEffect):
     family = "coupling"
     summary = "joint error proportional to the previous joint's angle"
 
-    def __init__(self, model, joint=None, order=None):
+    def __init__(self, model: RobotModel, joint: int | None = None,
+                 order: int | None = None) -> None:
         super().__init__(model, joint, order)
         if self.joint < 2:
             raise EffectError("coupling:J needs J >= 2 (it couples joint J to joint J-1)")
@@ -180,13 +191,14 @@ class Coupling(JointEffect):
         self.units = ["1"]
         self.scales = np.array([1e-4])
 
-    def bind(self, data, nominal):
+    def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
         return data.q[:, self.joint - 2].copy()
 
-    def delta(self, p, data, prev):
+    def delta(self, p: np.ndarray, data: Dataset, prev: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
         return p[0] * prev, prev[:, None]
 
-    def typical(self, rng):
+    def typical(self, rng: np.random.Generator) -> np.ndarray:
         return np.array([_angle_for_tool_error(rng) / 1.5])
 
 
@@ -199,22 +211,24 @@ class Thermal(Effect):
     stage = "length"
     summary = "all link lengths grow in proportion to temp_c - reference"
 
-    def __init__(self, model, joint=None, order=None):
+    def __init__(self, model: RobotModel, joint: int | None = None,
+                 order: int | None = None) -> None:
         super().__init__(model, joint, order)
         self.param_names = ["k"]
         self.units = ["1/K"]
         self.scales = np.array([1e-5])
 
-    def bind(self, data, nominal):
+    def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
         if data.temp_c is None:
             raise EffectError(f"{data.source}: effect thermal needs a temp_c column")
         t_ref = float(data.meta.get("temp_ref_c", 20.0))
         return data.temp_c - t_ref
 
-    def length_scale(self, p, data, dT):
+    def length_scale(self, p: np.ndarray, data: Dataset, dT: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
         return p[0] * dT, dT[:, None]
 
-    def typical(self, rng):
+    def typical(self, rng: np.random.Generator) -> np.ndarray:
         return np.array([rng.uniform(10e-6, 25e-6)])
 
 
@@ -228,16 +242,17 @@ class TrackerScale(Effect):
     stage = "measure"
     summary = "length scale error of the measuring instrument"
 
-    def __init__(self, model, joint=None, order=None):
+    def __init__(self, model: RobotModel, joint: int | None = None,
+                 order: int | None = None) -> None:
         super().__init__(model, joint, order)
         self.param_names = ["s"]
         self.units = ["1"]
         self.scales = np.array([1e-5])
 
-    def measure(self, p, P):
+    def measure(self, p: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
         return (1.0 + p[0]) * P, 1.0 + p[0], P[:, :, None].copy()
 
-    def typical(self, rng):
+    def typical(self, rng: np.random.Generator) -> np.ndarray:
         return np.array([rng.choice([-1, 1]) * rng.uniform(2e-5, 8e-5)])
 
 

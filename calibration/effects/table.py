@@ -1,12 +1,22 @@
-"""``table:J`` / ``tableS:J``: a smooth correction table Δθ(θ_J) for joint errors no formula
-captures.
+"""``table:J`` / ``tableS:J`` / ``tableS:J@LO..HI``: a smooth correction table Δθ(θ_J) for
+joint errors no formula captures.
 
 Knots every S degrees (``tableS:J``; ``table:J`` is S = 10), linear between knots (hat
-functions). By name the knots span the joint's range (within ±360°) and those whose
-support holds no data are pinned at zero; :meth:`Table.covering` builds a table whose
-knots span only the angles the data cover (what the automatic diagnosis adds). In
-params.json the knots are the parameter names (``kp010`` is the knot at +10°), so a
-table reads back with exactly its knots (:meth:`Table.with_parameter_names`).
+functions), constant beyond the end knots. ``@LO..HI`` names the first and the last knot
+(multiples of S, deg): ``table2:2@-186..-126``. By name without a range the knots span
+the joint's range (within ±360°) and those whose support holds no data are pinned at zero;
+:meth:`Table.covering` builds a table whose knots span only the angles the data cover.
+
+A fitted table holds only the knots its data support (:meth:`Table.supported_knots`, the
+rule :data:`MIN_KNOT_SHARE`, :data:`MIN_KNOT_POSES`): an end knot whose hat holds less
+than half the weight of the median knot, or fewer than ten poses, is dropped, so the
+table ends at the last knot the data fill and holds that knot's value beyond; the
+smoothing then cannot make an edge knot free (the data determine it like any other).
+The automatic diagnosis adds :meth:`Table.supported` tables, and ``calibrate`` fits every
+table over its supported knots (:func:`calibration.fit.envelope.supported_model`), so a
+table named without a range covers the data it is fitted to. In params.json the knots are
+the parameter names (``kp010`` is the knot at +10°), so a table reads back with exactly
+its knots (:meth:`Table.with_parameter_names`).
 
 A second-difference penalty ties neighbouring knots together; its weight ``smoothing`` is
 chosen by generalised cross-validation (GCV) on the linearised problem
@@ -20,11 +30,14 @@ determined by the penalty (:meth:`Table.null_space`).
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..data.dataset import Dataset
+from ..model.robot_model import RobotModel
 from .base import EffectError, JointEffect
 
 #: penalty rows are in mm: a second difference of 1 rad counts like this many mm
@@ -34,6 +47,13 @@ DEFAULT_SPACING_DEG = 10
 #: smoothing weights GCV chooses among, and the weight of the first fit
 SMOOTHING_GRID = np.logspace(-6, 6, 25)
 START_SMOOTHING = 1.0
+#: an end knot is kept only when its hat holds at least this share of the median knot's
+#: data weight (the sum of its hat function over the poses): half, so the data must fill
+#: the inner half of its hat; a knot the data barely reach is dropped and the table holds
+#: the next knot's value beyond
+MIN_KNOT_SHARE = 0.5
+#: ... and at least this many poses within its hat (a handful decides nothing)
+MIN_KNOT_POSES = 10
 
 _KNOT = re.compile(r"^k([pm])(\d+)$")
 
@@ -51,11 +71,15 @@ class Table(JointEffect):
 
     family = "table"
     takes_order = True
+    #: the name may carry the knots' range: ``table2:2@-186..-126``
+    takes_range = True
     summary = "a smooth correction table Δθ(θ) for one joint"
 
-    def __init__(self, model, joint=None, order=None, smoothing: float | None = None,
-                 range_deg: tuple[float, float] | None = None, knots_deg=None):
+    def __init__(self, model: RobotModel, joint: int | None = None, order: int | None = None,
+                 smoothing: float | None = None, range_deg: tuple[float, float] | None = None,
+                 knots_deg: npt.ArrayLike | None = None, explicit_range: bool = False) -> None:
         super().__init__(model, joint, order)
+        self.explicit_range = False
         spacing = DEFAULT_SPACING_DEG if order is None else int(order)
         if not 2 <= spacing <= 90:
             raise EffectError(f"table knot spacing must be 2..90 degrees, got {spacing} "
@@ -75,6 +99,14 @@ class Table(JointEffect):
         knots_deg = np.asarray(knots_deg, float)
         if knots_deg.size < 3 or not np.allclose(np.diff(knots_deg), step):
             raise EffectError(f"{self.label}: knots must be at least 3, every {step:g} degrees")
+        if explicit_range and range_deg is not None and (
+                knots_deg[0] != min(range_deg) or knots_deg[-1] != max(range_deg)):
+            raise EffectError(f"{self.label}@{min(range_deg):g}..{max(range_deg):g}: the "
+                              f"range's ends must be knots, multiples of {step:g} degrees "
+                              f"(e.g. @{knots_deg[0]:g}..{knots_deg[-1]:g}), at least "
+                              f"{2 * step:g} degrees apart")
+        #: the knots were named (``@LO..HI``): the label carries them
+        self.explicit_range = bool(explicit_range)
         self.knots_deg = knots_deg
         self.knots = np.radians(knots_deg)
         self.param_names = [_knot_name(k) for k in knots_deg]
@@ -89,13 +121,64 @@ class Table(JointEffect):
         #: (smoothing, GCV estimate of the held-out RMS, mm) of the last GCV choice
         self.cv_curve: list[tuple[float, float]] = []
 
+    @property
+    def label(self) -> str:
+        """``tableS:J``, and ``@LO..HI`` when the knots were named."""
+        base = super().label
+        if not self.explicit_range:
+            return base
+        return f"{base}@{self.knots_deg[0]:g}..{self.knots_deg[-1]:g}"
+
     # ---- construction from data or from a params file ---------------------------
     @classmethod
-    def covering(cls, model, joint: int, theta_rad: np.ndarray, spacing_deg: int,
+    def covering(cls, model: RobotModel, joint: int, theta_rad: np.ndarray, spacing_deg: int,
                  smoothing: float | None = None) -> Table:
         """A table whose knots span the angles ``theta_rad`` of joint ``joint`` (and no more)."""
         deg = np.degrees(np.asarray(theta_rad, float))
         return cls(model, joint, spacing_deg, smoothing, range_deg=(deg.min(), deg.max()))
+
+    @classmethod
+    def supported(cls, model: RobotModel, joint: int, theta_rad: np.ndarray, spacing_deg: int,
+                  smoothing: float | None = None) -> Table:
+        """:meth:`covering`, then only the knots the angles support
+        (:meth:`supported_knots`): what the automatic diagnosis adds."""
+        return cls.covering(model, joint, theta_rad, spacing_deg,
+                            smoothing).supported_knots(theta_rad)
+
+    def knot_support(self, theta_rad: np.ndarray) -> np.ndarray:
+        """(K,) bool: the knots the poses at angles ``theta_rad`` support: the hat holds at
+        least :data:`MIN_KNOT_SHARE` of the median knot's weight and :data:`MIN_KNOT_POSES`
+        poses (poses beyond an end knot count for it: it is their value)."""
+        B = self.basis(np.asarray(theta_rad, float))
+        w = B.sum(axis=0)
+        if not (w > 0).any():
+            return np.zeros(len(self.knots), bool)
+        count = (B > 1e-12).sum(axis=0)
+        return (w >= MIN_KNOT_SHARE * np.median(w[w > 0])) & (count >= MIN_KNOT_POSES)
+
+    def supported_knots(self, theta_rad: np.ndarray) -> Table:
+        """This table with only the knots from the first to the last one the angles
+        ``theta_rad`` support (:meth:`knot_support`), constant beyond; ``self`` when every
+        knot is kept. At least three knots: where fewer are supported, the three that hold
+        the most weight."""
+        ok = self.knot_support(theta_rad)
+        idx = np.flatnonzero(ok)
+        K = len(self.knots)
+        if idx.size and idx[-1] - idx[0] >= 2:
+            first, last = int(idx[0]), int(idx[-1])
+        else:
+            w = self.basis(np.asarray(theta_rad, float)).sum(axis=0)
+            if K <= 3 or not (w > 0).any():
+                return self
+            first = int(np.argmax(np.convolve(w, np.ones(3), "valid")))
+            last = first + 2
+        if first == 0 and last == K - 1:
+            return self
+        out = Table(self.model, self.joint, int(self.spacing_deg), self.smoothing,
+                    knots_deg=self.knots_deg[first : last + 1],
+                    explicit_range=self.explicit_range)
+        out.cv_curve = list(self.cv_curve)
+        return out
 
     def with_parameter_names(self, local_names: list[str]) -> Table:
         """The same table with the knots named in a params file (``km030``, ``kp000``...)."""
@@ -106,7 +189,7 @@ class Table(JointEffect):
                 raise EffectError(f"{self.label}: bad knot name {name!r}")
             knots.append(int(m[2]) * (1 if m[1] == "p" else -1))
         return Table(self.model, self.joint, int(self.spacing_deg), self.smoothing,
-                     knots_deg=sorted(knots))
+                     knots_deg=sorted(knots), explicit_range=self.explicit_range)
 
     # ---- the correction --------------------------------------------------------
     def basis(self, theta: np.ndarray) -> np.ndarray:
@@ -124,10 +207,11 @@ class Table(JointEffect):
     def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
         return self.basis(data.q[:, self.joint - 1])
 
-    def delta(self, p, data, B):
+    def delta(self, p: np.ndarray, data: Dataset, B: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
         return B @ p, B
 
-    def pinned(self, B) -> dict[str, str]:
+    def pinned(self, B: np.ndarray) -> dict[str, str]:
         empty = B.sum(axis=0) < 1e-9
         return {
             self.param_names[k]: "no data within this knot's reach (pinned at zero)"
@@ -148,7 +232,7 @@ class Table(JointEffect):
         """The directions the penalty leaves free: constant and linear in θ, (K, 2)."""
         return np.column_stack([np.ones(len(self.knots)), self.knots - self.knots.mean()])
 
-    def typical(self, rng):
+    def typical(self, rng: np.random.Generator) -> np.ndarray:
         # a smooth bump-and-ripple no single harmonic captures
         t = self.knots
         amp = 0.25 / 1000.0
@@ -157,8 +241,8 @@ class Table(JointEffect):
 
 # ---- GCV on a linearised penalised least-squares problem ------------------------------
 def penalised_path(N0: np.ndarray, b: np.ndarray, h: np.ndarray, Q: np.ndarray, r2: float,
-                   omega: np.ndarray, grid=SMOOTHING_GRID, n_obs: int = 0,
-                   trace0: float = 0.0) -> dict:
+                   omega: np.ndarray, grid: npt.ArrayLike = SMOOTHING_GRID, n_obs: int = 0,
+                   trace0: float = 0.0) -> dict[str, Any]:
     """The solution path of c(s) = (N0 + s Ω)⁻¹ b over the weights ``grid``.
 
     The residual sum of squares is ``r2 - 2 h·c + cᵀ Q c`` and the degrees of freedom
@@ -203,7 +287,8 @@ def penalised_path(N0: np.ndarray, b: np.ndarray, h: np.ndarray, Q: np.ndarray, 
             "solve": solve}
 
 
-def choose_smoothing(error_model, data: Dataset, fit_fn, grid=SMOOTHING_GRID) -> None:
+def choose_smoothing(error_model: Any, data: Dataset, fit_fn: Callable[[Any, Dataset], Any],
+                     grid: np.ndarray = SMOOTHING_GRID) -> None:
     """Set the ``smoothing`` of every table (any effect with ``penalty_matrix``) whose
     smoothing is None, by GCV on the problem linearised at one fit.
 
@@ -220,7 +305,8 @@ def choose_smoothing(error_model, data: Dataset, fit_fn, grid=SMOOTHING_GRID) ->
     gcv_smoothing(fit_fn(error_model, data), tables, grid)
 
 
-def gcv_smoothing(fit, tables=None, grid=SMOOTHING_GRID) -> bool:
+def gcv_smoothing(fit: Any, tables: list[Any] | None = None,
+                  grid: np.ndarray = SMOOTHING_GRID) -> bool:
     """Re-choose the smoothing of ``tables`` (default: every table of the fit's model) by
     GCV on the problem linearised at ``fit``, one table after the other, twice round.
     Records ``cv_curve`` on each as (smoothing, GCV RMS mm). Returns True when any
@@ -235,7 +321,7 @@ def gcv_smoothing(fit, tables=None, grid=SMOOTHING_GRID) -> bool:
     X = J[:, :, free].reshape(-1, int(free.sum()))
     y = (fit.data.tracker_p_smr - P).ravel() + X @ x[free]
     XtX, b, y2 = X.T @ X, X.T @ y, float(y @ y)
-    omegas = {}
+    omegas: dict[int, tuple[Any, np.ndarray]] = {}
     for e, sl in zip(em.effects, em.slices, strict=True):
         if hasattr(e, "penalty_matrix"):
             O = np.zeros((em.n_params, em.n_params))

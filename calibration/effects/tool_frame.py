@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..data.dataset import Dataset
+from ..model.robot_model import RobotModel
 from ..model.transforms import (
     fit_rotation,
     matrix_to_rotvec,
@@ -36,7 +38,8 @@ class ToolRotation(Effect):
     stage = "target"
     summary = "orientation of a 6-DoF target in the flange frame (needs orientation data)"
 
-    def __init__(self, model, joint=None, order=None):
+    def __init__(self, model: RobotModel, joint: int | None = None,
+                 order: int | None = None) -> None:
         super().__init__(model, joint, order)
         self.param_names = ["rx", "ry", "rz"]
         self.units = ["rad"] * 3
@@ -47,7 +50,7 @@ class ToolRotation(Effect):
         ``R(p + dp) = R(p) exp([J dp]x)``."""
         return rotvec_to_matrix(p), right_jacobian(p)
 
-    def start_from(self, data, tracker_R_flange: np.ndarray) -> np.ndarray:
+    def start_from(self, data: Dataset, tracker_R_flange: np.ndarray) -> np.ndarray:
         """Start values from measured orientations and the flange's predicted ones
         (n, 3, 3): the mean of ``flange_R_target`` over the poses (zeros without data)."""
         if data.quat is None or not data.n:

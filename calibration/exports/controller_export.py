@@ -26,7 +26,9 @@ import csv
 import io
 import math
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -139,7 +141,7 @@ def ur_kinematics(model: RobotModel) -> tuple[dict, np.ndarray]:
     """
     ur = ur_model(model)
     origins, flange = chain_origins(ur)
-    kin = {}
+    kin: dict[str, Any] = {}
     for name, O in zip(UR_LINKS, origins, strict=True):
         roll, pitch, yaw = urdf_rpy(O[:3, :3])
         kin[name] = {"x": float(O[0, 3]) / 1000.0, "y": float(O[1, 3]) / 1000.0,
@@ -149,7 +151,7 @@ def ur_kinematics(model: RobotModel) -> tuple[dict, np.ndarray]:
     return {"kinematics": kin}, tool0_p_tcp
 
 
-def ur_kinematics_yaml(model: RobotModel, notes: list[str] = ()) -> tuple[str, np.ndarray]:
+def ur_kinematics_yaml(model: RobotModel, notes: Sequence[str] = ()) -> tuple[str, np.ndarray]:
     """(YAML text, tool point in tool0 mm)."""
     data, tcp = ur_kinematics(model)
     head = ["kinematics of the calibrated robot for ur_description (kinematics_params_file)",
@@ -210,7 +212,7 @@ def ur_yaml_parity(path: str | Path, model: RobotModel) -> Parity:
 
 
 def write_ur_kinematics_yaml(model: RobotModel, path: str | Path,
-                             notes: list[str] = ()) -> Parity:
+                             notes: Sequence[str] = ()) -> Parity:
     text, _ = ur_kinematics_yaml(model, notes)
     write_atomic(path, text)
     return ur_yaml_parity(path, model)
@@ -224,7 +226,7 @@ CSV_COLUMNS = ("joint", "name", "type", "theta_offset_deg", "d_mm", "a_mm", "alp
                "beta_deg", "min", "max", "limit_unit")
 
 
-def table_csv(model: RobotModel, notes: list[str] = ()) -> str:
+def table_csv(model: RobotModel, notes: Sequence[str] = ()) -> str:
     """The model's kinematic table as CSV, full precision."""
     t = model.dh_table()
     names = (list(model.urdf.joints) if model.urdf is not None
@@ -268,7 +270,7 @@ def table_parity(path: str | Path, model: RobotModel) -> Parity:
     return Parity(str(path), "table CSV", len(q), max_mm, max_rad)
 
 
-def write_table_csv(model: RobotModel, path: str | Path, notes: list[str] = ()) -> Parity:
+def write_table_csv(model: RobotModel, path: str | Path, notes: Sequence[str] = ()) -> Parity:
     write_atomic(path, table_csv(model, notes))
     return table_parity(path, model)
 

@@ -12,6 +12,7 @@ they are named in the notes that the export functions return.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +25,8 @@ from ..model.transforms import rotvec_to_matrix
 from .ur_conf import deltas_from_table, format_calibration_conf, model_from_table
 
 
-def calibrated_table(error_model: ErrorModel, x: np.ndarray):
+def calibrated_table(error_model: ErrorModel,
+                     x: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """The calibrated chain as a table and a tool.
 
     Returns
@@ -49,7 +51,8 @@ def calibrated_table(error_model: ErrorModel, x: np.ndarray):
     return table, tool, notes
 
 
-def calibrated_tool_rpy_deg(error_model: ErrorModel, x: np.ndarray):
+def calibrated_tool_rpy_deg(error_model: ErrorModel,
+                            x: np.ndarray) -> tuple[float, ...] | None:
     """The identified tool frame's orientation in the flange frame as URDF roll, pitch,
     yaw (deg; ``tool_rotation``'s ``flange_R_target``), None without that effect."""
     for e, sl in zip(error_model.effects, error_model.slices, strict=True):
@@ -58,7 +61,8 @@ def calibrated_tool_rpy_deg(error_model: ErrorModel, x: np.ndarray):
     return None
 
 
-def calibrated_model(error_model: ErrorModel, x: np.ndarray, name: str | None = None):
+def calibrated_model(error_model: ErrorModel, x: np.ndarray,
+                     name: str | None = None) -> tuple[RobotModel, list[str]]:
     """(RobotModel, notes): the nominal model with the calibrated table and tool (its
     point, and its orientation when ``tool_rotation`` was identified)."""
     table, tool, notes = calibrated_table(error_model, x)
@@ -70,13 +74,14 @@ def calibrated_model(error_model: ErrorModel, x: np.ndarray, name: str | None = 
     return m, notes
 
 
-def write_model_yaml(model: RobotModel, path: str | Path, notes: list[str] = ()) -> None:
+def write_model_yaml(model: RobotModel, path: str | Path, notes: Sequence[str] = ()) -> None:
     """Write a model YAML with a comment header (the notes)."""
     head = "".join(f"# {n}\n" for n in ["calibrated model exported by cellcal", *notes])
     write_atomic(path, head + model.to_yaml())
 
 
-def ur_deltas(error_model: ErrorModel, x: np.ndarray, nominal: RobotModel | None = None):
+def ur_deltas(error_model: ErrorModel, x: np.ndarray, nominal: RobotModel | None = None
+              ) -> tuple[dict[str, np.ndarray], list[str]]:
     """(deltas, notes): UR calibration.conf deltas (rad, m) of the calibrated chain.
 
     ``nominal`` is the controller's nominal model (default: the error model's own, which

@@ -18,6 +18,8 @@ The file embeds the nominal model, so it is self-contained::
      "outliers": [{"pose_id": "p017", "residual_mm": 2.41, "along_beam": true,
                    "excluded": true, "line": 19, "angle_to_beam_deg": 8.2}, ...],
      "outlier_check": {"mode": "exclude", "clean_cloud": true, "threshold_mm": 0.07, ...},
+     "envelope": {"version": 1, "n_poses": 150, "joints_deg": [[-170.2, 168.9], ...],
+                  "t_s": [1.7e9, 1.7e9 + 3600]},
      "auto_steps": {"start_effects": ["geometric", "base", "tool"],
                     "start_calib_rms_mm": 0.21, "start_heldout_rms_mm": 0.23,
                     "heldout_method": "validation poses", "noise_floor_mm": 0.026,
@@ -47,6 +49,10 @@ never broken). ``thermal`` (a model with a drift effect only) is the time window
 reference temperature and warm state its parameters were fitted against, given back to
 the reloaded effects; it carries a version of its own (:mod:`calibration.fit.thermal_state`):
 a file without it measures time against the data it meets, as before.
+``envelope`` (:class:`~calibration.fit.envelope.Envelope`, a version of its own) is the
+range of each joint the calibration rows covered (deg, as the CSV's q1..qN), and of the
+air temperature, joint temperatures and time where an effect reads them: what
+``compensate`` and ``validate`` check targets against (a file without it checks nothing).
 
 Reading is strict (:class:`ParamsFile`, pydantic): every value a finite number of a
 plausible size, std null or >= 0, units as the effect declares them, every parameter of
@@ -66,9 +72,10 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal, cast
 
 import numpy as np
 from pydantic import (
@@ -84,6 +91,7 @@ from ..data.capture_meta import CaptureMeta
 from ..effects import REGISTRY, EffectError, display_unit, effect_source, parse_effects
 from ..errors import ParamsError
 from ..files import json_ready, read_text, write_atomic
+from ..fit.envelope import Envelope
 from ..fit.error_model import ErrorModel
 from ..fit.identify import Fit
 from ..fit.thermal_state import apply_thermal_record, check_thermal_record, thermal_record
@@ -190,7 +198,7 @@ def effect_file_records(fit: Fit) -> list[dict]:
     return list(out.values())
 
 
-def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto=None,
+def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto: Any = None,
                 capture: CaptureMeta | None = None) -> dict:
     """The params.json mapping of ``fit``; ``auto`` (an
     :class:`~calibration.diagnosis.auto_diagnosis.AutoDiagnosis` whose final fit ``fit`` is) adds
@@ -225,7 +233,8 @@ def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto=None,
     info = solver_summary(fit)
     if info:
         out["solver_info"] = info
-    smoothing = {e.label: e.smoothing for e in em.effects if hasattr(e, "penalty_matrix")}
+    tables: list[Any] = [e for e in em.effects if hasattr(e, "penalty_matrix")]
+    smoothing = {e.label: e.smoothing for e in tables}
     if smoothing:
         out["smoothing"] = smoothing
     if fit.outliers is not None:
@@ -237,10 +246,11 @@ def fit_to_dict(fit: Fit, effect_files: list[str] | None = None, auto=None,
         out["capture"] = capture.to_json()
     if thermal is not None:
         out["thermal"] = thermal
+    out["envelope"] = Envelope.of_fit(fit).to_json()
     return out
 
 
-def auto_steps_json(auto) -> dict:
+def auto_steps_json(auto: Any) -> dict[str, Any]:
     """The ``auto_steps`` record of an :class:`~calibration.diagnosis.auto_diagnosis.AutoDiagnosis`:
     the start model, every step (as in ``diagnose --auto --json``) and why it stopped."""
     return {
@@ -283,10 +293,32 @@ def read_outliers(source: str | Path | dict) -> list[dict]:
     return list(out) if isinstance(out, list) else []
 
 
-def capture_of(path: str | Path) -> CaptureMeta:
-    """The ``capture`` metadata of a params.json (empty when it has none)."""
+def read_stats(source: str | Path | dict) -> dict:
+    """The ``stats`` of a params.json (a path or its mapping): its calibration's own error
+    on its calibration rows (``calib``) and validation rows (``valid``, when it had some),
+    each as :func:`~calibration.fit.identify.error_stats` wrote it; {} when absent."""
+    data = source if isinstance(source, dict) else _read_json(source)
+    out = data.get("stats") if isinstance(data, dict) else None
+    if not isinstance(out, dict):
+        return {}
+    return {k: v for k, v in out.items() if k in ("calib", "valid") and isinstance(v, dict)}
+
+
+def read_document(path: str | Path) -> dict:
+    """The JSON document of a params.json as read (the size limit, UTF-8, JSON syntax:
+    ParamsError naming the file otherwise); :func:`read_params` checks its contents."""
+    data = _read_json(path)
+    if not isinstance(data, dict):
+        raise ParamsError(f"{path}: not a cellcal params file (a JSON object expected)")
+    return data
+
+
+def capture_of(path: str | Path | dict) -> CaptureMeta:
+    """The ``capture`` metadata of a params.json (a path or its mapping; empty when it has
+    none or it is malformed)."""
     try:  # read as the parameters are (size limit, UTF-8); ParamsError is a ValueError
-        return CaptureMeta.from_json(_read_json(path).get("capture"))
+        doc = path if isinstance(path, dict) else _read_json(path)
+        return CaptureMeta.from_json(doc.get("capture"))
     except (ValueError, TypeError, AttributeError):
         return CaptureMeta()
 
@@ -305,7 +337,7 @@ def solver_summary(fit: Fit) -> dict:
     return out
 
 
-def params_json(fit: Fit, effect_files: list[str] | None = None, auto=None,
+def params_json(fit: Fit, effect_files: list[str] | None = None, auto: Any = None,
                 capture: CaptureMeta | None = None) -> str:
     """The text of params.json (NaN and infinities written as null: strict JSON)."""
     return json.dumps(json_ready(fit_to_dict(fit, effect_files, auto, capture)), indent=1,
@@ -313,7 +345,7 @@ def params_json(fit: Fit, effect_files: list[str] | None = None, auto=None,
 
 
 def save_params(fit: Fit, path: str | Path, effect_files: list[str] | None = None,
-                auto=None, capture: CaptureMeta | None = None) -> None:
+                auto: Any = None, capture: CaptureMeta | None = None) -> None:
     """Write params.json atomically (the old file stays whole if writing fails), with
     ``auto``'s steps and ``capture``'s context."""
     write_atomic(path, params_json(fit, effect_files, auto, capture))
@@ -331,6 +363,9 @@ class LoadedParams:
     notes: list[str] = field(default_factory=list)
     #: the ``thermal`` record (:mod:`calibration.fit.thermal_state`), None when none
     thermal: dict | None = None
+    #: the calibrated envelope (:class:`~calibration.fit.envelope.Envelope`), None for a
+    #: file written before it was recorded
+    envelope: Envelope | None = None
 
 
 def _check_effect_files(doc: ParamsFile, source: str) -> None:
@@ -360,7 +395,7 @@ def model_differences(a: RobotModel, b: RobotModel) -> list[str]:
     return [k for k in da if da[k] != db[k]]
 
 
-def params_from_doc(data, source: str = "<params>", *, model: RobotModel | None = None
+def params_from_doc(data: object, source: str = "<params>", *, model: RobotModel | None = None
                     ) -> LoadedParams:
     """A params mapping read strictly (see the module docstring); ``model``: the model the
     caller works with, whose joints and convention the params' model must have."""
@@ -398,16 +433,16 @@ def params_from_doc(data, source: str = "<params>", *, model: RobotModel | None 
     except EffectError as e:
         raise ParamsError(f"{source}: effects: {e}") from None
     names = [row.name for row in doc.parameters]
-    for i, e in enumerate(effects):
-        if hasattr(e, "with_parameter_names"):  # a table: its knots are in the names
-            local = [n[len(e.prefix) + 1 :] for n in names if n.startswith(e.prefix + ".")]
+    for eff in effects:
+        if eff.label in doc.smoothing:
+            cast(Any, eff).smoothing = doc.smoothing[eff.label]  # a table's
+    for i, eff in enumerate(effects):
+        if hasattr(eff, "with_parameter_names"):  # a table: its knots are in the names
+            local = [n[len(eff.prefix) + 1 :] for n in names if n.startswith(eff.prefix + ".")]
             try:
-                effects[i] = e.with_parameter_names(local)
+                effects[i] = eff.with_parameter_names(local)
             except EffectError as err:
                 raise ParamsError(f"{source}: effects: {err}") from None
-    for e in effects:
-        if e.label in doc.smoothing:
-            e.smoothing = doc.smoothing[e.label]
     thermal = check_thermal_record(data.get("thermal"), pmodel.n_joints, source)
     apply_thermal_record(effects, thermal)
     em = ErrorModel(pmodel, effects)
@@ -435,7 +470,8 @@ def params_from_doc(data, source: str = "<params>", *, model: RobotModel | None 
         shown = ", ".join(missing[:5]) + (f" and {len(missing) - 5} more" if len(missing) > 5
                                           else "")
         raise ParamsError(f"{source}: parameters missing: {shown}")
-    return LoadedParams(em, x, std, source, notes, thermal)
+    envelope = Envelope.from_json(data.get("envelope"), pmodel.n_joints, source)
+    return LoadedParams(em, x, std, source, notes, thermal, envelope)
 
 
 def params_from_dict(data: dict, source: str = "<params>", *, model: RobotModel | None = None
@@ -450,7 +486,7 @@ def read_params(path: str | Path, *, model: RobotModel | None = None) -> LoadedP
     return params_from_doc(_read_json(path), str(path), model=model)
 
 
-def _read_json(path: str | Path):
+def _read_json(path: str | Path) -> Any:
     """The JSON document of a params file, read with the size limit; ParamsError naming
     the file, line and column otherwise."""
     text = read_text(path, ParamsError, "params file", MAX_PARAMS_BYTES)
@@ -473,7 +509,8 @@ def load_params(path: str | Path, *, model: RobotModel | None = None
 
 
 # ---------------------------------------------------------------- zero-point update
-def with_zero_offsets(doc: dict, offsets_rad, source: str = "<params>") -> dict:
+def with_zero_offsets(doc: dict[str, Any], offsets_rad: Sequence[float] | np.ndarray,
+                      source: str = "<params>") -> dict:
     """A params document (as read, unknown keys kept) with joint zero corrections applied:
     each ``geometric.jN.theta`` shifted by offset N (rad; written in degrees), and the
     update recorded in ``history`` as ``{"zero_point": {"offsets_deg": [...]}}``.
@@ -496,7 +533,8 @@ def with_zero_offsets(doc: dict, offsets_rad, source: str = "<params>") -> dict:
     return out
 
 
-def write_zero_update(params_path: str | Path, out: str | Path, offsets_rad) -> None:
+def write_zero_update(params_path: str | Path, out: str | Path,
+                      offsets_rad: Sequence[float] | np.ndarray) -> None:
     """Write ``out`` (atomically): the params file ``params_path`` with the joint zero
     corrections ``offsets_rad`` applied (:func:`with_zero_offsets`)."""
     doc = _read_json(params_path)
@@ -505,6 +543,7 @@ def write_zero_update(params_path: str | Path, out: str | Path, offsets_rad) -> 
 
 
 __all__ = ["FORMAT", "VERSION", "LoadedParams", "ParamsError", "auto_steps_json", "capture_of",
-           "fit_to_dict", "load_params", "params_by_name", "params_from_dict", "params_json",
-           "read_auto_steps", "read_outliers", "read_params", "save_params", "solver_summary",
-           "with_zero_offsets", "write_zero_update"]
+           "fit_to_dict", "load_params", "params_by_name", "params_from_dict",
+           "params_from_doc", "params_json", "read_auto_steps", "read_document", "read_outliers",
+           "read_params", "read_stats", "save_params", "solver_summary", "with_zero_offsets",
+           "write_zero_update"]

@@ -10,6 +10,7 @@ orientation, the largest angle between the flange orientations (rad).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -57,7 +58,7 @@ def model_poses(model: RobotModel, q: np.ndarray,
     return r.base_p_tcp, r.base_R_flange @ model.tool_R() if tcp else r.base_R_flange
 
 
-def model_file_parity(path, model: RobotModel) -> Parity:
+def model_file_parity(path: str | Path, model: RobotModel) -> Parity:
     """A written model YAML read back by :func:`calibration.model.model_loading.load_model`."""
     q = parity_joints(model)
     max_mm, max_rad = compare(model, q, *model_poses(load_model(path), q, tcp=True), tcp=True)

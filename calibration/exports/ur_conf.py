@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -35,7 +36,8 @@ from ..model.robot_model import RobotModel
 DELTA_KEYS = ("delta_theta", "delta_a", "delta_d", "delta_alpha")
 
 
-def _decompose(a: float, alpha: float, beta: float):
+def _decompose(a: float, alpha: float,
+               beta: float) -> tuple[float, float, float, float, float, float]:
     """Tx(a) Rx(alpha) Ry(beta) = Rz(psi) Tz(dd) Tx(a') Rx(alpha') Rz(phi') Tz(s').
 
     Returns psi, dd, a', alpha', phi', s' (rad, mm). The DH x axis is the common normal
@@ -169,7 +171,7 @@ def model_from_table(model: RobotModel, table: np.ndarray, *, name: str | None =
         j["a"] = float(row[A])
         j["alpha"] = math.degrees(row[ALPHA])
         j["beta"] = math.degrees(row[BETA])
-    changes = {"joints": joints}
+    changes: dict[str, Any] = {"joints": joints}
     if name is not None:
         changes["name"] = name
     if tool is not None:

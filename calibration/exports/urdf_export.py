@@ -24,10 +24,12 @@ visuals or inertials.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
+import numpy.typing as npt
 
 from ..files import write_atomic
 from ..model.dh_conversion import rot_x, rot_y, rot_z, urdf_rpy
@@ -40,7 +42,7 @@ TCP_LINK = "tcp"
 FLANGE_LINK = "flange"
 
 
-def _T(R=None, p=None) -> np.ndarray:
+def _T(R: npt.ArrayLike | None = None, p: npt.ArrayLike | None = None) -> np.ndarray:
     T = np.eye(4)
     if R is not None:
         T[:3, :3] = R
@@ -85,7 +87,7 @@ def root_link(model: RobotModel) -> str:
     return model.urdf.root if model.urdf is not None else "base_link"
 
 
-def urdf_text(model: RobotModel, notes: list[str] = ()) -> str:
+def urdf_text(model: RobotModel, notes: Sequence[str] = ()) -> str:
     """The URDF of a (calibrated) model; ``notes`` go into a comment at the top."""
     origins, flange = chain_origins(model)
     root = root_link(model)
@@ -167,7 +169,7 @@ def urdf_parity(path: str | Path, model: RobotModel, n: int | None = None) -> Pa
     return Parity(str(path), "yourdfpy", len(q), max_mm, max_rad)
 
 
-def write_urdf(model: RobotModel, path: str | Path, notes: list[str] = ()) -> Parity:
+def write_urdf(model: RobotModel, path: str | Path, notes: Sequence[str] = ()) -> Parity:
     """Write the calibrated model as a URDF and check it by yourdfpy (see module doc)."""
     write_atomic(path, urdf_text(model, notes))
     return urdf_parity(path, model)

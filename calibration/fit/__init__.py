@@ -12,6 +12,9 @@ leverage              how much of each residual the fit absorbed; leave-one-out 
 uncertainty           correlations, Monte-Carlo re-identification, position uncertainty
 orientation_residuals orientation residuals of a 6-DoF target, weighted by their uncertainty
 data_quality          data too poor to identify a model: refused (InsufficientData), not fitted
+model_check           a given model's error on new poses, as calibrated (only the base refitted)
 thermal_state         the thermal state of a calibration and of a compensation
+envelope              the calibrated envelope (what lies beyond it); tables over their
+                      supported knots (identify_supported)
 simulate              synthetic measurements with a known truth
 """

@@ -31,7 +31,9 @@ from ..data.dataset import Dataset
 from ..effects import EffectError
 from ..errors import InsufficientData
 from ..model.kinematics import tool_points
+from ..model.robot_model import RobotModel
 from .error_model import ErrorModel
+from .identifiability import Identifiability
 from .identify import structural_identifiability
 
 #: joints that agree within this (deg) on every axis are the same pose
@@ -90,16 +92,12 @@ def reference_sample(error_model: ErrorModel, calib: Dataset, n: int, seed: int 
         hi = np.minimum(np.maximum(hi, mid + half), lim[:, 1])
     q = rng.uniform(lo, hi, size=(n, calib.n_joints))
     rows = rng.integers(0, calib.n, size=n)
-
-    def pick(a):
-        return None if a is None else a[rows]
-
-    return replace(calib, q=q, tracker_p_smr=tool_points(error_model.model, q),
-                   pose_id=[f"r{i}" for i in range(n)], cmd=None, temp_c=pick(calib.temp_c),
-                   t_s=pick(calib.t_s), payload_kg=pick(calib.payload_kg),
-                   sigma_mm=pick(calib.sigma_mm), dirs=pick(calib.dirs),
-                   is_valid=np.zeros(n, bool), lines=np.zeros(n, int),
-                   source="reference sample")
+    # every per-row column resampled (Dataset.subset), then the poses replaced: a column
+    # left at the data's length (joint temperatures, orientations) would make the sample
+    # inconsistent, and the checks that use it silently skipped
+    return replace(calib.subset(rows), q=q, tracker_p_smr=tool_points(error_model.model, q),
+                   pose_id=[f"r{i}" for i in range(n)], cmd=None, is_valid=np.zeros(n, bool),
+                   lines=np.zeros(n, int), source="reference sample")
 
 
 #: families whose every parameter the poses must determine (the core of every model)
@@ -122,11 +120,20 @@ def _design_broken(error_model: ErrorModel, lost: list[int], free_ref: np.ndarra
     return False
 
 
+def refuse_radians(data: Dataset, model: RobotModel) -> None:
+    """InsufficientData (exit 3) when ``data``'s joints look like radians
+    (:func:`looks_like_radians`) for ``model``."""
+    if looks_like_radians(data.q, model.limits_rad()):
+        raise InsufficientData(
+            f"{data.source}: every joint value lies within ±{RADIANS_MAX:.2f}: they look like "
+            f"radians, but q1..q{model.n_joints} are degrees (docs/formats.md §1); convert "
+            "them (deg = rad × 180/π) and run again")
+
+
 def check_for_fit(error_model: ErrorModel, data: Dataset) -> DataVerdict:
     """Raise :class:`InsufficientData` when ``data`` cannot identify ``error_model`` (see the
     module docstring); else what was found (with notes on marginal data)."""
     src = data.source
-    n_joints = error_model.model.n_joints
     if data.n and bool(np.all(data.is_valid)):
         raise InsufficientData(
             f"{src}: no calibration poses: all {data.n} rows are set=valid (validation); "
@@ -134,17 +141,13 @@ def check_for_fit(error_model: ErrorModel, data: Dataset) -> DataVerdict:
     calib = data.calib() if data.is_valid.any() else data
     if calib.n == 0:
         raise InsufficientData(f"{src}: no calibration poses")
-    if looks_like_radians(calib.q, error_model.model.limits_rad()):
-        raise InsufficientData(
-            f"{src}: every joint value lies within ±{RADIANS_MAX:.2f}: they look like radians, "
-            f"but q1..q{n_joints} are degrees (FORMATS.md §1); convert them "
-            "(deg = rad × 180/π) and run again")
+    refuse_radians(calib, error_model.model)
     n_distinct = distinct_poses(calib.q)
     prepared = error_model.prepare(data)
     calib_p = prepared.calib() if prepared.is_valid.any() else prepared
     n_ref = max(3 * error_model.n_params, 60)
 
-    def reference(min_span_deg):
+    def reference(min_span_deg: float) -> Identifiability | None:
         try:
             ref = reference_sample(error_model, calib_p, n_ref, min_span_deg=min_span_deg)
             return structural_identifiability(error_model, error_model.prepare(ref))[2]

@@ -13,8 +13,9 @@ Jacobian (:mod:`calibration.model.orientation_model`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal, cast, overload
 
 import numpy as np
 
@@ -38,7 +39,8 @@ class Bound:
     """An error model's view of one data set: the data, the nominal chain, effect states."""
 
     data: Dataset
-    nominal: ChainResult | NominalChain
+    #: the nominal chain on the data (a :class:`NominalChain`, which stands in for it)
+    nominal: ChainResult
     states: list[Any]
 
 
@@ -49,8 +51,9 @@ class NominalChain:
 
     __slots__ = ("_run", "_result")
 
-    def __init__(self, run):
-        self._run, self._result = run, None
+    def __init__(self, run: Callable[[], ChainResult]) -> None:
+        self._run = run
+        self._result: ChainResult | None = None
 
     @property
     def result(self) -> ChainResult:
@@ -58,7 +61,7 @@ class NominalChain:
             self._result = self._run()
         return self._result
 
-    def __getattr__(self, name: str):
+    def __getattr__(self, name: str) -> Any:
         return getattr(self.result, name)
 
 
@@ -96,7 +99,8 @@ class Perturbed:
     partials: dict[int, np.ndarray] = field(default_factory=dict)
 
 
-def _base_and_tool(Rf: np.ndarray, pf: np.ndarray, meas: np.ndarray, t: np.ndarray):
+def _base_and_tool(Rf: np.ndarray, pf: np.ndarray, meas: np.ndarray,
+                   t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The base (R, c) and the tool point t estimated together from the nominal flange
     poses (Rf (n, 3, 3), pf (n, 3)) and the measured points (n, 3), starting at t:
     alternating a rigid fit for the base and linear least squares for the tool."""
@@ -124,12 +128,14 @@ class ErrorModel:
     effects : effect objects, or their names (``"geometric,base,tool,compliance:2"``)
     """
 
-    def __init__(self, model: RobotModel, effects: list[Effect] | str = DEFAULT_EFFECTS):
+    def __init__(self, model: RobotModel,
+                 effects: list[Effect] | list[str] | str = DEFAULT_EFFECTS) -> None:
         self.model = model
+        by_name = isinstance(effects, str) or (
+            isinstance(effects, list) and bool(effects) and isinstance(effects[0], str))
         self.effects: list[Effect] = (
-            parse_effects(effects, model) if isinstance(effects, (str, list)) and (
-                isinstance(effects, str) or (effects and isinstance(effects[0], str))
-            ) else list(effects)
+            parse_effects(cast("str | list[str]", effects), model) if by_name
+            else list(cast("list[Effect]", effects))
         )
         self.slices: list[slice] = []
         k = 0
@@ -139,7 +145,8 @@ class ErrorModel:
         self.n_params = k
         self.names = [n for e in self.effects for n in e.full_names]
         self.units = [u for e in self.effects for u in e.units]
-        self.scales = np.concatenate([e.scales for e in self.effects]) if self.effects else []
+        self.scales = (np.concatenate([e.scales for e in self.effects]) if self.effects
+                       else np.zeros(0))
         self._table0 = model.dh_table()
         self._prismatic = model.prismatic_mask()
         self._by_stage = {
@@ -185,7 +192,7 @@ class ErrorModel:
             prismatic=self._prismatic,
         ))
         states = [e.bind(data, nominal) for e in self.effects]
-        return Bound(data, nominal, states)
+        return Bound(data, cast(ChainResult, nominal), states)
 
     def initial(self, bound: Bound) -> np.ndarray:
         """Starting parameter vector: each effect's own start; with both a base and a tool
@@ -218,13 +225,15 @@ class ErrorModel:
             x[sb] = np.concatenate([c, matrix_to_rotvec(R)])
         for i in self._by_stage["target"]:
             R_base = rotvec_to_matrix(x[self.slices[base[0]]][3:]) if base else np.eye(3)
-            x[self.slices[i]] = self.effects[i].start_from(data, R_base @ nom.base_R_flange)
+            target: Any = self.effects[i]  # a target-stage effect: it has ``start_from``
+            x[self.slices[i]] = target.start_from(data, R_base @ nom.base_R_flange)
         return x
 
     def normalize(self, x: np.ndarray) -> np.ndarray:
         """Canonical form of a parameter vector (e.g. base rotation vector within pi)."""
         x = np.array(x, float)
-        for e, sl in zip(self.effects, self.slices, strict=True):
+        effects: list[Any] = self.effects  # some have ``normalize``
+        for e, sl in zip(effects, self.slices, strict=True):
             if hasattr(e, "normalize"):
                 x[sl] = e.normalize(x[sl])
         return x
@@ -234,7 +243,9 @@ class ErrorModel:
         :class:`Perturbed`). Without ``bound`` data, joint and length effects are skipped
         (they act per pose); the drift and measure stages are never applied here."""
         x = np.asarray(x, float)
-        eff, sls = self.effects, self.slices
+        # each stage's effects have that stage's hook (see calibration.effects.base)
+        eff: list[Any] = self.effects
+        sls = self.slices
         out = Perturbed(None, self._table0, self.model.tool_mm())
         if bound is not None:
             data, sts = bound.data, bound.states
@@ -268,9 +279,25 @@ class ErrorModel:
                 out.applied.add(e.stage)
         return out
 
+    @overload
+    def evaluate(self, x: np.ndarray, bound: Bound, jacobian: Literal[True] = ...,
+                 joints: Literal[False] = ...) -> tuple[np.ndarray, np.ndarray]: ...
+
+    @overload
+    def evaluate(self, x: np.ndarray, bound: Bound, jacobian: Literal[False],
+                 joints: Literal[False] = ...) -> tuple[np.ndarray, None]: ...
+
+    @overload
+    def evaluate(self, x: np.ndarray, bound: Bound, jacobian: Literal[True],
+                 joints: Literal[True]) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+    @overload
+    def evaluate(self, x: np.ndarray, bound: Bound, jacobian: bool = ...,
+                 joints: bool = ...) -> tuple[Any, ...]: ...
+
     def evaluate(
         self, x: np.ndarray, bound: Bound, jacobian: bool = True, joints: bool = False
-    ):
+    ) -> tuple[np.ndarray | None, ...]:
         """Predicted target centres in the tracker frame, and their Jacobian.
 
         Returns
@@ -285,7 +312,16 @@ class ErrorModel:
             return P, J, G
         return P, J
 
-    def evaluate_pose(self, x: np.ndarray, bound: Bound, jacobian: bool = True):
+    @overload
+    def evaluate_pose(self, x: np.ndarray, bound: Bound, jacobian: Literal[True] = ...
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...
+
+    @overload
+    def evaluate_pose(self, x: np.ndarray, bound: Bound, jacobian: Literal[False]
+                      ) -> tuple[np.ndarray, None, np.ndarray, None]: ...
+
+    def evaluate_pose(self, x: np.ndarray, bound: Bound, jacobian: bool = True
+                      ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray, np.ndarray | None]:
         """:meth:`evaluate`, and the predicted orientations of a 6-DoF target.
 
         Returns
@@ -299,21 +335,26 @@ class ErrorModel:
         R, W = target_orientations(self, np.asarray(x, float), c, r, jacobian)
         return P, J, R, W
 
-    def _evaluate(self, x, bound, jacobian, joints):
+    def _evaluate(self, x: np.ndarray, bound: Bound, jacobian: bool, joints: bool) -> tuple[
+            np.ndarray, np.ndarray | None, np.ndarray | None, Perturbed, ChainResult]:
         """:meth:`evaluate`: (P, J, G, the perturbed inputs, the chain's result)."""
         x = np.asarray(x, float)
         n = bound.data.n
-        eff, sls = self.effects, self.slices
-        J = np.zeros((n, 3, self.n_params)) if jacobian else None
+        eff: list[Any] = self.effects  # each stage's effects have its hook
+        sls = self.slices
+        # J (None without the Jacobian), G (None without ``joints``) and the chain's
+        # derivatives are used only under ``if jacobian`` / ``if joints`` below
+        J: Any = np.zeros((n, 3, self.n_params)) if jacobian else None
         c = self.perturb(x, bound)
         table, tool, scale = c.table, c.tool, c.length_scale
         jacobian = jacobian or joints
-        r = run_chain(self.model.convention, table, c.q, tool, scale, jacobian=jacobian,
-                      prismatic=self._prismatic)
+        r = run_chain(self.model.convention, table, bound.data.q if c.q is None else c.q, tool,
+                      scale, jacobian=jacobian, prismatic=self._prismatic)
         P = r.base_p_tcp
-        G = r.dP_dq if joints else None
+        G: Any = r.dP_dq if joints else None
         if jacobian:
-            dP = r.dP_dtable
+            dP: Any = r.dP_dtable
+            dP_internal: Any = r.dP_internal
             for i in self._by_stage["joint"]:
                 j = eff[i].joint - 1
                 J[:, :, sls[i]] = r.dP_dq[:, :, j][:, :, None] * c.partials[i][:, None, :]
@@ -321,7 +362,7 @@ class ErrorModel:
                 # (k, N*5) @ (N*5, 3n) on the chain's own storage layout
                 part = c.partials[i]
                 N = part.shape[0]
-                block = part.reshape(N * 5, -1).T @ r.dP_internal.reshape(N * 5, 3 * n)
+                block = part.reshape(N * 5, -1).T @ dP_internal.reshape(N * 5, 3 * n)
                 J[:, :, sls[i]] = block.reshape(-1, 3, n).transpose(2, 1, 0)
             grow = None if scale is None else (1.0 + scale)[:, None, None]
             for i in self._by_stage["tool"]:
@@ -331,6 +372,7 @@ class ErrorModel:
                         else np.matmul(r.base_R_flange, c.partials[i]))  # per-pose nests
                 J[:, :, sls[i]] = cols if grow is None else cols * grow
             for i in self._by_stage["length"]:
+                assert scale is not None  # a length-stage effect gave it
                 lengths = dP[:, :, :, D] * table[:, D] + dP[:, :, :, A] * table[:, A]
                 dP_ds = lengths.sum(axis=2) / (1.0 + scale)[:, None] + r.base_R_flange @ tool
                 J[:, :, sls[i]] = dP_ds[:, :, None] * c.partials[i][:, None, :]
@@ -359,7 +401,8 @@ class ErrorModel:
         """Regularisation pseudo-observations of the effects that have them (mm), with their
         Jacobian (m, n_params); None when no effect is regularised."""
         rows, jacs = [], []
-        for e, sl in zip(self.effects, self.slices, strict=True):
+        effects: list[Any] = self.effects  # the regularised ones have ``penalty``
+        for e, sl in zip(effects, self.slices, strict=True):
             if hasattr(e, "penalty"):
                 r, Je = e.penalty(np.asarray(x, float)[sl])
                 J = np.zeros((r.size, self.n_params))

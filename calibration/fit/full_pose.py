@@ -18,14 +18,23 @@ is what the calibrated robot would get wrong.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
+from ..data.dataset import Dataset
 from ..effects import NestedTool, ToolRotation
 from ..effects.tool_frame import mean_rotation
 from ..errors import InputError
 from ..model.transforms import quat_to_matrix
 from .error_model import ErrorModel
 from .orientation_residuals import OrientationRows, orientation_stats, rotation_residuals
+from .solvers import Problem, SolverResult
+
+if TYPE_CHECKING:
+    from .error_model import Bound
+    from .identify import Fit
 
 #: variance-component rounds when the data lack an uncertainty
 REWEIGHT_ROUNDS = 3
@@ -33,12 +42,13 @@ REWEIGHT_ROUNDS = 3
 FULL_POSE_SOLVERS = ("lm", "besa", "sa", "besa+lm")
 
 
-def is_full_pose(error_model, data) -> bool:
+def is_full_pose(error_model: ErrorModel, data: Dataset) -> bool:
     """True when the model has a target orientation and the data orientations."""
     return data.quat is not None and any(e.stage == "target" for e in error_model.effects)
 
 
-def orientation_rows(error_model, data, solver: str) -> OrientationRows | None:
+def orientation_rows(error_model: ErrorModel, data: Dataset,
+                     solver: str) -> OrientationRows | None:
     """The orientation rows of a full-pose problem, None for a position-only one.
 
     Raises
@@ -55,7 +65,8 @@ def orientation_rows(error_model, data, solver: str) -> OrientationRows | None:
     return OrientationRows.of(data)
 
 
-def solve(problem, solver_fn, options: dict):
+def solve(problem: Problem, solver_fn: Callable[..., SolverResult],
+          options: dict[str, Any]) -> SolverResult:
     """Run ``solver_fn`` on ``problem``; with orientation rows whose uncertainty was
     estimated, re-estimate it from the residuals and solve again from there (a few
     rounds, until the weights settle within 1 %)."""
@@ -76,7 +87,8 @@ def solve(problem, solver_fn, options: dict):
     return result
 
 
-def with_orientation_rows(problem, x, r_w: np.ndarray, J_w: np.ndarray):
+def with_orientation_rows(problem: Problem, x: np.ndarray, r_w: np.ndarray,
+                          J_w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Position rows (n, 3) and Jacobian (n, 3, p) for the covariance, followed by the
     problem's orientation rows at ``x`` when it has them (so the parameters' uncertainty
     reflects what orientations add)."""
@@ -87,7 +99,7 @@ def with_orientation_rows(problem, x, r_w: np.ndarray, J_w: np.ndarray):
     return np.vstack([r_w, ro]), np.concatenate([J_w, Jo])
 
 
-def attach_orientations(fit, problem) -> None:
+def attach_orientations(fit: Fit, problem: Problem) -> None:
     """Orientation residuals and statistics on ``fit`` (calibration and validation rows)
     when its data have orientations: fitted (full pose) or predicted (position only)."""
     if fit.data.quat is None:
@@ -99,7 +111,7 @@ def attach_orientations(fit, problem) -> None:
         R = problem.evaluate_pose(x)[2]
         fit.orientation_residuals = rotation_residuals(problem.pose.R, R)
         fit.orientation_fitted = True
-        if held is not None:
+        if held is not None and held.quat is not None:
             Rv = em.evaluate_pose(x, em.bind(held), jacobian=False)[2]
             fit.valid_orientation_residuals = rotation_residuals(quat_to_matrix(held.quat), Rv)
     else:
@@ -111,10 +123,14 @@ def attach_orientations(fit, problem) -> None:
         fit.valid.update(orientation_stats(fit.valid_orientation_residuals))
 
 
-def predicted_orientations(em, x, calib, held=None):
+def predicted_orientations(em: ErrorModel, x: np.ndarray, calib: Dataset,
+                           held: Dataset | None = None
+                           ) -> tuple[np.ndarray, np.ndarray | None]:
     """Orientation residuals (rad) of the model ``(em, x)`` on ``calib`` and ``held``
     rows (None when absent), with the target's mounting on the flange fitted to the
     calibration rows' orientations (a model that already has it keeps its own)."""
+    if calib.quat is None:
+        raise ValueError(f"{calib.source}: no orientations to predict")
     R = em.evaluate_pose(x, em.bind(calib), jacobian=False)[2]
     meas = quat_to_matrix(calib.quat)
     mount = np.eye(3)
@@ -122,13 +138,14 @@ def predicted_orientations(em, x, calib, held=None):
         mount = mean_rotation(np.swapaxes(R, 1, 2) @ meas)
     res = rotation_residuals(meas, R @ mount)
     vres = None
-    if held is not None and held.n:
+    if held is not None and held.n and held.quat is not None:
         Rv = em.evaluate_pose(x, em.bind(held), jacobian=False)[2]
         vres = rotation_residuals(quat_to_matrix(held.quat), Rv @ mount)
     return res, vres
 
 
-def structural_rows(error_model, bound, x: np.ndarray) -> np.ndarray | None:
+def structural_rows(error_model: ErrorModel, bound: Bound,
+                    x: np.ndarray) -> np.ndarray | None:
     """The orientation rows' Jacobian (3 n, p), mm-equivalent, at ``x`` for the
     identifiability analysis of a full-pose problem (None for a position-only one)."""
     if not is_full_pose(error_model, bound.data):
@@ -138,7 +155,8 @@ def structural_rows(error_model, bound, x: np.ndarray) -> np.ndarray | None:
     return (W * w[:, None, None]).reshape(-1, error_model.n_params)
 
 
-def for_data(error_model, data, position_only: bool = False):
+def for_data(error_model: ErrorModel, data: Dataset,
+             position_only: bool = False) -> tuple[ErrorModel, list[str]]:
     """The error model the data call for, and notes saying what changed.
 
     Rows naming several targets (``tool_id``) get a tool point per SMR nest
@@ -146,7 +164,7 @@ def for_data(error_model, data, position_only: bool = False):
     orientation in the flange (``tool_rotation``), unless ``position_only`` (which also
     drops a ``tool_rotation`` the effects name).
     """
-    effects, notes = list(error_model.effects), []
+    effects, notes = list(error_model.effects), list[str]()
     nests = list(dict.fromkeys(data.tool_id)) if data.tool_id is not None else []
     for i, e in enumerate(effects):
         if e.family == "tool" and len(nests) > 1 and getattr(e, "nests", None) != nests:

@@ -23,10 +23,14 @@ table's constant is the joint's zero offset), and the others are free and listed
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..numerics.linalg import qr_pivoted
+
+if TYPE_CHECKING:
+    from .error_model import ErrorModel
 
 #: tiers for breaking exact redundancies: a parameter is only fixed in favour of
 #: parameters of the same or an earlier tier
@@ -105,8 +109,10 @@ def analyse(
         if out is not None:
             return out
         normal = None
-    return _analyse(J, names, scales, families, rtol, always_free, n_poses, penalised,
-                    normal)
+    out = _analyse(J, names, scales, families, rtol, always_free, n_poses, penalised,
+                   normal)
+    assert out is not None  # unguarded: always an analysis
+    return out
 
 
 #: with penalised groups, the normal matrix's factor serves only when the free columns'
@@ -114,8 +120,10 @@ def analyse(
 GUARD_COND = 1e4
 
 
-def _analyse(J, names, scales, families, rtol, always_free, n_poses, penalised, normal,
-             guard: bool = False) -> Identifiability | None:
+def _analyse(J: np.ndarray, names: list[str], scales: np.ndarray, families: list[str] | None,
+             rtol: float, always_free: np.ndarray | None, n_poses: int | None,
+             penalised: list[tuple[np.ndarray, np.ndarray]] | None,
+             normal: np.ndarray | None, guard: bool = False) -> Identifiability | None:
     """:func:`analyse`; with ``guard`` None when the free columns are too ill-conditioned
     for the normal matrix's factor."""
     m, p = J.shape
@@ -136,7 +144,7 @@ def _analyse(J, names, scales, families, rtol, always_free, n_poses, penalised, 
     else:
         scaled = np.zeros_like(J, dtype=float)
         scaled[:, live] = J[:, live] / norms[live]
-        Jn = np.linalg.qr(scaled, mode="r") if m > p else scaled
+        Jn = np.asarray(np.linalg.qr(scaled, mode="r")) if m > p else scaled
     free = np.zeros(p, bool)
     basis = np.zeros((Jn.shape[0], 0))
     for tier in sorted(set(tiers[live & ~in_group])):
@@ -180,8 +188,8 @@ def _analyse(J, names, scales, families, rtol, always_free, n_poses, penalised, 
                 f"{free_names[i]} ({coef[i, c]:+.2f})" for i in order if abs(coef[i, c]) > 0.05
             ]
             fixed[names[k]] = "redundant with " + (", ".join(parts) if parts else "the others")
-    for k, why in held.items():
-        fixed[names[k]] = why
+    for key, why in held.items():
+        fixed[names[key]] = why
     cond = obs = float("nan")
     plain = free & ~in_group
     if plain.any():
@@ -191,8 +199,8 @@ def _analyse(J, names, scales, families, rtol, always_free, n_poses, penalised, 
         ss = np.linalg.svd(Jn[:, plain] * phys, compute_uv=False)
         npose = n_poses if n_poses else max(m // 3, 1)
         obs = float(np.exp(np.mean(np.log(np.maximum(ss, 1e-300)))) / np.sqrt(npose))
-    order = {n: i for i, n in enumerate(names)}
-    fixed = dict(sorted(fixed.items(), key=lambda kv: order[kv[0]]))
+    position = {n: i for i, n in enumerate(names)}
+    fixed = dict(sorted(fixed.items(), key=lambda kv: position[kv[0]]))
     pen_names = [names[k] for k in np.flatnonzero(free & in_group)]
     return Identifiability(free, list(names), fixed, cond, obs, pen_names)
 
@@ -207,7 +215,8 @@ def _normal_factor(normal: np.ndarray, norms: np.ndarray, live: np.ndarray) -> n
     return np.sqrt(np.clip(w, 0.0, None))[:, None] * V.T
 
 
-def _penalised_group(Jn, norms, idx, null, basis, rtol) -> dict[int, str]:
+def _penalised_group(Jn: np.ndarray, norms: np.ndarray, idx: np.ndarray, null: np.ndarray,
+                     basis: np.ndarray, rtol: float) -> dict[int, str]:
     """Parameters of one penalised group to hold at their start: one per direction of the
     penalty's null space that the data (beyond the parameters kept so far) cannot
     determine. The first is the parameter with the strongest column (a table's best
@@ -230,11 +239,12 @@ def _penalised_group(Jn, norms, idx, null, basis, rtol) -> dict[int, str]:
     return {int(idx[k]): why for k in picks}
 
 
-def penalised_groups(error_model) -> list[tuple[np.ndarray, np.ndarray]]:
+def penalised_groups(error_model: ErrorModel) -> list[tuple[np.ndarray, np.ndarray]]:
     """The penalised groups of an error model for :func:`analyse`: every effect with a
     ``null_space()`` (the directions its penalty leaves free)."""
     groups = []
-    for e, sl in zip(error_model.effects, error_model.slices, strict=True):
+    effects: list[Any] = error_model.effects  # the penalised ones have ``null_space``
+    for e, sl in zip(effects, error_model.slices, strict=True):
         if hasattr(e, "null_space"):
             groups.append((np.arange(sl.start, sl.stop), np.asarray(e.null_space(), float)))
     return groups

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -179,19 +180,22 @@ class Fit:
 
 
 def covariance(J: np.ndarray, r: np.ndarray, free: np.ndarray, sigma: float | None = None,
-               penalty: tuple[np.ndarray, np.ndarray] | None = None):
+               penalty: tuple[np.ndarray, np.ndarray] | None = None
+               ) -> tuple[np.ndarray, float]:
     """Parameter covariance from the final Jacobian (n, 3, p) and residuals (n, 3).
 
     Uses ``sigma`` (mm per axis) when given, else the residual variance
     RSS / (3 n - m). Penalty rows (regularised effects) join the normal matrix, so the
     covariance is that of the regularised estimate. Returns (covariance (p, p), sigma).
     """
-    return covariance_and_factor(J, r, free, sigma, penalty)[:2]
+    cov, s, _ = covariance_and_factor(J, r, free, sigma, penalty)
+    return cov, s
 
 
 def covariance_and_factor(J: np.ndarray, r: np.ndarray, free: np.ndarray,
                           sigma: float | None = None,
-                          penalty: tuple[np.ndarray, np.ndarray] | None = None):
+                          penalty: tuple[np.ndarray, np.ndarray] | None = None
+                          ) -> tuple[np.ndarray, float, np.ndarray]:
     """:func:`covariance`, and M (m, m) with ``M Mᵀ`` the free block of the covariance over
     sigma², from the same factorisation (see :attr:`Fit.hat_factor`)."""
     p = J.shape[-1]
@@ -235,7 +239,8 @@ def structural_identifiability(error_model: ErrorModel, calib: Dataset, rtol: fl
     return bound, x_nominal, ident
 
 
-def _structural(error_model: ErrorModel, calib: Dataset, rtol: float):
+def _structural(error_model: ErrorModel, calib: Dataset, rtol: float) -> tuple[
+        Bound, np.ndarray, Identifiability, tuple[np.ndarray, np.ndarray]]:
     """:func:`structural_identifiability`, and the evaluation at the nominal geometry
     ``(P, J)`` it made (the solver's first when it starts there)."""
     bound: Bound = error_model.bind(calib)
@@ -278,7 +283,7 @@ def identify(
     x0: np.ndarray | None = None,
     rtol: float = 1e-3,
     fixed: list[str] | None = None,
-    solver_options: dict | None = None,
+    solver_options: dict[str, Any] | None = None,
     outliers: str = "exclude",
 ) -> Fit:
     """Identify the parameters of ``error_model`` from ``data``.
@@ -314,8 +319,9 @@ def identify(
                          outliers)
 
 
-def _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
-              outliers) -> Fit:
+def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Dataset | None,
+              x0: np.ndarray | None, rtol: float, fixed: list[str] | None,
+              solver_options: dict[str, Any] | None, outliers: str) -> Fit:
     """:func:`identify` (its arguments, positionally)."""
     t0 = time.perf_counter()
     data = error_model.prepare(data)
@@ -323,7 +329,7 @@ def _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
         # tables whose smoothing is to be chosen: by GCV at one fit (see choose_smoothing)
         from ..effects.table import choose_smoothing
 
-        def fit_fn(em, d):
+        def fit_fn(em: ErrorModel, d: Dataset) -> Fit:
             return identify(em, d, solver, x0=x0, rtol=rtol, fixed=fixed,
                             solver_options=solver_options)
 
@@ -380,7 +386,7 @@ def _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
         fit.valid_data, fit.valid_residuals, fit.valid = held, vres, error_stats(vres)
     full_pose.attach_orientations(fit, problem)
     if outliers != "keep":
-        def refit(rows, x):
+        def refit(rows: Dataset, x: np.ndarray) -> Fit:
             return identify(error_model, rows, solver, valid=held, x0=x, rtol=rtol,
                             fixed=fixed, solver_options=solver_options, outliers="keep")
 
@@ -390,7 +396,7 @@ def _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
     return fit
 
 
-def fit_at(error_model: ErrorModel, data: Dataset, x: np.ndarray, **kw) -> Fit:
+def fit_at(error_model: ErrorModel, data: Dataset, x: np.ndarray, **kw: Any) -> Fit:
     """A :class:`Fit` for given parameters without solving (residuals, statistics,
     identifiability and covariance at ``x``), e.g. for parameters read from params.json."""
     fit = identify(error_model, data, x0=x, solver_options={"max_iter": 0}, **kw)
@@ -398,14 +404,14 @@ def fit_at(error_model: ErrorModel, data: Dataset, x: np.ndarray, **kw) -> Fit:
     return fit
 
 
-def screen_for_diagnosis(fit):
+def screen_for_diagnosis(fit: Fit) -> Fit:
     """``fit`` without its blunders, for a diagnosis: a fit that left them out is used as
     it is; one that kept them (``--outliers keep``/``flag``, or parameters given) is
     screened and refitted without them (same solver, warm start). Returns the fit, whose
     ``outliers`` say what was left out."""
     if fit.outliers is not None and fit.outliers.mode == "exclude":
         return fit
-    def refit(rows, x):
+    def refit(rows: Dataset, x: np.ndarray) -> Fit:
         return identify(fit.error_model, rows, fit.solver, valid=fit.valid_data, x0=x,
                         outliers="keep")
 

@@ -12,14 +12,20 @@ evaluated last (:attr:`~calibration.fit.identify.Fit.jacobian`), not a new pass.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from ..data.dataset import Dataset
+    from .identify import Fit
 
 #: eigenvalues of a residual's covariance factor are clipped here (see :func:`studentise`)
 MIN_FACTOR = 1e-2
 
 
-def residual_factors(fit, rows, included: np.ndarray, jacobian: np.ndarray | None = None
-                     ) -> np.ndarray:
+def residual_factors(fit: Fit, rows: Dataset, included: np.ndarray,
+                     jacobian: np.ndarray | None = None) -> np.ndarray:
     """Covariance of each residual of ``rows`` over sigma^2 at ``fit``, (n, 3, 3).
 
     ``I - J_i C J_i^T`` for a point the fit used (``included``), ``I + J_i C J_i^T`` for
@@ -68,7 +74,7 @@ def studentise(r: np.ndarray, factors: np.ndarray) -> np.ndarray:
     return np.einsum("nij,nj->ni", V, np.einsum("nji,nj->ni", V, r) / np.sqrt(w))
 
 
-def residuals_on(fit, full, out: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+def residuals_on(fit: Fit, full: Dataset, out: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     """Residuals (n, 3) and Jacobian (n, 3, p) of every row of ``full`` at ``fit``, which
     was fitted to the rows not ``out``: its own residuals and Jacobian (when it kept it)
     for those, one evaluation of the rows left out for the rest."""

@@ -17,10 +17,14 @@ keep their units, and data without orientations give the same numbers as before.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..model.transforms import matrices_to_rotvecs, quat_to_matrix, skew
+
+if TYPE_CHECKING:
+    from ..data.dataset import Dataset
 
 
 def rotation_residuals(R_meas: np.ndarray, R_pred: np.ndarray) -> np.ndarray:
@@ -76,10 +80,12 @@ class OrientationRows:
     estimated: tuple[str, ...] = ()
 
     @classmethod
-    def of(cls, data) -> OrientationRows:
+    def of(cls, data: Dataset) -> OrientationRows:
         """The rows of ``data`` (which has ``quat``), uncertainties from the data."""
+        if data.quat is None:
+            raise ValueError(f"{data.source}: no orientations (quat columns)")
         s_mm = data.sigma()
-        est = () if s_mm is not None else ("mm",)
+        est: tuple[str, ...] = () if s_mm is not None else ("mm",)
         if data.sigma_deg is not None:
             s_rad = np.radians(np.asarray(data.sigma_deg, float))
         else:
@@ -96,7 +102,8 @@ class OrientationRows:
         """Weighted residuals (n, 3), mm-equivalent."""
         return rotation_residuals(self.R, R_pred) * self.weight[:, None]
 
-    def residual_and_jacobian(self, R_pred: np.ndarray, W: np.ndarray):
+    def residual_and_jacobian(self, R_pred: np.ndarray,
+                              W: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Weighted residuals (n, 3) and their Jacobian d r / d x (n, 3, p)."""
         r = rotation_residuals(self.R, R_pred)
         Jr = -np.matmul(inverse_right_jacobians(r), W)

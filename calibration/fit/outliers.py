@@ -40,6 +40,16 @@ flexible one most) until many points look out of line: when the first test finds
 many, the worst ``max_fraction`` are left out once on trial and every point is judged
 again at that fit; only if that fit still is not a clean cloud is nothing left out.
 
+Drift checks
+------------
+Readings of a capture's drift checks (``set=drift``: one reference pose measured again
+and again while the robot warms up) are a set of their own: each is the measurement of
+the drift itself, so a reading out of line with a model that lacks the drift is the
+signal the diagnosis needs, not a blunder. They stay in the fit and in the residuals, but
+the test does not judge them (``exempt``): they are neither counted nor named, nor do
+they widen the bulk's scale, and the verdict says how many were not tested. Their own
+bound is the capture's (:mod:`daq.drift_checks`).
+
 Direction
 ---------
 When the measurement frame is the tracker's (the tracker at its origin; judged so when
@@ -54,12 +64,17 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
 from ..numerics.chi3 import chi3_isf
 from .leverage import residual_factors, residuals_on, studentised_norms
 from .leverage import studentise as studentise
+
+if TYPE_CHECKING:
+    from ..data.dataset import Dataset
+    from .identify import Fit
 
 #: median and MAD of the chi distribution with 3 degrees of freedom
 CHI3_MEDIAN = chi3_isf(0.5)  # chi(3).median()
@@ -118,6 +133,7 @@ class BlunderScreen:
     clean_cloud : False when too many points are out of line to be blunders
     mode : ``exclude`` (left out of the fit), ``flag`` (fitted, only named) or ``test``
     rounds : refits the exclusion loop took
+    n_exempt : points not tested (a capture's drift-check readings); ``n`` excludes them
     """
 
     blunders: list[Blunder]
@@ -131,6 +147,7 @@ class BlunderScreen:
     rounds: int = 0
     max_fraction: float = MAX_FRACTION
     notes: list[str] = field(default_factory=list)
+    n_exempt: int = 0
     #: (n,) standardised residuals (in units of the instrument's uncertainty) and which of
     #: them are beyond the threshold
     u: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
@@ -164,15 +181,17 @@ class BlunderScreen:
     def message(self, context: str = "fit", list_points: bool = True) -> str:
         """The verdict in one or two sentences; ``context`` "fit" (calibrate) or "ranking"
         (diagnose) says what the blunders were left out of; ``list_points`` names them."""
+        tail = self._exempt_sentence()
         if not self.clean_cloud:
             head = (f"{self.n_out_of_line} of {self.n} points lie beyond "
                     f"{self.threshold_mm:.3f} mm: the residuals are not a clean cloud with a "
                     f"few blunders, so none was left out")
             if context == "ranking":
-                return head + " of the ranking."
-            return head + "; the model misses something (run `cellcal diagnose`)."
+                return head + " of the ranking." + tail
+            return head + "; the model misses something (run `cellcal diagnose`)." + tail
         if not self.blunders:
-            return f"No measurement is out of line (threshold {self.threshold_mm:.3f} mm)."
+            return (f"No measurement is out of line (threshold {self.threshold_mm:.3f} mm)."
+                    + tail)
         k = len(self.blunders)
         what = "1 measurement looks like a blunder" if k == 1 else \
             f"{k} measurements look like blunders"
@@ -182,7 +201,15 @@ class BlunderScreen:
         else:
             tail = f"{it} left out of the {'ranking' if context == 'ranking' else 'fit'}"
         points = ": " + ", ".join(b.describe() for b in self.blunders) if list_points else ""
-        return f"{what} (beyond {self.threshold_mm:.3f} mm){points}; {tail}."
+        return f"{what} (beyond {self.threshold_mm:.3f} mm){points}; {tail}." + \
+            self._exempt_sentence()
+
+    def _exempt_sentence(self) -> str:
+        if not self.n_exempt:
+            return ""
+        k = self.n_exempt
+        return (f" The {k} drift-check reading{'s' if k > 1 else ''} {'are' if k > 1 else 'is'}"
+                " not tested: each measures the drift itself.")
 
 
 def _robust_scale(u: np.ndarray) -> float:
@@ -212,7 +239,7 @@ def beam_angles(residuals: np.ndarray, xyz: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(c, 0.0, 1.0)))
 
 
-def point_sigmas(data) -> tuple[np.ndarray | None, float | None]:
+def point_sigmas(data: Dataset) -> tuple[np.ndarray | None, float | None]:
     """(per-point sigma (n,) or None, RMS sigma or None) of a :class:`Dataset`."""
     if data.sigma_mm is not None:
         return np.asarray(data.sigma_mm, float), data.sigma()
@@ -221,7 +248,7 @@ def point_sigmas(data) -> tuple[np.ndarray | None, float | None]:
 
 
 def find_blunders(
-    fit_or_residuals,
+    fit_or_residuals: Fit | np.ndarray,
     sigma: float | np.ndarray | None = None,
     *,
     xyz: np.ndarray | None = None,
@@ -231,6 +258,7 @@ def find_blunders(
     max_fraction: float = MAX_FRACTION,
     named: np.ndarray | None = None,
     leverage: np.ndarray | None = None,
+    exempt: np.ndarray | None = None,
 ) -> BlunderScreen:
     """Test residuals for blunders: points far out of line with a clean cloud.
 
@@ -248,13 +276,15 @@ def find_blunders(
     leverage : (n, 3, 3) each residual's covariance over sigma^2 (``I - H_ii``, see
         :func:`residual_factors`); default the identity (no studentisation). With a Fit,
         computed from it.
+    exempt : (n,) bool, points not tested (never out of line, not in the scale nor in
+        the count): a capture's drift-check readings. With a Fit, its data's drift rows.
 
     Returns
     -------
     BlunderScreen (``mode`` "test"); nothing is refitted.
     """
     if hasattr(fit_or_residuals, "residuals"):
-        fit = fit_or_residuals
+        fit = cast("Fit", fit_or_residuals)
         d = fit.data
         residuals = fit.residuals
         xyz = d.tracker_p_smr if xyz is None else xyz
@@ -264,6 +294,8 @@ def find_blunders(
             sigma = point_sigmas(d)[0]
         if leverage is None:
             leverage = residual_factors(fit, d, np.ones(d.n, bool))
+        if exempt is None:
+            exempt = d.drift_rows()
     else:
         residuals = fit_or_residuals
     r = np.atleast_2d(np.asarray(residuals, float))
@@ -272,17 +304,20 @@ def find_blunders(
     known = sigma is not None
     s = np.broadcast_to(np.asarray(sigma if known else 1.0, float), (n,))
     sigma_rms = float(np.sqrt(np.mean(s**2))) if known and n else None
-    if n == 0:
-        return BlunderScreen([], 0, 0, 1.0, sigma_rms, math.inf, True)
+    exempt = np.zeros(n, bool) if exempt is None else np.asarray(exempt, bool)
+    tested = ~exempt
+    n_tested = int(tested.sum())
+    if n_tested == 0:
+        return BlunderScreen([], 0, 0, 1.0, sigma_rms, math.inf, True, n_exempt=n - n_tested)
     u = (e if leverage is None else studentised_norms(r, leverage)) / s
-    scale = _robust_scale(u)
+    scale = _robust_scale(u[tested])
     if known:
         scale = max(scale, 1.0)
     scale = max(scale, 1e-9 / float(np.mean(s)))  # noise-free synthetic data
-    k = threshold(n, alpha)
-    beyond = u > k * scale
-    thr_mm = k * scale * (sigma_rms if known else 1.0)
-    limit = max(1, int(math.floor(max_fraction * n + 1e-9)))
+    k = threshold(n_tested, alpha)
+    beyond = (u > k * scale) & tested
+    thr_mm = k * scale * (sigma_rms if sigma_rms is not None else 1.0)  # known, n > 0
+    limit = max(1, int(math.floor(max_fraction * n_tested + 1e-9)))
     clean = int(beyond.sum()) <= limit
     out = np.flatnonzero(beyond if named is None else named) if clean else np.zeros(0, int)
     ids = pose_id if pose_id is not None else [str(i + 1) for i in range(n)]
@@ -295,11 +330,13 @@ def find_blunders(
             pose_id=str(ids[i]), index=int(i), line=int(ln[i]), residual_mm=float(e[i]),
             ratio=float(u[i] / (k * scale)),
             along_beam=None if ang is None else bool(ang <= ALONG_BEAM_DEG), angle_deg=ang))
-    return BlunderScreen(blunders, n, int(beyond.sum()), float(scale), sigma_rms,
-                         float(thr_mm), clean, max_fraction=max_fraction, u=u, beyond=beyond)
+    return BlunderScreen(blunders, n_tested, int(beyond.sum()), float(scale), sigma_rms,
+                         float(thr_mm), clean, max_fraction=max_fraction, u=u, beyond=beyond,
+                         n_exempt=n - n_tested)
 
 
-def screen_fit(fit, mode: str, refit: Callable, **test_kw):
+def screen_fit(fit: Fit, mode: str, refit: Callable[[Dataset, np.ndarray], Fit],
+               **test_kw: Any) -> Fit:
     """Find the blunders of ``fit`` by the exclusion loop (see the module docstring).
 
     Parameters
@@ -321,7 +358,8 @@ def screen_fit(fit, mode: str, refit: Callable, **test_kw):
         return fit
     full = fit.data
     sig = point_sigmas(full)[0]
-    kw = {"xyz": full.tracker_p_smr, "pose_id": full.pose_id, "lines": full.lines, **test_kw}
+    kw: dict[str, Any] = {"xyz": full.tracker_p_smr, "pose_id": full.pose_id,
+                          "lines": full.lines, "exempt": full.drift_rows(), **test_kw}
     out = np.zeros(full.n, bool)
     seen = {out.tobytes()}
     current, rounds, settled, trial = fit, 0, True, False
@@ -337,7 +375,7 @@ def screen_fit(fit, mode: str, refit: Callable, **test_kw):
             # every point again at that fit
             trial = True
             new = np.zeros(full.n, bool)
-            new[np.argsort(-screen.u)[: screen.limit]] = True
+            new[np.argsort(-np.where(kw["exempt"], -np.inf, screen.u))[: screen.limit]] = True
         else:
             current, out = fit, np.zeros(full.n, bool)
             break

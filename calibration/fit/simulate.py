@@ -9,8 +9,10 @@ readings as a real tracker does now and then (see :func:`blunder_offsets`);
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..data.dataset import Dataset
 from ..effects import JointEffect
@@ -83,7 +85,7 @@ def simulate(
     sigma_mm: float,
     rng: np.random.Generator,
     sigma_deg: float | None = None,
-    **columns,
+    **columns: Any,
 ) -> Dataset:
     """Measure the true robot at joints ``q`` (rad, (n, N)) with Gaussian tracker noise.
 
@@ -112,15 +114,15 @@ WARM_RISE_K = (12.0, 16.0, 14.0, 9.0, 9.0, 8.0)
 WARMUP_TAU_S = (1800.0, 2100.0, 1800.0, 1200.0, 1200.0, 1200.0)
 
 
-def per_joint(values, n_joints: int) -> np.ndarray:
+def per_joint(values: npt.ArrayLike, n_joints: int) -> np.ndarray:
     """A six-joint default for ``n_joints`` joints (the last value repeated beyond six)."""
     v = np.asarray(values, float)
     return v[np.minimum(np.arange(n_joints), v.size - 1)]
 
 
 def warmup_temperatures(t_s: np.ndarray, n_joints: int, *, ambient_c: float = 20.0,
-                        start_s: float | None = 0.0, rise_k=WARM_RISE_K,
-                        tau_s=WARMUP_TAU_S) -> np.ndarray:
+                        start_s: float | None = 0.0, rise_k: npt.ArrayLike = WARM_RISE_K,
+                        tau_s: npt.ArrayLike = WARMUP_TAU_S) -> np.ndarray:
     """Joint temperatures (°C, (n, N)) at times ``t_s`` of a robot working continuously
     since ``start_s`` from cold (first order: ambient + rise · (1 - exp(-(t - start)/τ)));
     ``start_s=None``: a robot that has long been warm (ambient + rise)."""
@@ -140,7 +142,7 @@ class Bump(JointEffect):
     family = "bump"
     summary = "a local joint error a few degrees wide (simulation only)"
 
-    def __init__(self, model: RobotModel, joint: int, centre_deg: float, width_deg: float):
+    def __init__(self, model: RobotModel, joint: int, centre_deg: float, width_deg: float) -> None:
         super().__init__(model, joint)
         self.centre, self.width = np.radians(centre_deg), np.radians(width_deg)
         self.param_names, self.units, self.scales = ["a"], ["rad"], np.array([1e-4])
@@ -153,14 +155,15 @@ class Bump(JointEffect):
     def prefix(self) -> str:
         return f"bump.j{self.joint}@{np.degrees(self.centre):g}"
 
-    def bind(self, data: Dataset, nominal) -> np.ndarray:
+    def bind(self, data: Dataset, nominal: Any) -> np.ndarray:
         u = (data.q[:, self.joint - 1] - self.centre) / self.width
         return np.exp(-0.5 * u**2)
 
-    def delta(self, p, data, shape):
+    def delta(self, p: np.ndarray, data: Dataset, shape: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray]:
         return p[0] * shape, shape[:, None]
 
-    def typical(self, rng):
+    def typical(self, rng: np.random.Generator) -> np.ndarray:
         return np.array([rng.uniform(1e-4, 3e-4) * rng.choice([-1.0, 1.0])])
 
 
@@ -180,7 +183,7 @@ def blunder_offsets(
     the beam clipped). Returns (offsets (k, 3) mm, along_beam (k,) bool).
     """
     xyz = np.atleast_2d(np.asarray(xyz, float))
-    k = xyz.shape[0]
+    k: int = xyz.shape[0]
     along = rng.random(k) < along_fraction
     size = rng.uniform(size_mm[0], size_mm[1], k)
     random_dir = rng.normal(size=(k, 3))

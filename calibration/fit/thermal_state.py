@@ -25,13 +25,19 @@ a program runs on a robot that has warmed up, not on the cold one the capture be
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..data.columns import column
 from ..data.dataset import Dataset
 from ..effects.drift import DEFAULT_TEMP_REF_C, DRIFT, DRIFT_WINDOW_KEY
 from ..errors import ParamsError
+
+if TYPE_CHECKING:
+    from ..effects.base import Effect
+    from .error_model import ErrorModel
+    from .identify import Fit
 
 #: the effect families that depend on the thermal state (or the time it drifts over)
 THERMAL_FAMILIES = frozenset(DRIFT) | {"thermal"}
@@ -44,12 +50,12 @@ RECORD_VERSION = 1
 WARM_SHARE = 0.1
 
 
-def thermal_effects(error_model) -> list:
+def thermal_effects(error_model: ErrorModel) -> list[Effect]:
     """The effects of a model that depend on the thermal state."""
     return [e for e in error_model.effects if e.family in THERMAL_FAMILIES]
 
 
-def thermal_record(fit) -> dict | None:
+def thermal_record(fit: Fit) -> dict[str, Any] | None:
     """The ``thermal`` record of params.json for a fit with a thermal effect, else None."""
     effects = thermal_effects(fit.error_model)
     if not effects:
@@ -81,7 +87,7 @@ def check_thermal_record(rec: Any, n_joints: int, source: str) -> dict | None:
     if not isinstance(rec, dict):
         raise ParamsError(f"{where}: not an object")
 
-    def number(v, key):
+    def number(v: Any, key: str) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise ParamsError(f"{where}.{key}: {v!r} is not a finite number")
         return float(v)
@@ -119,7 +125,7 @@ def check_thermal_record(rec: Any, n_joints: int, source: str) -> dict | None:
     return out
 
 
-def apply_thermal_record(effects: list, rec: dict | None) -> None:
+def apply_thermal_record(effects: list[Any], rec: dict[str, Any] | None) -> None:
     """Give the effects of a reloaded model the state they were calibrated against: the
     time window and the reference temperature (None: a file without the record, whose
     effects measure time against the data they meet, as before)."""
@@ -132,7 +138,7 @@ def apply_thermal_record(effects: list, rec: dict | None) -> None:
             e.temp_ref_c = rec["temp_ref_c"]
 
 
-def target_state(error_model, rec: dict | None, columns: dict, n: int
+def target_state(error_model: ErrorModel, rec: dict | None, columns: dict, n: int
                  ) -> tuple[dict, dict | None]:
     """The columns a compensation binds (each target's own, else the warm state) and
     the thermal state used, for the user: ``{"source": "targets"|"calibration's warm
@@ -173,4 +179,5 @@ def target_state(error_model, rec: dict | None, columns: dict, n: int
 
 
 def _column_names(col: str) -> str:
-    return {"joint_temp": "joint_temp1..N", "t_s": "t_s", "temp_c": "temp_c"}[col]
+    """The CSV column(s) of Dataset field ``col``, as a message names them."""
+    return ", ".join(c.replace("{j}", "1..N") for c in column(col).csv)

@@ -30,17 +30,17 @@ PARALLEL_SIN = 0.05
 SNAP_MM, SNAP_RAD = 1e-9, 1e-12
 
 
-def rot_z(t):
+def rot_z(t: float) -> np.ndarray:
     c, s = math.cos(t), math.sin(t)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def rot_x(t):
+def rot_x(t: float) -> np.ndarray:
     c, s = math.cos(t), math.sin(t)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
-def rot_y(t):
+def rot_y(t: float) -> np.ndarray:
     c, s = math.cos(t), math.sin(t)
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
@@ -54,7 +54,12 @@ def _signed_x(x_xy: np.ndarray) -> tuple[np.ndarray, float]:
     return x, math.atan2(x[1], x[0])
 
 
-def _dh_row(R: np.ndarray, p: np.ndarray, o_next: np.ndarray, u_next: np.ndarray):
+#: one table row: theta_offset, d, a, alpha, beta (rad, mm)
+Row = tuple[float, float, float, float, float]
+
+
+def _dh_row(R: np.ndarray, p: np.ndarray, o_next: np.ndarray,
+            u_next: np.ndarray) -> tuple[Row, np.ndarray, np.ndarray]:
     """One standard-DH row from the current frame (z on this joint's axis) to the next axis.
 
     Returns (theta, d, a, alpha, beta) and the next frame (R, p).
@@ -88,7 +93,8 @@ def _dh_row(R: np.ndarray, p: np.ndarray, o_next: np.ndarray, u_next: np.ndarray
     return (theta, d, a, alpha, beta), R_next, p_next
 
 
-def _last_row(R: np.ndarray, p: np.ndarray, tip_T: np.ndarray):
+def _last_row(R: np.ndarray, p: np.ndarray,
+              tip_T: np.ndarray) -> tuple[Row, np.ndarray, np.ndarray, np.ndarray]:
     """The last row: flange frame turned like the tip, origin on the last axis level with it.
 
     Returns (theta, d, a, alpha, beta), the flange frame (R, p) and the tool point in it.
@@ -130,7 +136,9 @@ def urdf_rpy(R: np.ndarray) -> tuple[float, float, float]:
     return 0.0, pitch, math.atan2(-R[0, 1], R[1, 1]) + 0.0
 
 
-def dh_from_axes(origins: np.ndarray, axes: np.ndarray, tip_T: np.ndarray):
+def dh_from_axes(
+    origins: np.ndarray, axes: np.ndarray, tip_T: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, list[tuple[np.ndarray, np.ndarray]], np.ndarray]:
     """The standard-DH/Hayati table of a chain given by its joint axes (mm, any frame F).
 
     Parameters

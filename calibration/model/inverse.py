@@ -21,11 +21,18 @@ Lengths mm, angles rad. Solvers return results, not exceptions.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from .kinematics import run_chain
+from .robot_model import RobotModel
+
+#: a forward function: joints q (n, N) (and, when it ``takes_rows``, the rows of the
+#: targets evaluated) -> (P (n, 3), R (n, 3, 3), Jp (n, 3, N), Jw (n, 3, N))
+ForwardFn = Callable[..., tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]
 
 
 @dataclass
@@ -67,7 +74,7 @@ class ChainFK:
 
     def __init__(self, convention: str, table: np.ndarray, tool: np.ndarray,
                  joint_offsets: np.ndarray | None = None,
-                 prismatic: np.ndarray | None = None):
+                 prismatic: np.ndarray | None = None) -> None:
         self.convention = convention
         self.prismatic = prismatic
         self.table = np.asarray(table, float)
@@ -76,7 +83,7 @@ class ChainFK:
                         else np.asarray(joint_offsets, float))
 
     @classmethod
-    def from_model(cls, model, tool: np.ndarray | None = None) -> ChainFK:
+    def from_model(cls, model: RobotModel, tool: np.ndarray | None = None) -> ChainFK:
         """The nominal chain of a :class:`~calibration.model.robot_model.RobotModel`."""
         return cls(model.convention, model.dh_table(), model.tool_mm() if tool is None else tool,
                    prismatic=model.prismatic_mask())
@@ -85,7 +92,7 @@ class ChainFK:
     def n_joints(self) -> int:
         return self.table.shape[0]
 
-    def __call__(self, q: np.ndarray):
+    def __call__(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Point, flange orientation and joint Jacobians for joint angles q (rad), (n, N).
 
         Returns
@@ -128,7 +135,7 @@ def wrap_to_pi(q: np.ndarray) -> np.ndarray:
 
 
 def solve_ik(
-    fk,
+    fk: ForwardFn,
     q0: np.ndarray,
     target_p: np.ndarray,
     target_R: np.ndarray | None = None,
@@ -171,18 +178,20 @@ def solve_ik(
     n = max(len(q), len(target_p))
     q = np.broadcast_to(q, (n, q.shape[1])).copy()
     target_p = np.broadcast_to(target_p, (n, 3))
-    pose = target_R is not None
-    if pose:
+    if target_R is not None:
         target_R = np.broadcast_to(np.asarray(target_R, float), (n, 3, 3))
+    pose_R = target_R
+    pose = pose_R is not None
     N = q.shape[1]
 
     rows = getattr(fk, "takes_rows", False)
 
-    def residual(idx, qq):
+    def residual(idx: np.ndarray, qq: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         P, R, Jp, Jw = fk(qq, idx) if rows else fk(qq)
         e = target_p[idx] - P
-        if pose:
-            er = rotation_error(R, target_R[idx])
+        if pose_R is not None:
+            er = rotation_error(R, pose_R[idx])
             r = np.concatenate([e, rot_weight_mm * er], axis=1)
             J = np.concatenate([Jp, rot_weight_mm * Jw], axis=1)
         else:
@@ -237,13 +246,13 @@ def solve_ik(
 
 
 def solve_ik_multistart(
-    fk,
+    fk: ForwardFn,
     target_p: np.ndarray,
     target_R: np.ndarray | None,
     seeds: np.ndarray,
     *,
     reference: np.ndarray | None = None,
-    **options,
+    **options: Any,
 ) -> IKResult:
     """Pose or position IK from several starts per target, keeping the best solution.
 

@@ -96,6 +96,8 @@ class ChainResult:
         """(N, 5, 3, n) the flange's angular velocity (base frame) per table entry, in the
         layout of ``dP_internal``: the unit axis of an elementary rotation, zero for a
         translation (rad per rad; the orientation counterpart of ``dP_internal``)."""
+        if self.rotation_axes is None:
+            raise ValueError("dW_internal needs the chain run with its Jacobian")
         U, (rj, rc) = self.rotation_axes
         N, n = self.joint_axes.shape[1], self.joint_axes.shape[0]
         dW = np.zeros((N, 5, 3, n))

@@ -16,17 +16,22 @@ right Jacobian of SO(3)).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
+from .kinematics import ChainResult
 from .transforms import right_jacobian
 
 
-def target_orientations(em, x: np.ndarray, c, r, jacobian: bool):
+def target_orientations(em: Any, x: np.ndarray, c: Any, r: ChainResult,
+                        jacobian: bool) -> tuple[np.ndarray, np.ndarray | None]:
     """``tracker_R_target`` (n, 3, 3) and its Jacobian (n, 3, p) (None without it).
 
     Parameters
     ----------
-    em : the :class:`~calibration.fit.error_model.ErrorModel`
+    em : the :class:`~calibration.fit.error_model.ErrorModel` (a room above this one:
+        typed ``Any`` here)
     x : (p,) its parameters
     c : its :class:`~calibration.fit.error_model.Perturbed` inputs at ``x``
     r : the :class:`~calibration.model.kinematics.ChainResult` of those inputs (with its

@@ -20,8 +20,9 @@ import hashlib
 import json
 import math
 import re
+from collections.abc import Callable
 from importlib import resources
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal, TypeVar
 
 import numpy as np
 import yaml
@@ -32,6 +33,7 @@ from pydantic import (
     ConfigDict,
     Field,
     ValidationError,
+    ValidationInfo,
     field_validator,
     model_validator,
 )
@@ -46,7 +48,7 @@ MAX_MODEL_BYTES = 1 << 20
 _EXP_NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 
 
-def number_only(v):
+def number_only(v: Any) -> Any:
     """Only numbers: YAML's true/false and strings are refused (no silent coercion); a
     number YAML 1.1 leaves as a string (``1e3``) is read as the number it is."""
     if isinstance(v, str) and _EXP_NUMBER.match(v.strip()):
@@ -57,8 +59,8 @@ def number_only(v):
     return v
 
 
-def _bounded(limit: float, unit: str, what: str):
-    """A finite float with |value| <= limit."""
+def _within(limit: float, unit: str, what: str) -> Callable[[float], float]:
+    """The check of a finite float with |value| <= limit."""
     def check(v: float) -> float:
         if not math.isfinite(v):
             raise ValueError(f"{v} is not a finite number")
@@ -66,16 +68,22 @@ def _bounded(limit: float, unit: str, what: str):
             raise ValueError(f"{v:g} {unit} is not a plausible {what} "
                              f"(|value| <= {limit:g} {unit})")
         return v
-    return Annotated[float, BeforeValidator(number_only), AfterValidator(check)]
+    return check
 
 
-Length = _bounded(20000.0, "mm", "length")
-Angle = _bounded(360.0, "deg", "angle")
+# a finite number (no bool, no string) with |value| <= its limit
+Length = Annotated[float, BeforeValidator(number_only),
+                   AfterValidator(_within(20000.0, "mm", "length"))]
+Angle = Annotated[float, BeforeValidator(number_only),
+                  AfterValidator(_within(360.0, "deg", "angle"))]
 Limit = 3600.0  # deg: |limit| of a revolute joint
 #: a joint limit: deg, or mm for a prismatic joint (JointRow checks the revolute bound)
-Travel = _bounded(100000.0, "deg or mm", "joint limit")
-Offset = _bounded(10000.0, "mm", "offset")
-Acceleration = _bounded(100.0, "m/s^2", "acceleration")
+Travel = Annotated[float, BeforeValidator(number_only),
+                   AfterValidator(_within(100000.0, "deg or mm", "joint limit"))]
+Offset = Annotated[float, BeforeValidator(number_only),
+                   AfterValidator(_within(10000.0, "mm", "offset"))]
+Acceleration = Annotated[float, BeforeValidator(number_only),
+                         AfterValidator(_within(100.0, "m/s^2", "acceleration"))]
 Mass = Annotated[float, BeforeValidator(number_only),
                  AfterValidator(lambda v: _mass(v))]
 
@@ -163,7 +171,8 @@ class RobotModel(BaseModel):
 
     @field_validator("links")
     @classmethod
-    def _links_len(cls, v, info):
+    def _links_len(cls, v: list[MassPoint] | None,
+                   info: ValidationInfo) -> list[MassPoint] | None:
         joints = info.data.get("joints")
         if v is not None and joints is not None and len(v) != len(joints):
             raise ValueError(f"has {len(v)} entries but the model has {len(joints)} joints")
@@ -236,7 +245,7 @@ class RobotModel(BaseModel):
                            separators=(",", ":"))
         return hashlib.sha256(canon.encode()).hexdigest()
 
-    def with_changes(self, **changes) -> RobotModel:
+    def with_changes(self, **changes: Any) -> RobotModel:
         """A copy with some top-level fields replaced (validated)."""
         data = self.model_dump()
         data.update(changes)
@@ -287,7 +296,8 @@ class _UniqueKeyLoader(yaml.SafeLoader):
     """YAML's safe loader, refusing a mapping key given twice (YAML keeps the last one)."""
 
 
-def _mapping(loader: _UniqueKeyLoader, node: yaml.MappingNode, deep: bool = False) -> dict:
+def _mapping(loader: _UniqueKeyLoader, node: yaml.MappingNode,
+             deep: bool = False) -> dict[Any, Any]:
     seen = set()
     for key_node, _ in node.value:
         key = loader.construct_object(key_node, deep=deep)
@@ -302,7 +312,7 @@ def _mapping(loader: _UniqueKeyLoader, node: yaml.MappingNode, deep: bool = Fals
 _UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping)
 
 
-def parse_yaml(text: str, source: str, error: type[Exception]):
+def parse_yaml(text: str, source: str, error: type[Exception]) -> Any:
     """YAML text to Python data (safe, duplicate keys refused); ``error`` in one line."""
     try:
         return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader
@@ -313,7 +323,11 @@ def parse_yaml(text: str, source: str, error: type[Exception]):
         raise error(f"{source}: not valid YAML: {where}{' '.join(str(what).split())}") from None
 
 
-def validate_file_mapping(cls, data, source: str, error: type[ValueError], what: str):
+_Schema = TypeVar("_Schema", bound=BaseModel)
+
+
+def validate_file_mapping(cls: type[_Schema], data: object, source: str,
+                          error: type[ValueError], what: str) -> _Schema:
     """``cls.model_validate(data)`` for the mapping read from a file: ``error`` naming
     ``source`` and the field (``what``: "a model file", for the message)."""
     if not isinstance(data, dict):
@@ -325,6 +339,6 @@ def validate_file_mapping(cls, data, source: str, error: type[ValueError], what:
         raise error(format_validation(e, source)) from None
 
 
-def model_from_dict(data: dict, source: str = "<model>") -> RobotModel:
+def model_from_dict(data: dict[str, Any], source: str = "<model>") -> RobotModel:
     """Validate a model mapping; errors name ``source`` and the field."""
     return validate_file_mapping(RobotModel, data, source, ModelError, "a model file")

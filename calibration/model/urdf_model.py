@@ -47,6 +47,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -99,7 +100,7 @@ def _check_xml(path: str) -> None:
                     raise UrdfError(f"{where} has no <{tag} link=...>")
 
 
-def _load(path: str):
+def _load(path: str) -> Any:  # a yourdfpy.URDF (an untyped library)
     if not Path(path).is_file():
         raise UrdfError(f"{path}: no such URDF file")
     _check_xml(path)
@@ -119,15 +120,17 @@ class _Tree:
 
     path: str
     name: str
-    links: dict
-    joints: dict  # name -> yourdfpy Joint
-    parent_joint: dict  # child link -> joint
-    children: dict  # parent link -> [joints]
+    links: dict[str, Any]  # name -> yourdfpy Link
+    joints: dict[str, Any]  # name -> yourdfpy Joint
+    parent_joint: dict[str, Any]  # child link -> joint
+    children: dict[str, list[Any]]  # parent link -> [joints]
 
     @classmethod
-    def of(cls, path: str, urdf) -> _Tree:
+    def of(cls, path: str, urdf: Any) -> _Tree:
         links = {l.name: l for l in urdf.robot.links}
-        joints, parent_joint, children = {}, {}, {}
+        joints: dict[str, Any] = {}
+        parent_joint: dict[str, Any] = {}
+        children: dict[str, list[Any]] = {}
         for j in urdf.robot.joints:
             for role, link in (("parent", j.parent), ("child", j.child)):
                 if link not in links:
@@ -220,14 +223,14 @@ def _pick_chain(tree: _Tree, root: str | None, tip: str | None) -> tuple[str, st
 
 
 # ---- geometry ---------------------------------------------------------------------------
-def _mm(T) -> np.ndarray:
+def _mm(T: Any) -> np.ndarray:
     """A URDF transform (m; None = identity) with its translation in mm."""
     T = np.eye(4) if T is None else np.array(T, float)
     T[:3, 3] *= 1000.0
     return T
 
 
-def _axis(path: str, j) -> np.ndarray:
+def _axis(path: str, j: Any) -> np.ndarray:
     u = np.array([1.0, 0.0, 0.0] if j.axis is None else j.axis, float)
     norm = np.linalg.norm(u)
     if not np.isfinite(norm) or norm < 1e-12:
@@ -254,7 +257,7 @@ def _mass_model(tree: _Tree, root: str, chain: list, frames: list) -> list[dict]
     for k, j in enumerate(movable):  # later joints overwrite: each link gets its own body
         for link in tree.subtree(j.child):
             owner[link] = k
-    out = [{"m": 0.0, "mc": np.zeros(3)} for _ in movable]
+    out: list[dict[str, Any]] = [{"m": 0.0, "mc": np.zeros(3)} for _ in movable]
     for link, k in owner.items():
         inertial = tree.links[link].inertial
         if inertial is None or not inertial.mass:
@@ -275,7 +278,7 @@ def _snap(v: float, tol: float) -> float:
     return 0.0 if abs(v) < tol else float(v)
 
 
-def _limits(path: str, j) -> tuple[float, float]:
+def _limits(path: str, j: Any) -> tuple[float, float]:
     """(min, max) in deg, or mm for a prismatic joint."""
     if j.type == "continuous":
         return -360.0, 360.0
@@ -292,7 +295,8 @@ def _limits(path: str, j) -> tuple[float, float]:
 
 
 # ---- the model ---------------------------------------------------------------------------
-def chain_geometry(spec: str):
+def chain_geometry(spec: str) -> tuple[_Tree, str, str, list[Any], list[Any], np.ndarray,
+                                        np.ndarray, np.ndarray]:
     """The chain of a URDF at zero joint positions, in the root frame (mm).
 
     Returns

@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import sys
 from collections.abc import Iterator
+from typing import Any
 
 #: problems up to this many Jacobian elements (rows x parameters) run on one BLAS thread
 SMALL_ELEMENTS = 4_000_000
@@ -21,11 +22,11 @@ SMALL_ELEMENTS = 4_000_000
 #: does not import scipy, a diagnosis does later, after the first identification
 _SCIPY_BLAS = ("scipy.linalg", "scipy.special")
 
-_controller = None
+_controller: Any = None  # a threadpoolctl.ThreadpoolController (untyped library)
 _controller_key: tuple[bool, ...] = ()
 
 
-def _blas_controller():
+def _blas_controller() -> Any:
     """The process's :class:`threadpoolctl.ThreadpoolController` (made once, ~20 ms, and
     again when scipy's BLAS has been loaded since: a controller knows only the libraries
     loaded when it was made)."""

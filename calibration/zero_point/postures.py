@@ -8,8 +8,10 @@ Lengths mm, angles rad.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..model.inverse import ChainFK, solve_ik, solve_ik_multistart, wrap_to_pi
 
@@ -23,8 +25,9 @@ def _frame_from_z(z: np.ndarray, x_hint: np.ndarray) -> np.ndarray:
 
 
 def zero20_directions(target_mm: np.ndarray, *, n_planes: int = 4, per_plane: int = 5,
-                      tilts_deg=(-35.0, -17.5, 0.0, 17.5, 35.0), spin_deg: float = 25.0,
-                      about=None, axis_flange=None):
+                      tilts_deg: npt.ArrayLike = (-35.0, -17.5, 0.0, 17.5, 35.0),
+                      spin_deg: float = 25.0, about: npt.ArrayLike | None = None,
+                      axis_flange: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Flange orientations for the 4-plane, 20-posture routine.
 
     Plane k is the plane through the target that contains the direction ``about`` (unit;
@@ -83,7 +86,7 @@ def zero20_postures(
     rng: np.random.Generator | None = None,
     n_starts: int = 32,
     flip_shoulder: bool = True,
-    **direction_options,
+    **direction_options: Any,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """20 postures (5 on each of 4 planes) that put the tool point on one target.
 
@@ -133,7 +136,8 @@ def zero20_postures(
     return q, plane, res.success
 
 
-def _configurations(flange, p_flange, R, seeds, limits, q_seed):
+def _configurations(flange: ChainFK, p_flange: np.ndarray, R: np.ndarray, seeds: np.ndarray,
+                    limits: np.ndarray | None, q_seed: np.ndarray | None) -> np.ndarray:
     """One or two reference configurations for the middle posture: the best-conditioned
     IK solution (largest smallest singular value of the scaled Jacobian) or ``q_seed``,
     and the best-conditioned one with joint 1 at least 90° away (the other shoulder)."""

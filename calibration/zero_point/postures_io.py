@@ -68,12 +68,12 @@ class Postures:
     def subset(self, keep: np.ndarray) -> Postures:
         idx = np.arange(self.n)[keep]
 
-        def pick(a):
+        def pick(a: np.ndarray | None) -> np.ndarray | None:
             return None if a is None else a[idx]
 
         return Postures(self.q[idx], self.plane[idx], [self.pose_id[i] for i in idx],
                         base_p_tip=pick(self.base_p_tip), tracker_p_tip=pick(self.tracker_p_tip),
-                        source=self.source, lines=self.lines[idx])
+                        source=self.source, lines=pick(self.lines))
 
     def tips_in_base(self, tracker_R_base: np.ndarray, tracker_p_base: np.ndarray) -> Postures:
         """These postures with the tracker-frame tips mapped into the base frame, given the

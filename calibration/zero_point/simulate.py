@@ -59,4 +59,6 @@ def simulate_postures(
     if tracker_sigma_mm is not None:
         tips = fk.point(q_true) + rng.normal(0.0, tracker_sigma_mm, size=(len(q_true), 3))
     q_reported = q_true - np.asarray(hidden_offsets, float)
+    if plane is None:
+        raise ValueError("simulate_postures: q_true needs its plane numbers (plane=...)")
     return Postures(q_reported, plane, base_p_tip=tips, source="simulated"), q_true

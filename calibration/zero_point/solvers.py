@@ -10,10 +10,11 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from ..fit.identifiability import analyse
+from ..fit.identifiability import Identifiability, analyse
 from ..fit.identify import covariance
 from ..model.inverse import ChainFK
 from ..model.kinematics import cross, run_chain
@@ -67,14 +68,16 @@ class ZeroResult:
         return [f"j{j + 1}" for j in np.flatnonzero(~self.determined)]
 
 
-def _kinematics(fk: ChainFK, q: np.ndarray, offsets: np.ndarray, tool: np.ndarray):
+def _kinematics(fk: ChainFK, q: np.ndarray, offsets: np.ndarray,
+                tool: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Tip (n, 3), flange R (n, 3, 3) and dP/d offsets (n, 3, N) at q + offsets."""
     chain = ChainFK(fk.convention, fk.table, tool, offsets)
     P, R, Jp, _ = chain(q)
     return P, R, Jp
 
 
-def pivot_fit(o: np.ndarray, R: np.ndarray, w: np.ndarray | None = None):
+def pivot_fit(o: np.ndarray, R: np.ndarray,
+              w: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares tool and target from flange poses: o_i + R_i t = p.
 
     Parameters
@@ -95,7 +98,8 @@ def pivot_fit(o: np.ndarray, R: np.ndarray, w: np.ndarray | None = None):
     return x[:3], x[3:]
 
 
-def _flange(fk: ChainFK, q, offsets):
+def _flange(fk: ChainFK, q: np.ndarray,
+            offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     chain = ChainFK(fk.convention, fk.table, np.zeros(3), offsets)
     P, R, _, _ = chain(q)
     return P, R
@@ -106,8 +110,8 @@ def _names(N: int) -> list[str]:
             + ["target.x", "target.y", "target.z"])
 
 
-def _identify_free(fk: ChainFK, postures: Postures, offsets, tool, target, measured: bool,
-                   rtol: float = 1e-3):
+def _identify_free(fk: ChainFK, postures: Postures, offsets: np.ndarray, tool: np.ndarray,
+                   target: np.ndarray, measured: bool, rtol: float = 1e-3) -> Identifiability:
     """Identifiability of (offsets, tool, target) from the postures: QR with pivoting.
 
     Structural, like :func:`~calibration.fit.identify.identify` at the nominal geometry: the
@@ -126,7 +130,7 @@ def _identify_free(fk: ChainFK, postures: Postures, offsets, tool, target, measu
     return _analyse(J.reshape(-1, N + 6), N, n, rtol)
 
 
-def _analyse(J2: np.ndarray, N: int, n: int, rtol: float):
+def _analyse(J2: np.ndarray, N: int, n: int, rtol: float) -> Identifiability:
     """QR with column pivoting on a (m, N + 6) Jacobian; tool and target ranked first."""
     families = ["geometric"] * N + ["tool"] * 3 + ["base"] * 3
     scales = np.array([np.radians(0.01)] * N + [1.0] * 6)
@@ -221,7 +225,9 @@ def rigorous_method(
     )
 
 
-def _gauss_newton(fk, postures, x0, free, measured_base, max_iter, history):
+def _gauss_newton(fk: ChainFK, postures: Postures, x0: np.ndarray, free: np.ndarray,
+                  measured_base: np.ndarray | None, max_iter: int,
+                  history: list[dict[str, Any]]) -> tuple[np.ndarray, bool, str, int]:
     """Gauss–Newton on the free parameters from x0; returns x, converged, reason, iterations."""
     N = fk.n_joints
     x = x0.copy()
@@ -246,7 +252,8 @@ def _rms(r: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum(r**2, axis=1)))) if len(r) else float("nan")
 
 
-def _rigorous_rj(fk, postures, x, measured_base):
+def _rigorous_rj(fk: ChainFK, postures: Postures, x: np.ndarray,
+                 measured_base: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """Residual rows (tip - target [; tip - measured]) (m, 3) and Jacobian (m, 3, N + 6)."""
     N = fk.n_joints
     P, R, Jq = _kinematics(fk, postures.q, x[:N], x[N:N + 3])
@@ -259,7 +266,8 @@ def _rigorous_rj(fk, postures, x, measured_base):
     return r, J
 
 
-def _worst_outlier(r, Jf, sigma_mm, p, n, measured):
+def _worst_outlier(r: np.ndarray, Jf: np.ndarray, sigma_mm: float | None, p: float, n: int,
+                   measured: bool) -> int | None:
     """Index of the posture whose residual is improbable, or None.
 
     r : (m, 3) residual rows; Jf : (3 m, k) Jacobian of the free parameters; n postures.

@@ -17,6 +17,8 @@ Modules (sub-command in brackets)
     ``resume``            [resume] continue an interrupted run
     ``export_run``        [export] a run's samples as a measurement or postures CSV
     ``calibrate``         [calibrate] identify a model's errors from a measurement CSV
+    ``check``             [check] a calibration's error on new poses, as calibrated
+    ``history``           [history] a robot's calibrations over time
     ``diagnose``          [diagnose] rank the effects missing from a calibrated model
     ``models``            [models] list the built-in robot models
     ``sim_serve``         [sim serve] serve the simulated cell over its wire protocols

@@ -28,7 +28,8 @@ def register(sub) -> None:
                    help=solver_help())
     p.add_argument("--valid", metavar="FILE", help="validation CSV (besides set=valid rows)")
     p.add_argument("--params", metavar="params.json",
-                   help="start from these parameters (those of the same name)")
+                   help="start from these parameters (those of the same name; a table of "
+                   "the same name also keeps its smoothing)")
     p.add_argument("--out", metavar="params.json", help="write the parameters here")
     p.add_argument("--seed", type=seed_int, default=None,
                    help="random seed of the besa/sa solvers and of --monte-carlo (default 0)")

@@ -94,6 +94,13 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from ..logs import RunLog
+
+    with RunLog(args) as run_log:
+        return _run(args, run_log)
+
+
+def _run(args, run_log) -> int:
     from ..usecases.capture import CaptureArgs, capture
     from .run_outcome import print_outcome, with_progress
 
@@ -112,6 +119,7 @@ def run(args) -> int:
             print(f"cellcal capture: note: {sight.report(limit=5)}", file=sys.stderr)
 
     def started(run_id: int, _done: int) -> None:
+        run_log.open(req.db, run_id)
         if not args.json:
             print(f"run {run_id}: {plan.routine}, {plan.n_planned} points, plan "
                   f"{plan.hash[:16]}", file=sys.stderr)
@@ -122,7 +130,7 @@ def run(args) -> int:
     if failed is not None:
         return failed
     if result.outcome is not None:
-        return print_outcome(result.outcome, args.json)
+        return print_outcome(result.outcome, args.json, run_log.path)
     print_dry_run(result, args.json)
     return 0
 

@@ -30,7 +30,10 @@ def register(sub) -> None:
         "(docs/formats.md §6).\n\n"
         "A calibration with drift effects compensates for the thermal state each target "
         "gives (joint_temp1..N, t_s, temp_c columns), else for its warm state (the end of its "
-        "capture); the output says which.",
+        "capture); the output says which.\n\n"
+        "A target whose joints (or thermal state) lie beyond the ranges the calibration "
+        "measured (its envelope) is named in the outside_range column and --json, and "
+        "counted on stderr; --strict-range refuses it (exit 3).",
     )
     p.add_argument("targets", metavar="TARGETS.csv", nargs="?",
                    help="target points (omit to only export)")
@@ -62,6 +65,12 @@ def register(sub) -> None:
                    "kinematics_params_file, with its hash)")
     p.add_argument("--export-dh", metavar="FILE.csv",
                    help="write the calibrated DH/MDH table as CSV (units in the header)")
+    p.add_argument("--strict-range", action="store_true",
+                   help="refuse targets beyond the calibrated envelope (the joint ranges, "
+                   "and temperatures or times where the model uses them, that the "
+                   "calibration data covered; params.json `envelope`): exit 3, nothing "
+                   "written. Without it they are compensated, flagged in the CSV's "
+                   "outside_range column and counted on stderr")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     add_program_flags(p)
     p.set_defaults(func=run)
@@ -74,6 +83,7 @@ def run(args) -> int:
         compensation_summary,
         compensation_text,
         export_lines,
+        outside_warning,
     )
     from presentation.thermal_text import state_line
 
@@ -83,19 +93,23 @@ def run(args) -> int:
     done = compensate_targets(request)
     exports = done.exports
     rc = 0 if done.result is None or done.result.success.all() else 1
+    warning = outside_warning(done.outside, where="the outside_range column"
+                              + (" and --json" if args.json else ""))
+    if warning:
+        print(warning, file=sys.stderr)
     if args.json:
         summary = compensation_summary(
             params_file=request.params, model=done.model, capture=done.capture,
             notes=done.notes, exports=exports.files if exports else None,
             not_exported=exports.not_exported if exports else None, t=done.targets,
-            c=done.result, out_file=request.out)
+            c=done.result, out_file=request.out, outside=done.outside)
         if done.thermal is not None:
             summary["thermal_state"] = done.thermal
         print_json(summary)
         return rc
     if done.targets is not None:
         print(compensation_text(done.model, done.capture, request.targets, done.targets,
-                                done.result, done.notes))
+                                done.result, done.notes, done.outside))
         if done.thermal is not None:
             print(f"thermal   {state_line(done.thermal)}")
         if request.out:

@@ -4,13 +4,16 @@ by :mod:`cellcal.commands.compensate`; the work is
 
 from __future__ import annotations
 
+import sys
+
 from ..flags.program_flags import add_program_flags
 from .common import print_json
 
 #: what ``--program`` says in ``cellcal compensate --help``
-PROGRAM_HELP = ("compensate a robot program (URScript .script, KUKA KRL .dat) into --out: "
-                "its targets rewritten, every other byte kept (docs/programs.md); exit 1 when "
-                "a target cannot be compensated (nothing written unless --allow-partial)")
+PROGRAM_HELP = ("compensate a robot program (URScript .script, KUKA KRL .dat, ABB RAPID "
+                ".mod) into --out: its targets rewritten, every other byte kept "
+                "(docs/programs.md); exit 1 when a target cannot be compensated (nothing "
+                "written unless --allow-partial)")
 
 
 def add_flags(p) -> None:
@@ -45,7 +48,12 @@ def run_program(args) -> int:
         given = [f for a, f in _PROGRAM_ONLY if getattr(args, a) not in (None, False)]
         raise UsageError(f"{', '.join(given)}: only with --program")
     refuse_other_flags(args)
+    from presentation.compensation_text import outside_warning
+
     report = compensate_program(ProgramRequest.from_args(args))
+    warning = outside_warning(report.outside, where="the report (outside_range)")
+    if warning:
+        print(warning, file=sys.stderr)
     if args.json:
         print_json(report.to_json())
     else:

@@ -62,7 +62,8 @@ def run(args) -> int:
 
     text = not args.json
     result = diagnose(request, on_note=print_note,
-                      on_start=(lambda fit: print(auto_header(fit))) if text else None,
+                      on_start=(lambda fit, given: print(auto_header(fit, given, request.params)))
+                      if text else None,
                       on_step=on_step if text else None)
     if result.auto is not None:
         if args.json:
@@ -73,9 +74,9 @@ def run(args) -> int:
     elif args.json:
         from presentation.summaries import diagnosis_summary
 
-        print_json(diagnosis_summary(result.diagnosis))
+        print_json(diagnosis_summary(result.diagnosis, result.given, request.params))
     else:
         print(diagnosis_text(result.diagnosis, request.top,
                              tool_text(result.fit.error_model.model, result.data,
-                                       request.params)))
+                                       request.params), result.given, request.params))
     return 0

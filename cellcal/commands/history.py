@@ -5,8 +5,9 @@ and prints: the calibrations (when their data were measured, UTC; source; effect
 RMS), one line per parameter (first and last value ± std, net change, the largest
 change between consecutive calibrations in combined standard uncertainties, a trend
 line), every change larger than ``--sigma`` (default 3) combined sigma
-(sqrt(σ1² + σ2²), :mod:`calibration.diagnosis.history`), and the value over time with its
-uncertainty of the parameters that changed (or of those named with ``--param``).
+(sqrt(σ1² + σ2²), :mod:`calibration.diagnosis.history`), the value over time with its
+uncertainty of the parameters that changed (or of those named with ``--param``), and the
+robot's accuracy on new poses over time (its checks, ``cellcal check ... --db STORE``).
 ``--plot FILE.html|FILE.png`` draws the trends; ``--json`` prints one object
 (docs/formats.md §4).
 
@@ -37,7 +38,9 @@ def register(sub) -> None:
         "net change, the largest change between consecutive calibrations in combined "
         "standard uncertainties, a trend line), every change larger than --sigma combined "
         "sigma (sqrt(σ1² + σ2²)), and the value over time of the parameters that changed "
-        "(or of those named with --param). The store is opened read-only (docs/history.md)."
+        "(or of those named with --param), and the accuracy on new poses over time (the "
+        "checks recorded with `cellcal check ... --db STORE`). The store is opened "
+        "read-only (docs/history.md)."
         "\n\nExit codes: 0 done (whether or not a change was flagged), 2 bad input (no "
         "such store or robot); docs/formats.md §6.")
     p.add_argument("robot_id", metavar="ROBOT", help="the robot (as given with --robot-id)")
@@ -63,13 +66,13 @@ def run(args) -> int:
     h = robot_history(request)
     if args.json:
         out = history_summary(request.robot_id, h.calibrations, h.summaries, h.histories,
-                              request.sigma)
+                              request.sigma, h.checks)
         if request.plot:
             out["plot"] = request.plot
         print_json(out)
         return 0
     print(history_text(request.robot_id, h.address, h.calibrations, h.summaries,
-                       h.histories, h.shown, request.sigma))
+                       h.histories, h.shown, request.sigma, h.checks))
     if request.plot:
         print()
         print(f"trends drawn in {request.plot}")

@@ -8,6 +8,8 @@ import argparse
 import re
 import textwrap
 
+from ..flags.log_flags import add_log_flags
+
 
 class HelpFormatter(argparse.HelpFormatter):
     """Descriptions and epilogs keep their paragraphs (blank-line separated) and their
@@ -35,7 +37,10 @@ def add_subcommands(parser: argparse.ArgumentParser, dest: str, metavar: str):
 
 def command_parser(sub, name: str, *, help: str, description: str | None = None,
                    epilog: str | None = None) -> argparse.ArgumentParser:
-    """A sub-command parser with the project's formatter; its description defaults to the
+    """A sub-command parser with the project's formatter and the logging flags every
+    command takes (:mod:`cellcal.flags.log_flags`); its description defaults to the
     one-line ``help`` (every sub-command has one)."""
-    return sub.add_parser(name, help=help, description=description or help, epilog=epilog,
-                          formatter_class=HelpFormatter)
+    p = sub.add_parser(name, help=help, description=description or help, epilog=epilog,
+                       formatter_class=HelpFormatter)
+    add_log_flags(p)
+    return p

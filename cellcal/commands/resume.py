@@ -46,12 +46,20 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from ..logs import RunLog
+
+    with RunLog(args) as run_log:
+        return _run(args, run_log)
+
+
+def _run(args, run_log) -> int:
     from ..usecases.resume import ResumeArgs, resume
     from .run_outcome import print_outcome, with_progress
 
     req = ResumeArgs.from_args(args)
 
     def started(r, run_id: int, done: int) -> None:
+        run_log.open(req.db, run_id)
         if args.json:
             return
         if run_id != r.id:
@@ -74,4 +82,4 @@ def run(args) -> int:
         print(f"run {r.id} is already completed ({result.resumable.done}/{r.n_points} points)",
               file=sys.stderr)
         return 0
-    return print_outcome(result.outcome, args.json)
+    return print_outcome(result.outcome, args.json, run_log.path)

@@ -1,6 +1,7 @@
 """What ``capture`` and ``resume`` share once a run is under way: the progress line while
 it runs, the devices or the run store out of reach (exit 1), the outcome printed
-(:mod:`presentation.run_outcome`) and its exit code."""
+(:mod:`presentation.run_outcome`; under ``--json`` with the run's ``log`` file:
+:class:`cellcal.logs.RunLog`) and its exit code."""
 
 from __future__ import annotations
 
@@ -30,15 +31,16 @@ def with_progress(command: str, as_json: bool, go):
         progress.close()
 
 
-def print_outcome(outcome, as_json: bool) -> int:
-    """Print a run outcome (``RunOutcome``: JSON or text); its exit code."""
+def print_outcome(outcome, as_json: bool, log_path=None) -> int:
+    """Print a run outcome (``RunOutcome``: JSON or text; the JSON names the run's log file,
+    ``log_path``, null when none was written); its exit code."""
     from presentation.run_outcome import outcome_exit_code, outcome_lines
 
     from .common import print_json
 
     out = outcome.to_json()
     if as_json:
-        print_json(out)
+        print_json({**out, "log": None if log_path is None else str(log_path)})
     else:
         print("\n".join(outcome_lines(out)))
     return outcome_exit_code(out)

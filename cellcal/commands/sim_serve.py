@@ -53,7 +53,8 @@ def register(sub) -> None:
     s.add_argument("--thermal", choices=THERMAL_STARTS, default=None,
                    help="the robot warms up with its work and reports its joint "
                    "temperatures; its links grow and its joint zeros move with them "
-                   "(hidden): from cold or already warm (default: no thermal model)")
+                   "(hidden): from cold or already warm (default: no thermal model; the "
+                   "joints report the air's temperature, constant)")
     s.add_argument("--faults", default=None, metavar="SPEC",
                    help="fault spec, e.g. 'beam=0.05,slow=0.02,drop@3,delay=2'; "
                    "'blunder=0.03': 3 %% of tracker readings off by 0.5-5 mm")

@@ -6,6 +6,8 @@ Modules
     ``choices``        the parser's defaults and choices (equal to the core's, import-free)
     ``capture_flags``  the flags capture and resume share (store, devices, executor, tracker)
     ``routine_args``   the command-line options of each capture routine
+    ``program_flags``  the flags of a robot program (compensate --program, validate)
     ``sim_ports``      the simulated cell's default ports and their flags
     ``values``         comma-separated numbers
+    ``log_flags``      the logging flags every command takes (-v, --log-level, --log-file)
 """

@@ -5,7 +5,7 @@ temperature and payload. Free of heavy imports (the parser is built from it)."""
 from __future__ import annotations
 
 #: languages of :mod:`cellcal.programs` (``--language``)
-LANGUAGES = ("urscript", "krl")
+LANGUAGES = ("urscript", "krl", "rapid")
 
 
 def add_program_flags(p, *, program_help: str) -> None:
@@ -13,7 +13,8 @@ def add_program_flags(p, *, program_help: str) -> None:
     p.add_argument("--program", metavar="PROGRAM", help=program_help)
     p.add_argument("--language", choices=LANGUAGES, default=None,
                    help="the program's language (default from its suffix: .script, "
-                   ".urscript, .txt URScript; .dat KUKA KRL)")
+                   ".urscript, .txt URScript; .dat KUKA KRL; .mod, .modx, .sys, .sysx ABB "
+                   "RAPID)")
     p.add_argument("--frames", metavar="frames.yaml", default=None,
                    help="KRL: the tools and bases the program's FDAT refers to by number "
                    "(tools: {1: [X, Y, Z, A, B, C]}, bases: {...}; mm, deg; docs/programs.md)")

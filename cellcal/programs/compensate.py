@@ -1,8 +1,8 @@
 """Compensate a robot program with a calibration: read, solve, write back, report.
 
 :func:`compensate_program` is what ``cellcal compensate --program`` runs: it reads a
-URScript (``.script``, ``.urscript``, ``.txt``) or KRL ``.dat`` file, compensates every
-target it can
+URScript (``.script``, ``.urscript``, ``.txt``), KRL ``.dat`` or RAPID (``.mod``,
+``.modx``, ``.sys``, ``.sysx``) file, compensates every target it can
 (:func:`calibration.compensation.pose_compensation.compensate_targets`: joint targets by
 the full model, pose targets near their neighbouring joint targets with the active TCP),
 writes the result atomically, and returns a :class:`ProgramReport` (what the command
@@ -10,12 +10,12 @@ prints, and its exit code: 1 when something could not be compensated, unless
 ``allow_partial``). A TCP at the calibration's tool (the SMR it measured) carries the
 identified point; any other TCP rides on the calibration's view of the flange (the report
 says which). :func:`solve` is shared with ``cellcal validate``. Units are converted here,
-at the edge: URScript m and rad, KRL mm and deg; the core works in mm and rad.
+at the edge: URScript m and rad, KRL and RAPID mm and deg; the core works in mm and rad.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -23,20 +23,27 @@ import numpy as np
 from calibration.compensation.controller_joints import ControllerJoints, controller_joints
 from calibration.compensation.pose_compensation import neighbour_seeds
 from calibration.files import read_input, write_atomic
+from calibration.fit.envelope import Envelope, outside_envelope, refuse_outside
+from calibration.fit.thermal_state import target_state
 
-from . import krl, urscript
-from .poses import T_to_krl, T_to_ur, krl_to_T, ur_to_T
+from . import krl, rapid, urscript
+from .poses import T_to_krl, T_to_rapid, T_to_ur, krl_to_T, rapid_to_T, ur_to_T
 from .program_report import ProgramReport, target_row
 from .targets import Correction, Program, ProgramError, Refusal, Target
 
 #: a 6-axis arm's usual working configuration (deg), the seed when a program has no joints
 DEFAULT_SEED_DEG = {"urscript": (0.0, -90.0, 90.0, -90.0, -90.0, 0.0),
-                    "krl": (0.0, -90.0, 90.0, 0.0, 45.0, 0.0)}
+                    "krl": (0.0, -90.0, 90.0, 0.0, 45.0, 0.0),
+                    "rapid": (0.0, 0.0, 0.0, 0.0, 30.0, 0.0)}
 
 
 @dataclass(frozen=True)
 class Dialect:
-    """A language's reader, writer and units."""
+    """A language's reader, writer and units; ``check`` (target, nominal joints,
+    compensated joints) -> why the compensation is not the configuration the target asks
+    for, or None; ``seeds`` (targets, seed joints rad) -> the seeds the targets'
+    configuration data make, tried for those the neighbours' seeds leave in another
+    configuration."""
 
     name: str
     parse: object
@@ -44,14 +51,28 @@ class Dialect:
     to_T: object
     from_T: object
     joint_unit: float  # rad per unit of a joint value
+    seeds: object = None
+    check: object = None
 
 
 DIALECTS = {
     "urscript": Dialect("urscript", urscript.parse_program, urscript.rewrite, ur_to_T, T_to_ur,
                         1.0),
     "krl": Dialect("krl", krl.parse_program, krl.rewrite, krl_to_T, T_to_krl, np.pi / 180.0),
+    "rapid": Dialect("rapid", rapid.parse_program, rapid.rewrite, rapid_to_T, T_to_rapid,
+                     np.pi / 180.0, rapid.seeds, rapid.configuration),
 }
-SUFFIXES = {".script": "urscript", ".urscript": "urscript", ".txt": "urscript", ".dat": "krl"}
+SUFFIXES = {".script": "urscript", ".urscript": "urscript", ".txt": "urscript", ".dat": "krl",
+            ".mod": "rapid", ".modx": "rapid", ".sys": "rapid", ".sysx": "rapid"}
+#: files that are no program text of a known language, and what to do instead
+NOT_TEXT = {
+    ".urp": "a PolyScope program (.urp) is not URScript text; save it as a .script file "
+            "(PolyScope writes one beside it)",
+    ".pgf": "a RAPID program file (.pgf) lists the program's modules: compensate each "
+            "module (.mod, .modx)",
+    ".prg": "an S4 RAPID program (.prg): save its modules as .mod files (RobotStudio, or "
+            "the controller's Save Module)",
+}
 
 
 @dataclass
@@ -64,15 +85,17 @@ class Options:
     payload_kg: float | None = None
     tools: dict[int, tuple] = field(default_factory=dict)
     bases: dict[int, tuple] = field(default_factory=dict)
+    #: the calibration's thermal record (params.json ``thermal``): a program gives no joint
+    #: temperatures nor times, so a drift effect is compensated at its warm state
+    thermal: dict | None = None
 
 
 def language_of(path: str | Path, language: str | None = None) -> Dialect:
     if language:
         return DIALECTS[language]
     suffix = Path(path).suffix.lower()
-    if suffix == ".urp":
-        raise ProgramError(f"{path}: a PolyScope program (.urp) is not URScript text; save "
-                           "it as a .script file (PolyScope writes one beside it)")
+    if suffix in NOT_TEXT:
+        raise ProgramError(f"{path}: {NOT_TEXT[suffix]}")
     if suffix not in SUFFIXES:
         raise ProgramError(f"{path}: cannot tell the program's language from {suffix!r}; "
                            f"known: {', '.join(sorted(SUFFIXES))}")
@@ -104,7 +127,7 @@ def _frames(program: Program, dialect: Dialect, options: Options):
                 out.append(f"TOOL_DATA[{t.extra['tool_no']}] is not given")
                 continue
         else:
-            tool = t.tcp
+            tool, base = t.tcp, t.extra.get("base")
         out.append((np.eye(4) if tool is None else dialect.to_T(tool),
                     np.eye(4) if base is None else dialect.to_T(base)))
     return out
@@ -128,6 +151,9 @@ class Solved:
     measured: np.ndarray
     joints: ControllerJoints | None
     refusals: list[Refusal]
+    #: the thermal state compensated for (:func:`calibration.fit.thermal_state.target_state`),
+    #: None for a model without drift effects
+    thermal: dict | None = None
 
 
 def solve(program: Program, dialect: Dialect, error_model, x, options: Options, *,
@@ -152,8 +178,8 @@ def solve(program: Program, dialect: Dialect, error_model, x, options: Options, 
     n = len(use)
     is_pose = np.array([t.kind == "pose" for t in use])
     joints = np.zeros((n, N))
-    joints[~is_pose] = [np.asarray(t.values) * dialect.joint_unit for t in use
-                        if t.kind == "joints"]
+    joints[~is_pose] = np.reshape([np.asarray(t.values) * dialect.joint_unit for t in use
+                                   if t.kind == "joints"], (-1, N))  # none: (0, N)
     default = (options.seed if options.seed is not None else
                np.radians(DEFAULT_SEED_DEG[dialect.name][:N] + (0.0,) * max(0, N - 6)))
     joints = neighbour_seeds(is_pose, joints, default)
@@ -168,10 +194,47 @@ def solve(program: Program, dialect: Dialect, error_model, x, options: Options, 
     payload = [t.payload_kg if t.payload_kg is not None else options.payload_kg for t in use]
     if any(p is not None for p in payload):
         columns["payload_kg"] = np.array([0.0 if p is None else p for p in payload])
-    cj = controller_joints(error_model, x, joints, pose=pose, is_pose=is_pose,
-                           flange_T_tcp=tcp, measured=measured, columns=columns,
-                           geometric=geometric)
-    return Solved(use, base, tcp, measured, cj, refusals)
+    # a drift effect's joint temperatures and time: the calibration's warm state (a program
+    # runs on a robot that has warmed up), as for a targets CSV without them
+    columns, thermal = target_state(error_model, options.thermal, columns, n)
+
+    def run(seeds: np.ndarray) -> ControllerJoints:
+        return controller_joints(error_model, x, seeds, pose=pose, is_pose=is_pose,
+                                 flange_T_tcp=tcp, measured=measured, columns=columns,
+                                 geometric=geometric)
+
+    cj = run(joints)
+    if dialect.seeds is not None:  # the configuration the program asks for, if not found
+        retry = [i for i in np.flatnonzero(is_pose) if _off(dialect, use[i], cj, i)]
+        if retry:
+            again = run(dialect.seeds(use, joints))
+            cj = _take_rows(cj, again, [i for i in retry if not _off(dialect, use[i], again, i)])
+    return Solved(use, base, tcp, measured, cj, refusals, thermal)
+
+
+def _off(dialect: Dialect, t: Target, cj: ControllerJoints, i: int) -> bool:
+    """Target i not reached, or not in the configuration it asks for."""
+    c = cj.compensation
+    return not c.success[i] or bool(dialect.check(t, c.q_nominal[i], c.q[i]))
+
+
+def _take_rows(a: ControllerJoints, b: ControllerJoints, rows: list[int]) -> ControllerJoints:
+    """``a`` with the given target rows taken from ``b`` (same targets, other seeds)."""
+    if not rows:
+        return a
+    n = len(a.compensation.q)
+
+    def mix(u, v):
+        if isinstance(v, np.ndarray) and v.shape[:1] == (n,):
+            u = u.copy()
+            u[rows] = v[rows]
+        return u
+
+    comp = replace(a.compensation, **{f.name: mix(getattr(a.compensation, f.name),
+                                                  getattr(b.compensation, f.name))
+                                      for f in fields(a.compensation)})
+    return ControllerJoints(comp, {k: mix(v, b.joints[k]) for k, v in a.joints.items()},
+                            {k: mix(v, b.success[k]) for k, v in a.success.items()})
 
 
 def tcp_notes(solved: Solved, model) -> list[str]:
@@ -195,10 +258,22 @@ def tcp_notes(solved: Solved, model) -> list[str]:
     return notes
 
 
-def corrections(solved: Solved, dialect: Dialect
+def solved_outside(solved: Solved, envelope: Envelope | None, options: Options
+                   ) -> list[list[str]]:
+    """Per solved target, the quantities beyond the calibrated envelope: the joints the
+    robot is sent and the air temperature the program is compensated for (``--temp-c``)."""
+    if solved.joints is None:
+        return []
+    q = solved.joints.compensation.q
+    columns = {} if options.temp_c is None else {"temp_c": np.full(len(q), options.temp_c)}
+    return outside_envelope(envelope, q, columns)
+
+
+def corrections(solved: Solved, dialect: Dialect, outside: list[list[str]] | None = None
                 ) -> tuple[dict[int, Correction], list[dict], list[Refusal]]:
     """The new values of a solved program's targets; (corrections, report rows, refusals:
-    the solved ones' and those the calibrated robot cannot reach)."""
+    the solved ones' and those the calibrated robot cannot reach). ``outside``: per solved
+    target, what lies beyond the calibrated envelope (in the rows)."""
     refusals = list(solved.refusals)
     out, rows = {}, []
     if solved.joints is None:
@@ -209,34 +284,51 @@ def corrections(solved: Solved, dialect: Dialect
             refusals.append(Refusal(t.line, t.context, "the calibrated robot cannot reach it "
                                     "(out of reach or at a singularity)"))
             continue
+        why = dialect.check and dialect.check(t, c.q_nominal[i], c.q[i])
+        if why:
+            refusals.append(Refusal(t.line, t.context, why))
+            continue
         if t.kind == "pose":
             values = dialect.from_T(np.linalg.inv(solved.base[i]) @ c.cmd[i], near=t.values)
         else:
             values = tuple(float(v) for v in c.q[i] / dialect.joint_unit)
         out[t.index] = Correction(values, float(c.correction_mm[i]))
-        rows.append(target_row(t, c, i))
+        rows.append(target_row(t, c, i, outside[i] if outside else None))
     return out, rows, refusals
 
 
 def compensate_program(path: str | Path, error_model, x, out: str | Path, *,
                        allow_partial: bool = False, language: str | None = None,
-                       options: Options | None = None) -> ProgramReport:
+                       options: Options | None = None, envelope: Envelope | None = None,
+                       strict_range: bool = False) -> ProgramReport:
     """Read the program at ``path``, compensate it with the calibration ``(error_model,
     x)`` (e.g. :func:`calibration.exports.params_io.read_params`), write it to ``out`` atomically
     and report. Nothing is written when a target cannot be compensated, unless
     ``allow_partial`` (those targets stay as they were and are listed); a program a
-    previous compensation wrote is refused (it would be compensated twice)."""
+    previous compensation wrote is refused (it would be compensated twice). Targets
+    beyond the calibration's ``envelope`` are named in the report (``outside_range``);
+    with ``strict_range`` they are refused (OutsideEnvelope, exit 3; nothing written)."""
     dialect = language_of(path, language)
     program = read_program(path, dialect)
     if program.compensated_at is not None:
         raise ProgramError(f"{path}: line {program.compensated_at}: this program was "
                            "compensated already (a 'cellcal:' comment); compensate the "
                            "original")
-    solved = solve(program, dialect, error_model, x, options or Options())
-    new, rows, refused = corrections(solved, dialect)
+    options = options or Options()
+    solved = solve(program, dialect, error_model, x, options)
+    outside = solved_outside(solved, envelope, options)
+    if strict_range:
+        refuse_outside(outside, [f"line {t.line}" for t in solved.targets], "targets",
+                       str(path))
+    new, rows, refused = corrections(solved, dialect, outside)
     refusals = sorted(program.refusals + refused, key=lambda r: r.line)
+    notes = program.notes + tcp_notes(solved, error_model.model)
+    if solved.thermal is not None:
+        from presentation.thermal_text import state_line
+
+        notes.append(f"thermal: {state_line(solved.thermal)}")
     report = ProgramReport(str(path), str(out), dialect.name, len(program.targets), rows,
-                           refusals, program.notes + tcp_notes(solved, error_model.model))
+                           refusals, notes)
     if not refusals or allow_partial:
         text = dialect.rewrite(program, new)
         write_atomic(out, text.encode("utf-8", "surrogateescape"))

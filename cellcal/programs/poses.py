@@ -2,15 +2,22 @@
 
 URScript writes ``p[x, y, z, rx, ry, rz]``: metres and a rotation vector (rad). KRL writes
 ``{X, Y, Z, A, B, C}``: millimetres and Euler angles in degrees, R = Rz(A) Ry(B) Rx(C).
-Both have more than one way to write a rotation; a pose written back is the one nearest
-the original's numbers (so a small correction changes the numbers a little).
+RAPID writes ``[[x, y, z], [q1, q2, q3, q4]]``: millimetres and a unit quaternion, scalar
+first. Each has more than one way to write a rotation; a pose written back is the one
+nearest the original's numbers (so a small correction changes the numbers a little).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from calibration.model.transforms import make_T, matrix_to_rotvec, rotvec_to_matrix
+from calibration.model.transforms import (
+    make_T,
+    matrix_to_quat,
+    matrix_to_rotvec,
+    quat_to_matrix,
+    rotvec_to_matrix,
+)
 
 
 def ur_to_T(p) -> np.ndarray:
@@ -74,3 +81,19 @@ def T_to_krl(T: np.ndarray, near=None) -> tuple[float, ...]:
     sols = ref + (sols - ref + 180.0) % 360.0 - 180.0
     best = sols[int(np.argmin(np.abs(sols - ref).sum(axis=1)))]
     return tuple(float(v) for v in np.concatenate([T[:3, 3], best]))
+
+
+def rapid_to_T(p) -> np.ndarray:
+    """4x4 (mm) of a RAPID pose (x, y, z mm; q1, q2, q3, q4 a quaternion, scalar first,
+    normalised here as the controller does)."""
+    p = np.asarray(p, float)
+    return make_T(quat_to_matrix(p[3:7]), p[:3])
+
+
+def T_to_rapid(T: np.ndarray, near=None) -> tuple[float, ...]:
+    """RAPID pose of a 4x4 (mm): the unit quaternion (q and -q are the same rotation) of
+    the sign nearest ``near``'s, else with q1 >= 0."""
+    q = matrix_to_quat(T[:3, :3])
+    if near is not None and float(np.dot(q, np.asarray(near, float)[3:7])) < 0.0:
+        q = -q
+    return tuple(float(v) for v in np.concatenate([T[:3, 3], q]))

@@ -9,13 +9,15 @@ from presentation.program_text import program_lines, program_summary
 from .targets import Refusal
 
 
-def target_row(t, c, i: int) -> dict:
-    """One compensated target for the report: where it is and what changed."""
+def target_row(t, c, i: int, outside: list[str] | None = None) -> dict:
+    """One compensated target for the report: where it is, what changed, and what lies
+    beyond the calibrated envelope (``outside_range``: ``["q2"]``, empty inside)."""
     return {"line": t.line, "kind": t.kind, "context": t.context,
             "correction_mm": float(c.correction_mm[i]),
             "correction_deg": float(c.correction_deg[i]),
             "predicted_miss_mm": float(c.predicted_mm[i]),
-            "predicted_miss_deg": float(c.predicted_deg[i])}
+            "predicted_miss_deg": float(c.predicted_deg[i]),
+            "outside_range": list(outside or [])}
 
 
 @dataclass
@@ -41,6 +43,11 @@ class ProgramReport:
     refusals: list[Refusal]
     notes: list[str] = field(default_factory=list)
     written: bool = False
+
+    @property
+    def outside(self) -> list[list[str]]:
+        """Per compensated target, the quantities beyond the calibrated envelope."""
+        return [r.get("outside_range", []) for r in self.rows]
 
     @property
     def exit_code(self) -> int:

@@ -15,9 +15,10 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from calibration import DEFAULT_EFFECTS, identify, load_csv
+from calibration import DEFAULT_EFFECTS, load_csv
 from calibration.diagnosis.orientation_blindness import Blindness, orientation_blindness
 from calibration.exports.params_io import read_params, save_params
+from calibration.fit.envelope import identify_supported, supported_model
 from calibration.fit.full_pose import for_data
 from calibration.fit.identify import Fit
 from calibration.fit.uncertainty import MonteCarlo, monte_carlo
@@ -126,6 +127,9 @@ def _fit(request: CalibrateRequest, on_note) -> tuple[Fit, Fit, list[str]]:
     """(fit, uncalibrated baseline on the same points, notes)."""
     model, data = load_inputs(request)
     em, more = for_data(error_model_of(model, request.effects), data, request.position_only)
+    # every table over the knots the calibration rows support (constant beyond them)
+    em, cut = supported_model(em, data.calib() if data.is_valid.any() else data)
+    more += cut
     valid = load_csv(request.valid, model) if request.valid else None
     x0 = None
     notes = []
@@ -138,13 +142,20 @@ def _fit(request: CalibrateRequest, on_note) -> tuple[Fit, Fit, list[str]]:
         for k, name in enumerate(start.error_model.names):
             if name in em.names:
                 x0[em.index(name)] = start.values[k]
+        # a table of the same name keeps the smoothing it was fitted with (the model
+        # diagnose --auto --out wrote is the model calibrate fits)
+        smoothing = {e.label: e.smoothing for e in start.error_model.effects
+                     if hasattr(e, "penalty_matrix")}
+        for e in em.effects:
+            if hasattr(e, "penalty_matrix") and e.smoothing is None and e.label in smoothing:
+                e.smoothing = smoothing[e.label]
     for n in notes if on_note is not None else ():
         on_note(n)
     opts = {}
     if request.seed is not None and request.solver in ("besa", "sa", "besa+lm"):
         opts["seed"] = request.seed
-    fit = identify(em, data, request.solver, valid=valid, x0=x0,
-                   solver_options=opts or None, outliers=request.outliers)
+    fit, _ = identify_supported(em, data, request.solver, valid=valid, x0=x0,
+                                solver_options=opts or None, outliers=request.outliers)
     # the uncalibrated reference on the same points (without the blunders the fit left out)
     if fit.outliers is not None and fit.outliers.excluded:
         data = data.subset(~np.isin(data.pose_id, fit.outliers.ids))

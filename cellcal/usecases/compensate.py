@@ -29,7 +29,13 @@ from ..errors import UsageError
 from ..request import Request
 from .model_exports import Exports, write_exports
 from .outputs import check_outputs, existing_paths
-from .target_checks import JOINTS_TOLERANCE_MM, check_joints_reach
+from .target_checks import (
+    JOINTS_TOLERANCE_MM,
+    check_joints_reach,
+    no_envelope_note,
+    outside_envelope,
+    refuse_outside,
+)
 
 
 class CompensateRequest(Request):
@@ -48,6 +54,7 @@ class CompensateRequest(Request):
     export_urdf: str | None = Field(None, alias="--export-urdf")
     export_ur_yaml: str | None = Field(None, alias="--export-ur-yaml")
     export_dh: str | None = Field(None, alias="--export-dh")
+    strict_range: bool = Field(False, alias="--strict-range")
 
     def outputs(self) -> dict[str, str | None]:
         """Every output, by flag."""
@@ -70,6 +77,8 @@ class Compensated:
     csv_text : the compensated CSV (written to ``--out`` when given)
     thermal : the thermal state compensated for (a model with drift effects:
         :func:`calibration.fit.thermal_state.target_state`), else None
+    outside : per target, the quantities beyond the calibrated envelope (``q2``,
+        ``joint_temp3``...; empty inside), None without targets
     """
 
     model: RobotModel
@@ -80,6 +89,7 @@ class Compensated:
     result: Compensation | None = None
     csv_text: str | None = None
     thermal: dict | None = None
+    outside: list[list[str]] | None = None
 
 
 def compensate_targets(request: CompensateRequest) -> Compensated:
@@ -89,6 +99,9 @@ def compensate_targets(request: CompensateRequest) -> Compensated:
     ------
     UsageError, calibration.errors.InputError
         Bad input (exit 2); TooLarge: more targets than the memory left holds (exit 3).
+    calibration.errors.OutsideEnvelope
+        ``--strict-range`` and a target beyond the calibrated envelope (exit 3); nothing
+        is written.
     """
     if not request.targets and not any(v for k, v in request.outputs().items()
                                        if k != "--out"):
@@ -109,6 +122,15 @@ def compensate_targets(request: CompensateRequest) -> Compensated:
         start = _parse_start(request.start, em.model.n_joints) if request.start else None
         columns, done.thermal = target_state(em, loaded.thermal, t.columns,
                                              len(t.base_p_tcp))
+    if request.strict_range and loaded.envelope is None:
+        raise UsageError(f"--strict-range: {no_envelope_note(request.params)}")
+    c = None
+    if t is not None:  # compensated (and checked against the envelope) before any write
+        c = compensate(em, x, t.base_p_tcp, t.q, q_start=start,
+                       keep_orientation=not request.position_only, columns=columns)
+        done.outside = outside_envelope(loaded.envelope, c.q, t.columns)
+        if request.strict_range:
+            refuse_outside(done.outside, list(t.pose_id), "targets", request.targets)
     done.exports = write_exports(em, x, model_yaml=request.export_model,
                                  ur_conf=request.export_ur, urdf=request.export_urdf,
                                  ur_yaml=request.export_ur_yaml, dh_table=request.export_dh,
@@ -122,9 +144,10 @@ def compensate_targets(request: CompensateRequest) -> Compensated:
             "the calibration has backlash: give dir1..dirN in the targets (the direction "
             "each joint will approach from); without them they are derived from the "
             "targets' order")
-    c = compensate(em, x, t.base_p_tcp, t.q, q_start=start,
-                   keep_orientation=not request.position_only, columns=columns)
-    done.targets, done.result, done.csv_text = t, c, compensated_csv(t, c)
+    if loaded.envelope is None:
+        done.notes.append(no_envelope_note(request.params))
+    done.targets, done.result = t, c
+    done.csv_text = compensated_csv(t, c, done.outside)
     if request.out:
         write_atomic(request.out, done.csv_text)
     return done

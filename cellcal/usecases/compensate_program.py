@@ -21,6 +21,7 @@ from ..programs.program_report import ProgramReport
 from ..request import Request
 from .outputs import check_outputs, existing_paths
 from .program_inputs import program_options
+from .target_checks import no_envelope_note
 
 #: the flags of ``compensate`` that do not go with ``--program``
 _OTHER_FLAGS = {"targets": "TARGETS.csv", "position_only": "--position-only",
@@ -42,6 +43,7 @@ class ProgramRequest(Request):
     start: str | None = Field(None, alias="--start")
     temp_c: float | None = Field(None, alias="--temp-c")
     payload_kg: float | None = Field(None, alias="--payload-kg")
+    strict_range: bool = Field(False, alias="--strict-range")
 
 
 def refuse_other_flags(args) -> None:
@@ -60,7 +62,9 @@ def compensate_program(request: ProgramRequest) -> ProgramReport:
     UsageError, calibration.errors.CalibrationError
         Bad input (exit 2): no ``--out``, an output that is an input or a run store, a
         program that does not parse (:class:`~cellcal.programs.targets.ProgramError`
-        names the line), a bad frames file, a thermal calibration without ``--temp-c``.
+        names the line), a bad frames file, a thermal calibration without ``--temp-c``;
+        with ``--strict-range`` a target beyond the calibrated envelope
+        (:class:`~calibration.errors.OutsideEnvelope`, exit 3).
     """
     if request.out is None:
         raise UsageError("--program needs --out FILE: where the compensated program goes")
@@ -72,8 +76,15 @@ def compensate_program(request: ProgramRequest) -> ProgramReport:
         load_effect_file(f)
     loaded = read_params(request.params)
     em, x = loaded.error_model, loaded.values
+    if request.strict_range and loaded.envelope is None:
+        raise UsageError(f"--strict-range: {no_envelope_note(request.params)}")
     options = program_options(em, frames=request.frames, start_deg=request.start,
-                              temp_c=request.temp_c, payload_kg=request.payload_kg)
-    return program_filter.compensate_program(
+                              temp_c=request.temp_c, payload_kg=request.payload_kg,
+                              thermal=loaded.thermal)
+    report = program_filter.compensate_program(
         request.program, em, x, request.out, allow_partial=request.allow_partial,
-        language=dialect.name, options=options)
+        language=dialect.name, options=options, envelope=loaded.envelope,
+        strict_range=request.strict_range)
+    if loaded.envelope is None:
+        report.notes.append(no_envelope_note(request.params))
+    return report

@@ -21,6 +21,7 @@ from calibration.diagnosis.diagnosis import diagnose as rank_candidates
 from calibration.exports.params_io import fit_to_dict
 from calibration.files import write_atomic
 from calibration.fit.identify import Fit
+from calibration.fit.model_check import ModelCheck, check_model
 from calibration.workflow import current_fit
 
 from ..errors import UsageError
@@ -68,6 +69,9 @@ class DiagnoseResult:
     diagnosis : the ranking of the missing effects (None with ``--auto``)
     auto : the automatic diagnosis (``--auto``), else None
     notes : remarks for the user on the data and the parameters read
+    given : with ``--params``, the given model's own error on the calibration poses, as
+        calibrated (:func:`~calibration.fit.model_check.check_model`): the diagnosis'
+        figures are of a refit of every parameter on these poses, this one is not
     """
 
     fit: Fit
@@ -75,15 +79,17 @@ class DiagnoseResult:
     diagnosis: Diagnosis | None = None
     auto: AutoDiagnosis | None = None
     notes: list[str] = field(default_factory=list)
+    given: ModelCheck | None = None
 
 
 def diagnose(request: DiagnoseRequest, *, on_note: Callable[[str], None] | None = None,
-             on_start: Callable[[Fit], None] | None = None,
+             on_start: Callable[[Fit, ModelCheck | None], None] | None = None,
              on_step: Callable[[AutoStep], None] | None = None) -> DiagnoseResult:
     """Fit the current model, then rank the candidates (or, with ``--auto``, add them).
 
     ``on_note`` is called with each remark as soon as it is known (before the fit);
-    ``on_start`` with the start fit before the automatic diagnosis, ``on_step`` with each
+    ``on_start`` with the start fit (and, with ``--params``, the given model's own error:
+    ``given`` of the result) before the automatic diagnosis, ``on_step`` with each
     step it accepts (the command shows them as they come).
 
     Raises
@@ -99,13 +105,17 @@ def diagnose(request: DiagnoseRequest, *, on_note: Callable[[str], None] | None 
     for n in notes if on_note is not None else ():
         on_note(n)
     fit = current_fit(model, data, request.effects, params, request.solver)
+    given = None
+    if params is not None:  # the given model's own error, before anything is refitted
+        given = check_model(*params, data.calib() if data.is_valid.any() else data)
     if not request.auto:
-        return DiagnoseResult(fit, data, diagnosis=rank_candidates(fit, data), notes=notes)
+        return DiagnoseResult(fit, data, diagnosis=rank_candidates(fit, data), notes=notes,
+                              given=given)
     if on_start is not None:
-        on_start(fit)
+        on_start(fit, given)
     result = auto_diagnose(fit, data, max_steps=request.max_steps, budget_s=request.budget_s,
                            progress=on_step)
     if request.out:
         write_atomic(request.out, json.dumps(fit_to_dict(result.fit, list(request.effect_file),
                                                          auto=result), indent=1) + "\n")
-    return DiagnoseResult(fit, data, auto=result, notes=notes)
+    return DiagnoseResult(fit, data, auto=result, notes=notes, given=given)

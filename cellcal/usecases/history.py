@@ -9,7 +9,7 @@ returns a :class:`RobotHistory`.
 from __future__ import annotations
 
 import fnmatch
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from pydantic import Field
@@ -20,7 +20,7 @@ from calibration.diagnosis.history import (
     ParameterHistory,
     parameter_histories,
 )
-from daq.store import Calibration, StoreError
+from daq.store import Calibration, Check, StoreError
 from presentation.history_text import flagged_rows
 
 from ..errors import UsageError
@@ -43,13 +43,16 @@ class HistoryRequest(Request):
 class RobotHistory:
     """What :func:`robot_history` read: the store's ``address``, the robot's
     ``calibrations`` (oldest first) with their ``summaries``, every parameter's history,
-    and the histories ``shown`` (those named with ``--param``, else those that changed)."""
+    the histories ``shown`` (those named with ``--param``, else those that changed), and
+    the ``checks`` of its calibrations on new poses (``cellcal check --db``, oldest
+    first)."""
 
     address: str
     calibrations: list[Calibration]
     summaries: list[CalibrationSummary]
     histories: list[ParameterHistory]
     shown: list[ParameterHistory]
+    checks: list[Check] = field(default_factory=list)
 
 
 def robot_history(request: HistoryRequest) -> RobotHistory:
@@ -64,7 +67,7 @@ def robot_history(request: HistoryRequest) -> RobotHistory:
     if request.plot and Path(request.plot).suffix.lower() not in (".html", ".htm", ".png"):
         raise UsageError(f"--plot {request.plot}: give a .html or .png file")
     check_outputs({"--plot": request.plot}, [request.db])
-    address, cals = _load(request.db, request.robot_id)
+    address, cals, checks = _load(request.db, request.robot_id)
     docs = [c.params for c in cals]
     summaries = [CalibrationSummary.of(d) for d in docs]
     histories = parameter_histories(docs, request.sigma)
@@ -75,6 +78,9 @@ def robot_history(request: HistoryRequest) -> RobotHistory:
             raise UsageError(f"no parameter matches {', '.join(request.param)}")
     else:
         shown = [h for h in histories if h.flagged.any()]
+    if request.plot and not cals:
+        raise UsageError(f"--plot: robot {request.robot_id!r} has checks but no calibrations "
+                         "in the store: there are no parameters to draw")
     if request.plot:
         import numpy as np
 
@@ -83,21 +89,23 @@ def robot_history(request: HistoryRequest) -> RobotHistory:
         write_history_plot(request.plot, shown or histories, np.array([c.t for c in cals]),
                            f"calibration history of {request.robot_id}",
                            flagged_rows(cals, histories))
-    return RobotHistory(address, cals, summaries, histories, shown)
+    return RobotHistory(address, cals, summaries, histories, shown, checks)
 
 
-def _load(db: str, robot_id: str) -> tuple[str, list[Calibration]]:
-    """(the store's address, the robot's calibrations); UsageError when it has none."""
+def _load(db: str, robot_id: str) -> tuple[str, list[Calibration], list[Check]]:
+    """(the store's address, the robot's calibrations, their checks); UsageError when it
+    has neither."""
     store = open_store(db, read_only=True)
     try:
         cals = store.calibrations(robot_id)
+        checks = store.checks(robot_id)
         robots = store.robots()
     except StoreError as e:
         raise UsageError(str(e)) from None
     finally:
         store.close()
-    if not cals:
+    if not cals and not checks:
         known = ", ".join(r for r, _ in robots) or "none"
         raise UsageError(f"{store.address}: no calibrations of robot {robot_id!r} "
                          f"(robots with calibrations: {known})")
-    return store.address, cals
+    return store.address, cals, checks

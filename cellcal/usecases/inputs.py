@@ -44,28 +44,38 @@ class CurrentModelInputs(Request):
     solver: str = Field("lm", alias="--solver")
 
 
-def model_name(request: DataInputs) -> str:
-    """``--model``, else the model the data file's metadata names; UsageError when neither."""
+def model_name(request: DataInputs, required: bool = True) -> str | None:
+    """``--model``, else the model the data file's metadata names; UsageError when neither
+    (None when not ``required``)."""
     if request.model:
         return request.model
     from calibration.data.dataset import read_meta
 
     name = read_meta(request.data).get("model")
-    if not name:
+    if not name and required:
         raise UsageError(f"give --model: {request.data} names no model (no `# model:` line)")
-    return name
+    return name or None
 
 
 def load_model_with(name: str | None, effect_files: tuple[str, ...] = (),
                     request: DataInputs | None = None) -> RobotModel:
     """The model ``name`` (built-in or YAML), after loading the user's effect files (a
-    model may use their effects); ``name`` None: the one ``request``'s data names."""
+    model may use their effects); ``name`` None: the one ``request``'s data names, else,
+    with ``--params``, the calibration's own (params.json embeds its model)."""
     from calibration import load_model
     from calibration.effects import load_effect_file
 
     for f in effect_files:
         load_effect_file(f)
-    return load_model(name or model_name(request))
+    if name:
+        return load_model(name)
+    params = getattr(request, "params", None)
+    named = model_name(request, required=not params)
+    if named:
+        return load_model(named)
+    from calibration.exports.params_io import read_params
+
+    return read_params(params).error_model.model
 
 
 def load_inputs(request: DataInputs) -> tuple[RobotModel, Dataset]:

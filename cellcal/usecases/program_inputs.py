@@ -58,9 +58,11 @@ def read_frames(path: str | None) -> tuple[dict[int, tuple], dict[int, tuple]]:
 
 
 def program_options(error_model, *, frames: str | None, start_deg: str | None,
-                    temp_c: float | None, payload_kg: float | None):
+                    temp_c: float | None, payload_kg: float | None,
+                    thermal: dict | None = None):
     """The program filter's :class:`~cellcal.programs.compensate.Options` from the flags;
-    a calibration with thermal growth needs ``--temp-c``."""
+    a calibration with thermal growth needs ``--temp-c``; ``thermal``: the calibration's
+    thermal record (params.json), whose warm state a drift effect is compensated at."""
     for flag, v in (("--temp-c", temp_c), ("--payload-kg", payload_kg)):
         if v is not None and not math.isfinite(v):
             raise UsageError(f"{flag}: {v} is not a finite number")
@@ -79,4 +81,5 @@ def program_options(error_model, *, frames: str | None, start_deg: str | None,
         if not np.isfinite(seed).all():
             raise UsageError(f"--start needs {n} finite angles (deg)")
     tools, bases = read_frames(frames)
-    return Options(seed=seed, temp_c=temp_c, payload_kg=payload_kg, tools=tools, bases=bases)
+    return Options(seed=seed, temp_c=temp_c, payload_kg=payload_kg, tools=tools, bases=bases,
+                   thermal=thermal)

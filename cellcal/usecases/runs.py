@@ -65,7 +65,7 @@ def _detail(store, run_id: int) -> RunDetail:
     d["interruptions"] = [{"point": p, "t": t, "kind": k, "message": m}
                           for p, t, k, m in store.interruptions(r.id)]
     d["rejected_readings"] = [
-        {"point": x.sample.point_index, "pose_id": x.sample.pose_id, "t": x.sample.t,
+        {"point": x.sample.point_index, "pose_id": x.sample.pose_id, "t": x.sample.t_s,
          "xyz": [float(v) for v in x.sample.tracker_p_smr], "reason": x.reason}
         for x in store.readings(r.id)]
     curves = _drift_checks(store, r)

@@ -6,6 +6,11 @@ starts from those joints and reports the correction against their nominal point,
 joints that put the tool somewhere else give a "correction" of that distance and new
 joints far from the given ones, reported as reached. :func:`check_joints_reach` refuses
 them first, naming the rows and the distances.
+
+Targets beyond the calibrated envelope (:class:`calibration.fit.envelope.Envelope`, the
+ranges the calibration data covered): :func:`outside_envelope` names, per target, the
+joints (and thermal quantities) that lie beyond it; :func:`refuse_outside` is
+``--strict-range`` (exit 3).
 """
 
 from __future__ import annotations
@@ -13,12 +18,23 @@ from __future__ import annotations
 import numpy as np
 
 from calibration.compensation.compensation import Targets
+from calibration.fit.envelope import outside_envelope, refuse_outside
 from calibration.model.inverse import ChainFK
 
 from ..errors import UsageError
 from ..flags.choices import JOINTS_TOLERANCE_MM
 
-__all__ = ["JOINTS_TOLERANCE_MM", "check_joints_reach"]
+__all__ = ["JOINTS_TOLERANCE_MM", "check_joints_reach", "no_envelope_note", "outside_envelope",
+           "refuse_outside"]
+
+
+
+def no_envelope_note(params: str, what: str = "targets") -> str:
+    """What is said when a params.json records no envelope (``what``: the targets, the
+    poses... that are not checked against it)."""
+    return (f"{params} records no calibrated envelope (written before cellcal recorded "
+            f"one): the {what} are not checked against the ranges the calibration "
+            "measured; calibrate again to have them checked")
 
 
 def check_joints_reach(targets: Targets, model, tolerance_mm: float, source: str) -> None:

@@ -180,11 +180,11 @@ def make_plan(model, *, start_deg=None, circle_span_deg: float = 90.0, circle_po
 def finalize(plan: Plan, samples, run) -> dict:
     """Fit the frame: ``{"frame": FrameFit.to_dict(), "summary": {...}}`` (the run's
     summary kept)."""
-    part = [(t or {}).get("info", {}).get("part") for t in samples.targets]
+    part = [(t or {}).get("info", {}).get("part") for t in samples.target]
     circ = np.array([p == "circle" for p in part], bool)
     line = np.array([p == "line" for p in part], bool)
     height = float(plan.params["origin_height_mm"])
-    cmd_z = samples.base_p_tcp_cmd[circ, 2]
+    cmd_z = samples.cmd[circ, 2]
     if cmd_z.size and np.all(np.isfinite(cmd_z)):
         height = float(cmd_z.mean())  # the controller's own nominal TCP height
     fit = measurement_frame(samples.tracker_p_smr[circ], samples.tracker_p_smr[line], height)

@@ -99,7 +99,7 @@ def make_plan(model, *, centre_xyz=None, start_deg=None, side_mm: float = 200.0,
 
 def finalize(plan: Plan, samples, run) -> dict:
     """RP (and AP when the frame is known) per cube point, mm."""
-    pts = np.array([(t or {}).get("info", {}).get("point", 0) for t in samples.targets])
+    pts = np.array([(t or {}).get("info", {}).get("point", 0) for t in samples.target])
     T = run.context.tracker_T_base_matrix
     out = {}
     for k in range(1, 6):

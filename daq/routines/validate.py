@@ -103,12 +103,12 @@ def finalize(plan: Plan, samples, run) -> dict:
     else:
         T, where = run.context.tracker_T_base_matrix, "the run's measurement frame"
     summary = run.summary or RunSummary()
-    if T is None or len(samples.targets) == 0:
+    if T is None or len(samples.target) == 0:
         return {"summary": summary}
     waypoints = plan.params["waypoints"]
     labels = [w["label"] for w in waypoints]
     xyz = np.array([w["xyz_mm"] for w in waypoints], float)
-    info = [(t or {}).get("info", {}) for t in samples.targets]
+    info = [(t or {}).get("info", {}) for t in samples.target]
     variant = np.array([i.get("variant", "") for i in info])
     which = np.array([i.get("waypoint", -1) for i in info])
     p = samples.tracker_p_smr

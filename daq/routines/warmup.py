@@ -89,7 +89,7 @@ def _state(plan: Plan, samples) -> WarmupSummary:
     """How the warm-up stands after the samples stored so far."""
     p = plan.params
     rows = np.flatnonzero(np.asarray(samples.set_name) == DRIFT_SET)
-    rows = rows[np.argsort(samples.t[rows])]
+    rows = rows[np.argsort(samples.t_s[rows])]
     window_s = float(p["window_min"]) * 60.0
     threshold = default_bound(samples.std_mm[rows], p.get("threshold_mm"),
                               sigmas=THRESHOLD_SIGMAS)
@@ -97,12 +97,12 @@ def _state(plan: Plan, samples) -> WarmupSummary:
                         threshold_mm=round(threshold, 4), cycles=int(len(rows)))
     if len(rows) == 0:
         return out
-    t, X = samples.t[rows] - samples.t[rows[0]], samples.tracker_p_smr[rows]
+    t, X = samples.t_s[rows] - samples.t_s[rows[0]], samples.tracker_p_smr[rows]
     out.minutes = round(float(t[-1]) / 60.0, 2)
     out.t_min = [round(float(v) / 60.0, 2) for v in t]
     out.curve_mm = [round(float(v), 4) for v in np.linalg.norm(X - X[0], axis=1)]
-    if samples.joint_temp_c is not None:
-        out.joint_temp_c = [round(float(v), 2) for v in samples.joint_temp_c[rows[-1]]]
+    if samples.joint_temp is not None:
+        out.joint_temp_c = [round(float(v), 2) for v in samples.joint_temp[rows[-1]]]
     last = t >= t[-1] - window_s
     if t[-1] >= window_s and last.sum() >= MIN_WINDOW_READINGS:
         slope = np.polyfit(t[last], X[last], 1)[0]

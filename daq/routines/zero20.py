@@ -177,8 +177,8 @@ def replay_source(store, run_id: int) -> dict:
                          "not a completed zero20 run")
     s = store.samples(r.id)
     src = Plan.from_json(r.plan_json)
-    return {"run": r.id, "q": s.joints_rad, "label": s.pose_id,
-            "plane": [int(t["info"]["plane"]) for t in s.targets],
+    return {"run": r.id, "q": s.q, "label": s.pose_id,
+            "plane": [int(t["info"]["plane"]) for t in s.target],
             "target_xyz_mm": src.params["target_xyz_mm"]}
 
 

@@ -8,18 +8,20 @@ never asks; it opens the address (:func:`daq.store.open_store`,
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import TypeGuard
 from urllib.parse import urlsplit, urlunsplit
 
 #: address schemes of a PostgreSQL server
 PG_SCHEMES = ("postgresql", "postgres")
 
 
-def is_server_address(address) -> bool:
+def is_server_address(address: object) -> TypeGuard[str]:
     """True for a ``postgresql://`` (or ``postgres://``) URL."""
     return isinstance(address, str) and urlsplit(address).scheme.lower() in PG_SCHEMES
 
 
-def display_address(address) -> str:
+def display_address(address: str | Path) -> str:
     """The address as printed: a path as given, a URL without its password."""
     if not is_server_address(address):
         return str(address)

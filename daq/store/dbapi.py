@@ -9,7 +9,7 @@ translation as the statement, so no ``sqlite3`` or ``psycopg`` error escapes a s
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 #: a database's translation of its driver's errors (a context manager factory)
@@ -35,7 +35,14 @@ class Cursor:
         with self._errors():
             return self._cursor.fetchall()
 
-    def __iter__(self):
+    def mappings(self) -> list[dict[str, Any]]:
+        """Every row as a dict of column name to value (rows read by name, never by
+        position), on both databases (the DB-API's ``description``)."""
+        with self._errors():
+            names = [d[0] for d in self._cursor.description or ()]
+            return [dict(zip(names, row, strict=True)) for row in self._cursor.fetchall()]
+
+    def __iter__(self) -> Iterator[Any]:
         return iter(self.fetchall())
 
 

@@ -66,7 +66,8 @@ Modules
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Sequence
+import sqlite3
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -84,23 +85,41 @@ __all__ = ["PG_SCHEMES", "Cursor", "Database", "PostgresDatabase", "SqliteDataba
 class Cursor(Protocol):
     """The rows of a statement (:class:`daq.store.dbapi.Cursor`)."""
 
-    rowcount: int
+    @property
+    def rowcount(self) -> int: ...
 
     def fetchone(self) -> Any: ...
 
     def fetchall(self) -> list: ...
 
+    def mappings(self) -> list[dict]: ...
+
 
 class Database(Protocol):
     """One connection to a run store's database (see the module docstring)."""
 
-    #: ``"sqlite"`` or ``"postgresql"``
-    kind: str
-    #: the address as printed (no password)
-    address: str
-    #: the SQLite file, or the server's address as printed
-    path: Path | str
-    read_only: bool
+    @property
+    def kind(self) -> str:
+        """``"sqlite"`` or ``"postgresql"``."""
+        ...
+
+    @property
+    def address(self) -> str:
+        """The address as printed (no password)."""
+        ...
+
+    @property
+    def path(self) -> Path | str:
+        """The SQLite file, or the server's address as printed."""
+        ...
+
+    @property
+    def read_only(self) -> bool: ...
+
+    @property
+    def con(self) -> Any:
+        """The driver's connection (``sqlite3`` or ``psycopg``), for inspection."""
+        ...
 
     def execute(self, sql: str, params: Sequence = ()) -> Cursor:
         """Run one statement written in the store's SQL (``?`` placeholders)."""
@@ -138,9 +157,9 @@ class Database(Protocol):
     def close(self) -> None: ...
 
 
-def connect(address, *, create: bool = True, read_only: bool = False,
+def connect(address: str | Path, *, create: bool = True, read_only: bool = False,
             synchronous: str = "FULL", timeout_s: float = 10.0,
-            check_file=None) -> Database:
+            check_file: Callable[[sqlite3.Connection], None] | None = None) -> Database:
     """The database at ``address`` (a path or a ``postgresql://`` URL).
 
     ``create`` False refuses a missing SQLite file (a PostgreSQL database must always
@@ -154,7 +173,7 @@ def connect(address, *, create: bool = True, read_only: bool = False,
     if synchronous.upper() not in ("FULL", "NORMAL"):
         raise ValueError(f"synchronous must be FULL or NORMAL, got {synchronous!r}")
     if is_server_address(address):
-        return PostgresDatabase(address, read_only=read_only, synchronous=synchronous.upper(),
+        return PostgresDatabase(str(address), read_only=read_only, synchronous=synchronous.upper(),
                                 timeout_s=timeout_s)
 
     path = Path(address)

@@ -29,11 +29,17 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 from urllib.parse import parse_qsl, urlencode, urlsplit
 
 from ..errors import RequestError
 from .dialect import connect
 from .errors import StoreError
+
+if TYPE_CHECKING:
+    from drivers.protocols import DeviceIdentity
+
+    from .runstore import RunStore
 
 #: what a best-effort write (release, heartbeat, close) may meet and shrug off (the
 #: store's databases raise nothing else: :mod:`daq.store.dialect`)
@@ -133,15 +139,16 @@ class Leases:
         A heartbeat older than this makes a lease stale.
     """
 
-    def __init__(self, path: str | Path, *, ttl_s: float = DEFAULT_TTL_S) -> None:
+    def __init__(self, path: str | Path | RunStore, *, ttl_s: float = DEFAULT_TTL_S) -> None:
         new_connection = getattr(path, "new_connection", None)
-        self.path = path.path if new_connection is not None else path
+        self.path: str | Path = (cast("RunStore", path).path if new_connection is not None
+                                 else cast("str | Path", path))
         self.ttl_s = float(ttl_s)
         self.host = socket.gethostname()
         self.pid = os.getpid()
         self.token = secrets.token_hex(8)
         self._con = new_connection() if new_connection is not None else connect(
-            path, create=False)
+            self.path, create=False)
         self._lock = threading.Lock()
         self._held: dict[str, str] = {}
         self._stop = threading.Event()
@@ -226,7 +233,7 @@ class Leases:
     def __enter__(self) -> Leases:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
 
@@ -241,7 +248,7 @@ def held_leases(path: str | Path, given: Leases | None) -> Iterator[Leases]:
         yield own
 
 
-def take_robot(leases: Leases, url: str, identity=None) -> None:
+def take_robot(leases: Leases, url: str, identity: DeviceIdentity | None = None) -> None:
     """Hold the robot at ``url``, and by its serial number once ``identity`` (a
     :class:`drivers.protocols.DeviceIdentity`) gives one: the same robot reached by
     another URL is the same robot."""

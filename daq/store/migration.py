@@ -10,12 +10,16 @@ PostgreSQL schema refused.
 
 from __future__ import annotations
 
+import sqlite3
+from typing import cast
+
 from .dialect import Database
 from .errors import StoreError
 from .schema import SCHEMA_V1, SCHEMA_VERSION, UPGRADES
+from .sqlite_db import SqliteDatabase
 
 
-def check_file(con, address: str, read_only: bool) -> None:
+def check_file(con: sqlite3.Connection, address: str, read_only: bool) -> None:
     """A SQLite file's first look (``con``: its ``sqlite3`` connection), before anything is
     written to it: refuse a file of another program, a newer schema, and a damaged file
     opened read-only. (A PostgreSQL database may hold other programs' tables besides the
@@ -61,7 +65,7 @@ def migrate(db: Database, address: str, create: bool) -> None:
                              "capture, runs or export) to upgrade it")
         if v == 0:
             raise StoreError(f"{address}: not a cellcal run store (no schema version)")
-        db.copy_to_memory()  # the file is left alone
+        cast(SqliteDatabase, db).copy_to_memory()  # the file is left alone
     if db.read_only:
         return
     while v < SCHEMA_VERSION:

@@ -77,7 +77,7 @@ def connect_read_only(path: Path, timeout_s: float = 30.0) -> sqlite3.Connection
                            check_same_thread=False)
 
 
-def describe_error(e: sqlite3.DatabaseError) -> str:
+def describe_error(e: sqlite3.Error) -> str:
     text = str(e)
     if "not a database" in text:
         return "not a cellcal run store (not an SQLite database)"

@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import re
 from collections.abc import Iterator, Sequence
+from typing import Any
 
 from .addresses import display_address
 from .dbapi import Cursor, upsert_sql
@@ -91,7 +92,7 @@ class PostgresDatabase:
         self._timeout_s = timeout_s
         self.con = self._open()
 
-    def _open(self):
+    def _open(self) -> Any:  # a psycopg.Connection
         import psycopg
 
         options = []
@@ -99,7 +100,7 @@ class PostgresDatabase:
             options.append("-c default_transaction_read_only=on")
         if self._synchronous == "NORMAL":
             options.append("-c synchronous_commit=off")
-        kwargs = {"options": " ".join(options)} if options else {}
+        kwargs: dict[str, Any] = {"options": " ".join(options)} if options else {}
         try:
             return psycopg.connect(self.url, autocommit=True,
                                    connect_timeout=max(1, round(self._timeout_s)),
@@ -128,7 +129,7 @@ class PostgresDatabase:
         except psycopg.Error as e:
             raise StoreError(f"{self.address}: {' '.join(str(e).split())}") from e
 
-    def execute(self, sql: str, params: Sequence = ()):
+    def execute(self, sql: str, params: Sequence[Any] = ()) -> Cursor:
         if _BEGIN_IMMEDIATE.match(sql):  # SQLite code taking the write lock
             with self._errors():
                 self.con.execute("BEGIN")
@@ -137,7 +138,7 @@ class PostgresDatabase:
         with self._errors():
             return Cursor(self.con.execute(translate(sql), tuple(params)), self._errors)
 
-    def executemany(self, sql: str, rows) -> None:
+    def executemany(self, sql: str, rows: Sequence[Sequence[Any]]) -> None:
         with self._errors(), self.con.cursor() as cur:
             cur.executemany(translate(sql), rows)
 

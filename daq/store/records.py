@@ -1,8 +1,8 @@
 """The run store's records of runs: a run as stored (:class:`Run`, its :class:`RunStatus`
 and its summary, :class:`daq.store.summary.RunSummary`), why it was interrupted
-(:class:`Interruption`, of an :class:`InterruptionKind`) and a recorded calibration
-(:class:`Calibration`). Plain data, no database (:mod:`daq.store`); a run's measurements
-are :mod:`daq.store.samples`.
+(:class:`Interruption`, of an :class:`InterruptionKind`), a recorded calibration
+(:class:`Calibration`) and a check of one on new poses (:class:`Check`). Plain data, no
+database (:mod:`daq.store`); a run's measurements are :mod:`daq.store.samples`.
 
 Statuses and interruption kinds are stored as their strings (``paused``, ``beam``): a
 store written before they were enums reads back the same.
@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import NamedTuple
+from typing import NamedTuple, TypeVar, overload
 
 from ..run_context import RunContext
 from .summary import RunSummary
@@ -85,9 +85,22 @@ class Interruption(NamedTuple):
     message: str
 
 
-def known(enum: type[StrEnum], value: str | None):
+_E = TypeVar("_E", bound=StrEnum)
+
+
+@overload
+def known(enum: type[_E], value: str) -> _E | str: ...
+
+
+@overload
+def known(enum: type[_E], value: None) -> None: ...
+
+
+def known(enum: type[_E], value: str | None) -> _E | str | None:
     """``value`` as a member of ``enum``, or as given when it is none (an older or newer
     cellcal's string, None)."""
+    if value is None:
+        return None
     try:
         return enum(value)
     except ValueError:
@@ -113,7 +126,7 @@ class Run:
     software: str | None
     started: float | None
     stopped: float | None
-    status: RunStatus
+    status: RunStatus | str  # a plain string for a status this cellcal does not know
     reason: str | None
     frame: dict | None
     summary: RunSummary | None
@@ -165,3 +178,43 @@ class Calibration:
     def params(self) -> dict:
         """The params.json document (docs/formats.md)."""
         return json.loads(self.params_json)
+
+
+@dataclass(frozen=True)
+class Check:
+    """One row of ``checks``: a robot's calibration checked on new poses (``cellcal check
+    --db``).
+
+    ``t`` when the poses were measured (epoch s: the latest ``t_s`` of the data, else when
+    it was recorded), ``recorded`` when it was stored; ``params_sha256`` the params.json
+    checked and ``calibration_id`` the calibration of the same robot recorded with those
+    parameters (None when they were not recorded); ``n``, ``rms_mm`` ... ``max_mm`` the
+    error statistics; ``tolerance_mm`` and ``within_tolerance`` (None without a
+    tolerance); ``refitted`` the effects refitted (``["base"]`` or empty); ``result_json``
+    the check's ``--json`` object; ``source_file``, ``source_run``, ``software`` as a
+    calibration's.
+    """
+
+    id: int
+    robot_id: str
+    t: float
+    recorded: float
+    params_sha256: str
+    calibration_id: int | None
+    n: int
+    rms_mm: float | None
+    mean_mm: float | None
+    p95_mm: float | None
+    max_mm: float | None
+    tolerance_mm: float | None
+    within_tolerance: bool | None
+    refitted: tuple[str, ...]
+    result_json: str
+    source_file: str | None
+    source_run: int | None
+    software: str | None
+
+    @property
+    def result(self) -> dict:
+        """The check's ``--json`` object (docs/formats.md §4)."""
+        return json.loads(self.result_json)

@@ -1,6 +1,7 @@
 """The durable run store: runs, samples, the readings a capture did not accept,
-interruptions, leases (:mod:`daq.store.leases`) and calibrations, in one SQLite file (one per
-cell, the default) or in a PostgreSQL database (a plant's central store).
+interruptions, leases (:mod:`daq.store.leases`), calibrations and their checks, in one
+SQLite file (one per cell, the default) or in a PostgreSQL database (a plant's central
+store).
 
 :func:`open_store` (and :class:`RunStore` itself) picks the backend from the address
 (docs/formats.md §5): a ``postgresql://user@host/db`` URL is a server, anything else a
@@ -49,8 +50,8 @@ Schema versions
 
 Every run stores its plan, its typed context (:class:`daq.run_context.RunContext`) and
 the robot's identity (``robot_id``). Reading turns a run's samples into calibration
-inputs: :mod:`daq.run_data`. Calibrations (a params.json per robot and time) are read
-by ``cellcal history``.
+inputs: :mod:`daq.run_data`. Calibrations (a params.json per robot and time) and their
+checks on new poses (``cellcal check --db``) are read by ``cellcal history``.
 
 Opening read-only and refusing what is not a store
     ``read_only=True`` (the commands that only read: ``runs``, ``export``, ``zero --db``)
@@ -72,10 +73,17 @@ from __future__ import annotations
 import hashlib
 import json
 import time
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
+from calibration.data.columns import (
+    READING_COLUMNS,
+    SAMPLE_COLUMNS,
+    decode_row,
+    encode_row,
+    store_columns,
+)
 from calibration.version import software_version
 
 from ..run_context import RunContext
@@ -83,43 +91,31 @@ from .addresses import display_address, is_server_address
 from .dialect import Database, connect
 from .errors import StoreError, StoreFull, StoreUnavailable
 from .migration import check_file, migrate
-from .records import STATUSES, Calibration, Interruption, InterruptionKind, Run, RunStatus, known
+from .records import (
+    STATUSES,
+    Calibration,
+    Check,
+    Interruption,
+    InterruptionKind,
+    Run,
+    RunStatus,
+    known,
+)
 from .samples import Reading, Sample, Samples
 from .schema import RESERVE_BYTES
 from .summary import RunSummary
 
+if TYPE_CHECKING:
+    from ..plans import Plan
+
 __all__ = ["RunStore", "open_if_exists", "open_store"]
 
 
-def _f(v) -> float | None:
-    return None if v is None else float(v)
-
-
-#: the covariance's upper triangle as stored (``cov_xx`` … ``cov_zz``): (row, column)
-_COV = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
-
-
-def _cov_cols(cov) -> tuple:
-    if cov is None:
-        return (None,) * len(_COV)
-    c = np.asarray(cov, float)
-    return tuple(float(c[i, j]) for i, j in _COV)
-
-
-def _cov_matrix(rows: list, k: int) -> np.ndarray:
-    """(n, 3, 3) from the six columns starting at ``k`` (NaN where NULL)."""
-    out = np.full((len(rows), 3, 3), np.nan)
-    for m, (i, j) in enumerate(_COV):
-        v = np.array([np.nan if r[k + m] is None else r[k + m] for r in rows], float)
-        out[:, i, j] = out[:, j, i] = v
-    return out
-
-
-def _json(v) -> str | None:
+def _json(v: Any) -> str | None:
     return None if v is None else json.dumps(v)
 
 
-def open_store(address, *, create: bool = True, read_only: bool = False,
+def open_store(address: str | Path, *, create: bool = True, read_only: bool = False,
                synchronous: str = "FULL") -> RunStore:
     """The run store at ``address``: a SQLite file path or a ``postgresql://`` URL.
 
@@ -131,7 +127,7 @@ def open_store(address, *, create: bool = True, read_only: bool = False,
     return RunStore(address, synchronous, create=create, read_only=read_only)
 
 
-def open_if_exists(address, *, read_only: bool = False,
+def open_if_exists(address: str | Path, *, read_only: bool = False,
                    synchronous: str = "FULL") -> RunStore | None:
     """The existing run store at ``address``, or None when there is none yet: no file at
     the path (or no regular file), or a PostgreSQL database that cannot be opened as a
@@ -197,7 +193,7 @@ class RunStore:
         return self.db.path
 
     @property
-    def con(self):
+    def con(self) -> Any:
         """The driver's connection (sqlite3 or psycopg), for inspection."""
         return self.db.con
 
@@ -213,7 +209,7 @@ class RunStore:
     def __enter__(self) -> RunStore:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     def new_connection(self) -> Database:
@@ -263,7 +259,7 @@ class RunStore:
     # ------------------------------------------------------------------ runs
     def create_run(
         self,
-        plan,
+        plan: Plan,
         context: RunContext | None = None,
         *,
         robot_desc: str | None = None,
@@ -310,7 +306,7 @@ class RunStore:
                  "software, started, stopped, status, reason, frame_json, summary_json, "
                  "context_json, robot_id, robot_identity, tracker_identity, source_run")
 
-    def _row_to_run(self, r) -> Run:
+    def _row_to_run(self, r: Sequence[Any]) -> Run:
         return Run(
             id=r[0], routine=r[1], plan_json=r[2], plan_hash=r[3], n_points=r[4],
             robot_desc=r[5], tracker_desc=r[6], software=r[7], started=r[8], stopped=r[9],
@@ -357,7 +353,7 @@ class RunStore:
         self.db.execute("UPDATE runs SET status=?, reason=?, stopped=? WHERE id=?",
                         (str(status), reason, stopped, run_id))
 
-    def update_run(self, run_id: int, **fields) -> None:
+    def update_run(self, run_id: int, **fields: Any) -> None:
         """Set ``frame`` (a dict), ``summary`` (a :class:`RunSummary`, or a dict of its
         keys), ``robot_identity``/``tracker_identity`` (dicts),
         ``robot_desc``/``tracker_desc``, ``robot_id``, or ``robot_url``/``tracker_url`` (in
@@ -403,29 +399,14 @@ class RunStore:
         raise StoreError(f"{self.address}: no {status} {routine} run{of}")
 
     # --------------------------------------------------------------- samples
-    #: the measurement columns a sample and a reading share, and their values
-    _MEASURED = ("q_json, x, y, z, sx, sy, sz, n, t, temp_c, pressure_hpa, humidity_pct, "
-                 "cmd_x, cmd_y, cmd_z, dir_json, model_residual_mm, model_threshold_mm, "
-                 "reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz, "
-                 "joint_temp_json, qw, qx, qy, qz, sigma_deg, tool_id")
+    # Every per-point column is an entry of the column table (calibration.data.columns): its
+    # store columns, how a value is written there and read back. Rows are read by name.
 
-    @staticmethod
-    def _measured(s: Sample) -> tuple:
-        cmd = s.base_p_tcp_cmd if s.base_p_tcp_cmd is not None else (None, None, None)
-        return (json.dumps([float(v) for v in np.asarray(s.joints_rad, float)]),
-                *(float(v) for v in s.tracker_p_smr), *(float(v) for v in s.std_mm),
-                int(s.n), float(s.t), _f(s.temp_c), _f(s.pressure_hpa), _f(s.humidity_pct),
-                *(_f(v) for v in cmd),
-                json.dumps([int(v) for v in s.dirs]) if s.dirs is not None else None,
-                _f(s.model_residual_mm), _f(s.model_threshold_mm), s.reflector or None,
-                int(s.face) if s.face else None, *_cov_cols(s.cov_mm2),
-                None if s.joint_temp_c is None
-                else json.dumps([float(v) for v in np.asarray(s.joint_temp_c, float)]),
-                *((None,) * 4 if s.quat_wxyz is None
-                  else (float(v) for v in np.asarray(s.quat_wxyz, float))),
-                _f(s.sigma_deg), s.tool_id or None)
+    #: the columns a sample and a rejected reading share (besides ``point_index``)
+    _MEASURED = tuple(c for c in READING_COLUMNS if c.name != "point_index")
 
-    def add_sample(self, run_id: int, s: Sample, rejected=(), revisited=()) -> bool:
+    def add_sample(self, run_id: int, s: Sample, rejected: Iterable[Reading] = (),
+                   revisited: Iterable[tuple[Sample, Iterable[Reading]]] = ()) -> bool:
         """Write one sample in one transaction (the checkpoint).
 
         ``rejected`` are the point's readings that were not accepted (:class:`Reading`),
@@ -437,16 +418,13 @@ class RunStore:
         Returns True when stored, False when the point was already there (idempotent:
         the first sample of a point wins; its rejected readings are then not written).
         """
-        ins = self._MEASURED.count(",") + 1
+        cols = store_columns(SAMPLE_COLUMNS)
         with self.db.transaction():
             cur = self.db.execute(
-                f"""INSERT INTO samples (run_id, point_index, pose_id, set_name,
-                   target_json, attempts, joints_t, verdict, remeasures, {self._MEASURED})
-                   VALUES (?,?,?,?,?,?,?,?,?,{",".join("?" * ins)})
+                f"""INSERT INTO samples (run_id, {", ".join(cols)})
+                   VALUES (?,{",".join("?" * len(cols))})
                    ON CONFLICT DO NOTHING""",
-                (run_id, int(s.point_index), s.pose_id, s.set_name,
-                 json.dumps(s.target) if s.target is not None else None, int(s.attempts),
-                 _f(s.joints_t), s.verdict, int(s.remeasures), *self._measured(s)),
+                (run_id, *encode_row(s, SAMPLE_COLUMNS)),
             )
             stored = cur.rowcount == 1
             for r in rejected if stored else ():
@@ -456,22 +434,22 @@ class RunStore:
         return stored
 
     def _add_reading(self, run_id: int, r: Reading) -> None:
-        n = self._MEASURED.count(",") + 1
+        cols = store_columns(READING_COLUMNS)
         self.db.execute(
-            f"INSERT INTO readings (run_id, point_index, reason, {self._MEASURED}) "
-            f"VALUES (?,?,?,{','.join('?' * n)})",
-            (run_id, int(r.sample.point_index), r.reason, *self._measured(r.sample)))
+            f"INSERT INTO readings (run_id, reason, {', '.join(cols)}) "
+            f"VALUES (?,?,{','.join('?' * len(cols))})",
+            (run_id, r.reason, *encode_row(r.sample, READING_COLUMNS)))
 
-    def _replace_sample(self, run_id: int, s: Sample, rejected) -> None:
+    def _replace_sample(self, run_id: int, s: Sample, rejected: Iterable[Reading]) -> None:
         """Replace a point's sample by ``s`` (a re-measurement, taken later) and add the
         readings it rejected; a no-op when the point already holds ``s`` (the same
         commit repeated after a lost connection)."""
-        cols = [c.strip() for c in self._MEASURED.split(",")]
+        cols = store_columns(self._MEASURED)
         cur = self.db.execute(
             f"""UPDATE samples SET {", ".join(f"{c}=?" for c in cols)}, verdict=?,
                remeasures=? WHERE run_id=? AND point_index=? AND t<>?""",
-            (*self._measured(s), s.verdict, int(s.remeasures), run_id, int(s.point_index),
-             float(s.t)))
+            (*encode_row(s, self._MEASURED), s.verdict, int(s.remeasures), run_id,
+             int(s.point_index), float(s.t_s)))
         if cur.rowcount != 1:
             if self.db.execute("SELECT count(*) FROM samples WHERE run_id=? AND "
                                "point_index=?", (run_id, int(s.point_index))).fetchone()[0]:
@@ -493,77 +471,20 @@ class RunStore:
     def samples(self, run_id: int) -> Samples:
         """All samples of a run ordered by point index (:class:`Samples`)."""
         rows = self.db.execute(
-            """SELECT point_index, pose_id, set_name, q_json, x, y, z, sx, sy, sz, n, t,
-               temp_c, pressure_hpa, humidity_pct, cmd_x, cmd_y, cmd_z, dir_json, target_json,
-               reflector, face, cov_xx, cov_xy, cov_xz, cov_yy, cov_yz, cov_zz,
-               verdict, remeasures, joint_temp_json, qw, qx, qy, qz, sigma_deg, tool_id
-               FROM samples WHERE run_id=? ORDER BY point_index""", (run_id,)
-        ).fetchall()
-
-        def col(k, dtype=float):
-            return np.array([np.nan if r[k] is None else r[k] for r in rows], dtype)
-
-        def xyz(k):
-            return np.column_stack([col(k), col(k + 1), col(k + 2)]) if rows else np.zeros((0, 3))
-
-        q = np.array([json.loads(r[3]) for r in rows], float)
-        dirs = [r[18] for r in rows]
-        temps = [r[30] for r in rows]
-        return Samples(
-            point_index=np.array([r[0] for r in rows], int),
-            pose_id=[r[1] or str(r[0] + 1) for r in rows],
-            set_name=[r[2] or "calib" for r in rows],
-            joints_rad=q.reshape(len(rows), -1) if rows else np.zeros((0, 0)),
-            tracker_p_smr=xyz(4),
-            std_mm=xyz(7),
-            n_averaged=col(10, float),
-            t=col(11),
-            temp_c=col(12),
-            pressure_hpa=col(13),
-            humidity_pct=col(14),
-            base_p_tcp_cmd=xyz(15),
-            dirs=(np.array([json.loads(d) for d in dirs], int)
-                  if rows and all(d is not None for d in dirs) else None),
-            targets=[json.loads(r[19]) if r[19] else None for r in rows],
-            reflector=[r[20] or None for r in rows],
-            face=np.array([r[21] or 0 for r in rows], int),
-            cov_mm2=_cov_matrix(rows, 22),
-            verdict=[r[28] for r in rows],
-            remeasures=np.array([r[29] or 0 for r in rows], int),
-            joint_temp_c=(np.array([json.loads(x) for x in temps], float)
-                          if rows and all(x is not None for x in temps) else None),
-            quat_wxyz=(np.column_stack([col(31), col(32), col(33), col(34)]) if rows
-                       else np.zeros((0, 4))),
-            sigma_deg=col(35),
-            tool_id=[r[36] for r in rows],
-        )
+            f"SELECT {', '.join(store_columns(SAMPLE_COLUMNS))} FROM samples "
+            "WHERE run_id=? ORDER BY point_index", (run_id,)).mappings()
+        return Samples(**{c.name: c.kind.column(rows, c.store) for c in SAMPLE_COLUMNS})
 
     def readings(self, run_id: int) -> list[Reading]:
-        """The readings of a run that were not accepted, by point index, in order taken."""
+        """The readings of a run that were not accepted, by point index, in order taken
+        (each with its point's ``pose_id`` and ``set_name``)."""
+        cols = ", ".join(f"r.{c}" for c in store_columns(READING_COLUMNS))
         rows = self.db.execute(
-            f"""SELECT r.point_index, r.reason, s.pose_id, s.set_name, {
-                ", ".join(f"r.{c.strip()}" for c in self._MEASURED.split(","))}
+            f"""SELECT r.reason, s.pose_id, s.set_name, {cols}
                FROM readings r LEFT JOIN samples s
                ON s.run_id = r.run_id AND s.point_index = r.point_index
-               WHERE r.run_id=? ORDER BY r.point_index, r.t, r.id""", (run_id,)).fetchall()
-        out = []
-        for r in rows:
-            (q, x, y, z, sx, sy, sz, n, t, temp, pres, hum, cx, cy, cz, dirs, res,
-             thr, reflector, face) = r[4:24]
-            out.append(Reading(Sample(
-                point_index=int(r[0]), joints_rad=np.array(json.loads(q), float),
-                tracker_p_smr=np.array([x, y, z], float), std_mm=np.array([sx, sy, sz], float),
-                n=int(n or 0), t=float(t), pose_id=r[2] or str(r[0] + 1),
-                set_name=r[3] or "calib", temp_c=temp, pressure_hpa=pres, humidity_pct=hum,
-                base_p_tcp_cmd=None if cx is None else np.array([cx, cy, cz], float),
-                dirs=None if dirs is None else np.array(json.loads(dirs), int),
-                model_residual_mm=res, model_threshold_mm=thr, reflector=reflector or None,
-                face=face or None, cov_mm2=None if r[24] is None else _cov_matrix([r], 24)[0],
-                joint_temp_c=None if r[30] is None else np.array(json.loads(r[30]), float),
-                quat_wxyz=None if r[31] is None else np.array(r[31:35], float),
-                sigma_deg=r[35], tool_id=r[36]),
-                r[1]))
-        return out
+               WHERE r.run_id=? ORDER BY r.point_index, r.t, r.id""", (run_id,)).mappings()
+        return [Reading(Sample(**decode_row(r)), r["reason"]) for r in rows]
 
     def remeasure_counts(self, run_id: int) -> dict:
         """What the re-measure policy did in a run (from the stored samples and readings).
@@ -645,6 +566,83 @@ class RunStore:
     def robots(self) -> list[tuple[str, int]]:
         """(robot id, number of calibrations) of every robot with calibrations."""
         rows = self.db.execute("SELECT robot_id, count(*) FROM calibrations GROUP BY robot_id "
+                               "ORDER BY robot_id").fetchall()
+        return [(r[0], int(r[1])) for r in rows]
+
+    # ---------------------------------------------------------------- checks
+    @staticmethod
+    def params_digest(params: dict) -> str:
+        """The sha256 a params.json document is recorded under (as a calibration)."""
+        from calibration.files import json_ready
+
+        text = json.dumps(json_ready(params), sort_keys=True, allow_nan=False)
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    def add_check(self, robot_id: str, params: dict, result: dict, *, t: float | None = None,
+                  source_file: str | None = None, source_run: int | None = None,
+                  software: str | None = None) -> tuple[int, bool, int | None]:
+        """Record a check of ``robot_id``'s calibration ``params`` (the params.json
+        document) on new poses: ``result`` is the check's ``--json`` object (``n``,
+        ``rms_mm``, ``mean_mm``, ``p95_mm``, ``max_mm``, ``tolerance_mm``,
+        ``within_tolerance``, ``refitted``).
+
+        ``t`` when the poses were measured (default: now). The calibration of the same
+        robot recorded with the same parameters is linked. Idempotent: the same result
+        recorded again for the same robot is not stored twice. Returns (its id, True when
+        new, the linked calibration's id or None).
+        """
+        if not robot_id:
+            raise ValueError("a check needs a robot id")
+        from calibration.files import json_ready
+
+        digest = self.params_digest(params)
+        text = json.dumps(json_ready(result), sort_keys=True, allow_nan=False)
+        result_digest = hashlib.sha256(text.encode()).hexdigest()
+        ok = result.get("within_tolerance")
+        now = time.time()
+
+        def num(key: str) -> float | None:
+            v = result.get(key)
+            return None if v is None else float(v)
+
+        with self.db.transaction():
+            row = self.db.execute("SELECT id FROM calibrations WHERE robot_id=? AND "
+                                  "params_sha256=?", (robot_id, digest)).fetchone()
+            cal_id = None if row is None else int(row[0])
+            row = self.db.execute(
+                "INSERT INTO checks (robot_id, t, recorded, params_sha256, calibration_id, n, "
+                "rms_mm, mean_mm, p95_mm, max_mm, tolerance_mm, within_tolerance, "
+                "refitted_json, result_json, result_sha256, source_file, source_run, software) "
+                "VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?) ON CONFLICT DO NOTHING RETURNING id",
+                (robot_id, now if t is None else float(t), now, digest, cal_id,
+                 int(result.get("n") or 0), num("rms_mm"), num("mean_mm"), num("p95_mm"),
+                 num("max_mm"), num("tolerance_mm"), None if ok is None else int(bool(ok)),
+                 json.dumps(list(result.get("refitted") or [])), text, result_digest,
+                 source_file, source_run, software or software_version())).fetchone()
+            if row is not None:
+                return int(row[0]), True, cal_id
+            row = self.db.execute("SELECT id FROM checks WHERE robot_id=? AND result_sha256=?",
+                                  (robot_id, result_digest)).fetchone()
+        return int(row[0]), False, cal_id
+
+    def checks(self, robot_id: str) -> list[Check]:
+        """The checks of ``robot_id``'s calibrations, in time order."""
+        rows = self.db.execute(
+            "SELECT id, robot_id, t, recorded, params_sha256, calibration_id, n, rms_mm, "
+            "mean_mm, p95_mm, max_mm, tolerance_mm, within_tolerance, refitted_json, "
+            "result_json, source_file, source_run, software FROM checks WHERE robot_id=? "
+            "ORDER BY t, id", (robot_id,)).fetchall()
+        out = []
+        for r in rows:
+            r = list(r)
+            r[12] = None if r[12] is None else bool(r[12])
+            r[13] = tuple(json.loads(r[13]))
+            out.append(Check(*r))
+        return out
+
+    def checked_robots(self) -> list[tuple[str, int]]:
+        """(robot id, number of checks) of every robot with checks."""
+        rows = self.db.execute("SELECT robot_id, count(*) FROM checks GROUP BY robot_id "
                                "ORDER BY robot_id").fetchall()
         return [(r[0], int(r[1])) for r in rows]
 

@@ -2,6 +2,12 @@
 (:class:`Sample`), a reading that was not accepted (:class:`Reading`) and a run's samples
 as named columns (:class:`Samples`). Plain data, no database (:mod:`daq.store`).
 
+Every field is a quantity of the column table (:mod:`calibration.data.columns`), named as
+there: the table says how each is stored, stacked into a run's column and taken back
+(:meth:`Samples.from_records`, :meth:`Samples.sample`), and
+``tests/daq/test_column_table.py`` checks that these classes, the schema and the table
+agree.
+
 Units: joints rad, lengths mm, covariances mm², times epoch s.
 """
 
@@ -11,33 +17,35 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from calibration.data.columns import RECORD
+
 
 @dataclass
 class Sample:
     """One measured point, as the executor hands it to :meth:`RunStore.add_sample`.
 
-    ``joints_rad`` joints read (rad, (N,)), ``tracker_p_smr`` the reflector measured (mm,
-    tracker frame), ``std_mm`` per-axis std reported by the tracker (mm), ``n`` samples
-    averaged, ``t`` measurement time (epoch s), ``base_p_tcp_cmd`` the controller's
-    nominal TCP (mm, base frame) or None, ``dirs`` approach direction per joint
-    (-1/0/+1) or None; ``reflector`` the reflector measured, ``face`` the tracker face
-    (1 or 2) and ``cov_mm2`` the (3, 3) covariance of ``tracker_p_smr`` (mm²), each None
-    when the tracker did not say.
+    ``q`` joints read (rad, (N,)), ``tracker_p_smr`` the reflector measured (mm, tracker
+    frame), ``std_mm`` per-axis std reported by the tracker (mm), ``n_averaged`` samples
+    averaged, ``t_s`` measurement time (epoch s), ``cmd`` the controller's nominal TCP
+    (mm, base frame) or None, ``dirs`` approach direction per joint (-1/0/+1) or None;
+    ``reflector`` the reflector measured, ``face`` the tracker face (1 or 2) and
+    ``cov_mm2`` the (3, 3) covariance of ``tracker_p_smr`` (mm²), each None when the
+    tracker did not say.
     """
 
     point_index: int
-    joints_rad: np.ndarray
+    q: np.ndarray
     tracker_p_smr: np.ndarray
     std_mm: np.ndarray
-    n: int
-    t: float
+    n_averaged: int
+    t_s: float
     pose_id: str = ""
     set_name: str = "calib"
     target: dict | None = None
     temp_c: float | None = None
     pressure_hpa: float | None = None
     humidity_pct: float | None = None
-    base_p_tcp_cmd: np.ndarray | None = None
+    cmd: np.ndarray | None = None
     dirs: np.ndarray | None = None
     attempts: int = 1
     joints_t: float | None = None
@@ -52,10 +60,10 @@ class Sample:
     model_residual_mm: float | None = None
     model_threshold_mm: float | None = None
     #: the joints' temperatures as the controller reported them (°C, (N,)); None: not read
-    joint_temp_c: np.ndarray | None = None
+    joint_temp: np.ndarray | None = None
     #: a 6-DoF target's orientation: unit quaternion (w, x, y, z) of the target frame in the
     #: tracker frame, and its standard uncertainty (deg); None: a position-only reading
-    quat_wxyz: np.ndarray | None = None
+    quat: np.ndarray | None = None
     sigma_deg: float | None = None
     #: which target on the tool was measured (when a pose measures several); None: the one
     tool_id: str | None = None
@@ -72,81 +80,74 @@ class Reading:
 
 @dataclass(frozen=True)
 class Samples:
-    """Every sample of a run ordered by point index, as named columns (``n`` rows).
+    """Every sample of a run ordered by point index, as named columns (``n`` rows): one
+    per field of :class:`Sample`, stacked as the column table's kind says.
 
     Attributes
     ----------
     point_index : (n,) int
-    pose_id, set_name : list of str (``set_name`` ``calib`` or ``valid``)
-    joints_rad : (n, N) rad, the joints read
+    pose_id, set_name : list of str (``set_name`` ``calib``, ``valid`` or ``drift``)
+    q : (n, N) rad, the joints read
     tracker_p_smr : (n, 3) mm, the reflector measured in the tracker frame
     std_mm : (n, 3) mm, the tracker's per-axis std
-    n_averaged : (n,) samples the tracker averaged
-    t : (n,) epoch s, the measurement times
+    n_averaged : (n,) int, samples the tracker averaged
+    t_s : (n,) epoch s, the measurement times
     temp_c, pressure_hpa, humidity_pct : (n,), NaN where unknown
-    base_p_tcp_cmd : (n, 3) mm, the controller's nominal TCP (base frame), NaN where unknown
+    cmd : (n, 3) mm, the controller's nominal TCP (base frame), NaN where unknown
     dirs : (n, N) int approach directions, or None unless every sample has them
-    targets : list of dict (the plan's targets, JSON) or None
+    target : list of dict (the plan's targets, JSON) or None
+    attempts : (n,) int, tries each point took
+    joints_t : (n,) epoch s, when the joints were read, NaN where unknown
     reflector : list of str or None (None where unknown)
     face : (n,) int, the tracker face (1 or 2), 0 where unknown
     cov_mm2 : (n, 3, 3) mm², the covariance of ``tracker_p_smr``, NaN where unknown
     verdict : list of str or None, how each reading was judged (:data:`daq.remeasure.VERDICTS`)
     remeasures : (n,) int, re-measurements made at each point
-    joint_temp_c : (n, N) °C, the joints' temperatures, or None unless every sample has them
-    quat_wxyz : (n, 4) unit quaternions of a 6-DoF target (tracker frame), NaN where not
+    model_residual_mm, model_threshold_mm : (n,) mm, NaN where not judged
+    joint_temp : (n, N) °C, the joints' temperatures, or None unless every sample has them
+    quat : (n, 4) unit quaternions of a 6-DoF target (tracker frame), NaN where not
         measured
     sigma_deg : (n,) deg, the orientation's standard uncertainty, NaN where unknown
     tool_id : list of str or None, the tool target measured (None: the one)
     """
 
     point_index: np.ndarray
-    pose_id: list[str]
-    set_name: list[str]
-    joints_rad: np.ndarray
+    q: np.ndarray
     tracker_p_smr: np.ndarray
     std_mm: np.ndarray
     n_averaged: np.ndarray
-    t: np.ndarray
+    t_s: np.ndarray
+    pose_id: list[str]
+    set_name: list[str]
+    target: list[dict | None]
     temp_c: np.ndarray
     pressure_hpa: np.ndarray
     humidity_pct: np.ndarray
-    base_p_tcp_cmd: np.ndarray
+    cmd: np.ndarray
     dirs: np.ndarray | None
-    targets: list[dict | None]
+    attempts: np.ndarray
+    joints_t: np.ndarray
     reflector: list[str | None]
     face: np.ndarray
     cov_mm2: np.ndarray
     verdict: list[str | None]
     remeasures: np.ndarray
-    joint_temp_c: np.ndarray | None = None
-    quat_wxyz: np.ndarray | None = None
-    sigma_deg: np.ndarray | None = None
-    tool_id: list[str | None] | None = None
+    model_residual_mm: np.ndarray
+    model_threshold_mm: np.ndarray
+    joint_temp: np.ndarray | None
+    quat: np.ndarray
+    sigma_deg: np.ndarray
+    tool_id: list[str | None]
+
+    @classmethod
+    def from_records(cls, rows: list[Sample]) -> Samples:
+        """The columns of ``rows`` (in order), each stacked as its kind says."""
+        return cls(**{c.name: c.kind.stack([getattr(r, c.name) for r in rows])
+                      for c in RECORD})
 
     def __len__(self) -> int:
         return len(self.point_index)
 
     def sample(self, i: int) -> Sample:
-        """Row ``i`` as a :class:`Sample` (NaN columns as None)."""
-        def opt(a):
-            v = float(a[i])
-            return None if np.isnan(v) else v
-
-        cmd = self.base_p_tcp_cmd[i]
-        return Sample(
-            point_index=int(self.point_index[i]), joints_rad=self.joints_rad[i].copy(),
-            tracker_p_smr=self.tracker_p_smr[i].copy(), std_mm=self.std_mm[i].copy(),
-            n=int(np.nan_to_num(self.n_averaged[i])), t=float(self.t[i]),
-            pose_id=self.pose_id[i],
-            set_name=self.set_name[i], target=self.targets[i], temp_c=opt(self.temp_c),
-            pressure_hpa=opt(self.pressure_hpa), humidity_pct=opt(self.humidity_pct),
-            base_p_tcp_cmd=None if np.isnan(cmd).any() else cmd.copy(),
-            dirs=None if self.dirs is None else self.dirs[i].copy(),
-            reflector=self.reflector[i], face=int(self.face[i]) or None,
-            cov_mm2=None if np.isnan(self.cov_mm2[i]).all() else self.cov_mm2[i].copy(),
-            verdict=self.verdict[i], remeasures=int(self.remeasures[i]),
-            joint_temp_c=None if self.joint_temp_c is None else self.joint_temp_c[i].copy(),
-            quat_wxyz=(None if self.quat_wxyz is None or np.isnan(self.quat_wxyz[i]).any()
-                       else self.quat_wxyz[i].copy()),
-            sigma_deg=None if self.sigma_deg is None else opt(self.sigma_deg),
-            tool_id=None if self.tool_id is None else self.tool_id[i])
+        """Row ``i`` as a :class:`Sample` (what a column holds for "unknown" as None)."""
+        return Sample(**{c.name: c.kind.unstack(getattr(self, c.name), i) for c in RECORD})

@@ -43,6 +43,11 @@ Versions
        6-DoF target (``qw``, ``qx``, ``qy``, ``qz``: unit quaternion of the target frame in
        the tracker frame) with its standard uncertainty ``sigma_deg``, and ``tool_id`` (which
        target on the tool was measured, when a pose measures several).
+    10. the ``checks`` table (additive): a robot's calibration checked against new poses
+       (``cellcal check --db``): when the poses were measured, the params.json checked (its
+       sha256, and the calibration of the same robot recorded with it, when there is one),
+       the error statistics, the tolerance and the verdict, what was refitted, the source
+       and the whole ``--json`` result.
 
 The versions are :data:`UPGRADES` alone, a registry keyed by the version each upgrade
 starts from and checked when this module is imported (:func:`checked_upgrades`:
@@ -266,6 +271,34 @@ def _upgrade_thermal_full_pose(con: Connection) -> None:
             con.execute(f"ALTER TABLE {table} ADD COLUMN {column}")
 
 
+def _upgrade_checks(con: Connection) -> None:
+    """v10 (additive): the ``checks`` table: one row per check of a robot's calibration on
+    new poses; ``result_sha256`` (of the result without its times) makes recording the same
+    check twice a no-op."""
+    con.execute(
+        """CREATE TABLE checks (
+            id INTEGER PRIMARY KEY AUTOINCREMENT,
+            robot_id TEXT NOT NULL,
+            t REAL NOT NULL,
+            recorded REAL NOT NULL,
+            params_sha256 TEXT NOT NULL,
+            calibration_id INTEGER,
+            n INTEGER NOT NULL,
+            rms_mm REAL, mean_mm REAL, p95_mm REAL, max_mm REAL,
+            tolerance_mm REAL,
+            within_tolerance INTEGER,
+            refitted_json TEXT NOT NULL,
+            result_json TEXT NOT NULL,
+            result_sha256 TEXT NOT NULL,
+            source_file TEXT,
+            source_run INTEGER,
+            software TEXT,
+            UNIQUE(robot_id, result_sha256)
+        )"""
+    )
+    con.execute("CREATE INDEX checks_robot ON checks(robot_id, t)")
+
+
 @dataclass(frozen=True)
 class Upgrade:
     """One step of the schema: ``apply(con)`` takes a database from ``version`` to
@@ -310,6 +343,7 @@ UPGRADES: dict[int, Upgrade] = checked_upgrades([
     Upgrade(7, "the reserve for a full disk", _upgrade_reserve),
     Upgrade(8, "joint temperatures, 6-DoF orientation, tool target per sample",
             _upgrade_thermal_full_pose),
+    Upgrade(9, "checks of calibrations on new poses", _upgrade_checks),
 ])
 
 #: current schema version (SQLite's PRAGMA user_version, PostgreSQL's schema_version)

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import contextlib
 import sqlite3
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 from .dbapi import Cursor, upsert_sql
 from .errors import StoreError, StoreFull
@@ -35,7 +36,8 @@ class SqliteDatabase:
     kind = "sqlite"
 
     def __init__(self, path: Path, *, read_only: bool, synchronous: str,
-                 timeout_s: float, check_file=None) -> None:
+                 timeout_s: float,
+                 check_file: Callable[[sqlite3.Connection], None] | None = None) -> None:
         self.path = Path(path)
         self.address = str(path)
         self.read_only = read_only
@@ -45,7 +47,8 @@ class SqliteDatabase:
         self._opening = False  # see opening
         self.con = self._open(check_file)
 
-    def _open(self, check_file=None) -> sqlite3.Connection:
+    def _open(self, check_file: Callable[[sqlite3.Connection], None] | None = None
+              ) -> sqlite3.Connection:
         try:
             if self.read_only:  # nothing written, not even side files (open_checks)
                 con = connect_read_only(self.path, self._timeout_s)
@@ -89,7 +92,7 @@ class SqliteDatabase:
         with self._errors():
             return Cursor(self.con.execute(sql, tuple(params)), self._errors)
 
-    def executemany(self, sql: str, rows) -> None:
+    def executemany(self, sql: str, rows: Sequence[Sequence[Any]]) -> None:
         with self._errors():
             self.con.executemany(sql, rows)
 

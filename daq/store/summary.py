@@ -27,7 +27,13 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, PrivateAttr, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    ModelWrapValidatorHandler,
+    PrivateAttr,
+    model_validator,
+)
 
 #: a JSON number kept as stored (an integer stays one: the summary is written back as read)
 Number = float | int
@@ -43,7 +49,7 @@ class StoredRecord(BaseModel):
 
     @model_validator(mode="wrap")
     @classmethod
-    def _keep_order(cls, data: Any, handler):
+    def _keep_order(cls, data: Any, handler: ModelWrapValidatorHandler[Any]) -> Any:
         record = handler(data)
         if isinstance(data, dict):
             record._order = list(data)
@@ -74,7 +80,7 @@ class StoredRecord(BaseModel):
             return self.to_json() == other.to_json()
         return NotImplemented
 
-    __hash__ = None  # type: ignore[assignment] - mutable
+    __hash__ = None  # type: ignore[assignment]  # mutable: not hashable
 
 
 def _plain(v: Any) -> Any:

@@ -22,7 +22,7 @@ client reading) or commands (a server reading).
 from __future__ import annotations
 
 import struct
-from typing import ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from drivers.leica.enums import ES_Command as C
 from drivers.leica.enums import ES_DataType as DT
@@ -60,7 +60,7 @@ class DecodeError(ValueError):
     """A frame that is no packet of the protocol (unknown type, wrong size)."""
 
 
-def _check_layout(cls) -> None:
+def _check_layout(cls: type[Packet]) -> None:
     offset = 0
     for name, code in cls.FIELDS:
         size = struct.calcsize("<" + code)
@@ -89,7 +89,10 @@ class Packet:
     SIZE: ClassVar[int]
     NAMES: ClassVar[tuple[str, ...]]
 
-    def __init_subclass__(cls, **kw) -> None:
+    if TYPE_CHECKING:  # the FIELDS, set as attributes by __init__
+        def __getattr__(self, name: str) -> Any: ...
+
+    def __init_subclass__(cls, **kw: Any) -> None:
         super().__init_subclass__(**kw)
         if not cls.FIELDS:
             return
@@ -102,7 +105,7 @@ class Packet:
         if cls.__dict__.get("RESULT"):
             RESULTS[int(cls.TYPE)] = cls
 
-    def __init__(self, **values) -> None:
+    def __init__(self, **values: Any) -> None:
         for name, code in self.FIELDS:
             setattr(self, name, b"" if code.endswith("s") else 0)
         self.lPacketSize = self.SIZE
@@ -129,8 +132,9 @@ class Packet:
         """Every field by name (for messages and tests)."""
         return {n: getattr(self, n) for n in self.NAMES}
 
-    def __eq__(self, other) -> bool:
-        return type(other) is type(self) and other.fields() == self.fields()
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Packet) and type(other) is type(self) \
+            and other.fields() == self.fields()
 
     def __repr__(self) -> str:
         body = ", ".join(f"{k}={v!r}" for k, v in self.fields().items()
@@ -481,6 +485,7 @@ def decode(frame: bytes, side: str = "client") -> Packet | UnknownPacket:
         if len(frame) < BasicCommandCT.SIZE:
             raise DecodeError("command packet shorter than BasicCommandCT")
         (command,) = struct.unpack_from("<i", frame, 8)
+        basic: type[Packet]
         if side == "client":
             cls, basic = ANSWERS.get(command), BasicCommandRT
         else:

@@ -25,7 +25,9 @@ are queued as events (:meth:`EmsconTracker.events`).
 from __future__ import annotations
 
 import collections
+import logging
 import time
+from typing import Any
 
 import numpy as np
 
@@ -63,6 +65,10 @@ from drivers.protocols import (
     TrackerStatus,
 )
 
+#: the packets themselves are logged by :mod:`drivers.leica.link` (DEBUG); here, at INFO: the
+#: settings put, a resynchronisation, another client's changes, error statuses, a beam lost
+log = logging.getLogger(__name__)
+
 RS = ES_ResultStatus
 SSC = ES_SystemStatusChange
 
@@ -73,6 +79,7 @@ STATUS_ERRORS: dict[int, type[DriverError]] = {
     **{code: CommandRejected for code in range(2, 11)},
     **{code: CommandRejected for code in range(12, 23, 2)},  # ParameterNOutOfRangeNOK
     RS.ES_RS_WrongCurrentReflector: CommandRejected,
+    RS.ES_RS_MeteoDataOutOfRange: CommandRejected,  # set_environment out of range
     RS.ES_RS_NoTrackerConnected: NotReady,
     RS.ES_RS_TrackerNotInitialized: NotReady,
     RS.ES_RS_MeasurementStatusNotReady: BeamBroken,
@@ -109,6 +116,12 @@ def status_error(device: str, command: int, status: int, detail: str = "") -> Dr
     cls = STATUS_ERRORS.get(int(status), DriverError)
     text = f"status {int(status)} {name_of(ES_ResultStatus, status)}"
     return cls(device, name_of(ES_Command, command), f"{text} {detail}".strip())
+
+
+def _logged(e: DriverError) -> DriverError:
+    """``e``, logged at INFO (an error status the driver raises)."""
+    log.info("%s", e)
+    return e
 
 
 class EmsconTracker(EmsconCapabilities, EmsconSixDof):
@@ -179,6 +192,9 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
         self._get("reflector", deadline)
         self._confirmed.add("reflector")
         self._face = self._call(codec.GetFaceCT(), deadline)[0].trackerFace
+        log.info("%s: settings put (mm, rad, °C, hPa, %%RH, right-handed, mode %s); %d "
+                 "reflectors, reflector %s, face %d", self._dev, self._mode,
+                 len(self._reflectors), self._reflector_id, self._face)
 
     def close(self) -> None:
         """Close the link (idempotent)."""
@@ -188,7 +204,7 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
     def __enter__(self) -> EmsconTracker:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     @property
@@ -199,6 +215,7 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
     def _resync(self, deadline: float) -> None:
         """Reopen the link after a timeout or garbage (stale answers may be in flight)."""
         if self._dirty and not self._user_closed:
+            log.info("%s: reopening the link after a timeout or garbage", self._dev)
             self._link.open(max(deadline - time.monotonic(), 0.01))
             self._handshake(deadline)
 
@@ -210,7 +227,8 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             self._dirty = True
             raise
 
-    def _next(self, deadline: float, command: str, beam_lost: bool = False):
+    def _next(self, deadline: float, command: str,
+              beam_lost: bool = False) -> codec.Packet | codec.UnknownPacket:
         try:
             packet = self._link.read(deadline, command)
         except (ProtocolError, ConnectionLost):
@@ -218,39 +236,44 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             raise
         if packet is None:
             self._dirty = True
+            log.info("%s: %s: no answer in time%s", self._dev, command,
+                     " (beam lost)" if beam_lost else "")
             if beam_lost:
                 raise BeamBroken(self._dev, command, "beam lost (MeasStatus_NotReady), no result")
             raise CommandTimeout(self._dev, command, "no answer in time")
         return packet
 
-    def _call(self, packet: codec.Packet, deadline: float, answers: int = 1) -> list:
+    def _call(self, packet: codec.Packet, deadline: float,
+              answers: int = 1) -> list[codec.Packet]:
         """Send a command; return its ``answers`` answer packets (OK status), handling
         unsolicited packets that arrive meanwhile."""
         command = int(packet.command)
         name = name_of(ES_Command, command)
         self._send(packet, name, deadline)
-        out = []
+        out: list[codec.Packet] = []
         while len(out) < answers:
             p = self._next(deadline, name)
             if isinstance(p, codec.AnswerRT | codec.BasicCommandRT) and p.command == command:
                 if p.status != RS.ES_RS_AllOK:
-                    raise status_error(self._dev, command, p.status)
+                    raise _logged(status_error(self._dev, command, p.status))
                 out.append(p)
                 if isinstance(p, codec.GetReflectorsRT):
                     answers = max(1, p.iTotalReflectors)
             elif isinstance(p, codec.ErrorResponseT) and p.command == command:
-                raise status_error(self._dev, command, p.status)
+                raise _logged(status_error(self._dev, command, p.status))
             else:
                 self._unsolicited(p)
         return out
 
-    def _unsolicited(self, p) -> None:
+    def _unsolicited(self, p: codec.Packet | codec.UnknownPacket) -> None:
         now = time.time()
         if isinstance(p, codec.SystemStatusChangeT):
             change = p.systemStatusChange
             self._events.append((now, name_of(ES_SystemStatusChange, change)))
             key = _SETTING_OF_CHANGE.get(change)
             if key is not None:
+                log.debug("%s: %s: the %s setting is read back before the next "
+                          "measurement", self._dev, name_of(ES_SystemStatusChange, change), key)
                 self._confirmed.discard(key)
             if change in (SSC.ES_SSC_MeasStatus_NotReady, SSC.ES_SSC_MeasStatus_Busy,
                           SSC.ES_SSC_MeasStatus_Ready):
@@ -268,7 +291,7 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             self._events.append((now, f"ignored {type(p).__name__}"))
 
     # ------------------------------------------------------------- settings
-    def _wanted(self, key: str, stationary_ms: int | None = None):
+    def _wanted(self, key: str, stationary_ms: int | None = None) -> Any:
         if key == "units":
             return tuple(int(u) for u in DRIVER_UNITS)
         if key == "coords":
@@ -276,13 +299,18 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
         if key == "mode":
             return self._mode
         if key == "stationary":
+            if stationary_ms is None:
+                raise ValueError("the stationary setting needs its time (stationary_ms)")
             return (int(stationary_ms), 0)
         if key == "reflector":
+            if self._want_reflector is None:
+                raise ValueError("no reflector to select (reflector=None)")
             return self._resolve(self._want_reflector).id
         raise KeyError(key)
 
     def _put(self, key: str, deadline: float, stationary_ms: int | None = None) -> None:
         want = self._wanted(key, stationary_ms)
+        packet: codec.Packet
         if key == "units":
             names = ("lenUnitType", "angUnitType", "tempUnitType", "pressUnitType", "humUnitType")
             packet = codec.SetUnitsCT(**dict(zip(names, want, strict=True)))
@@ -299,7 +327,7 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
         self._call(packet, deadline)
         self._confirmed.add(key)
 
-    def _get(self, key: str, deadline: float):
+    def _get(self, key: str, deadline: float) -> Any:
         if key == "units":
             p = self._call(codec.GetUnitsCT(), deadline)[0]
             return (p.lenUnitType, p.angUnitType, p.tempUnitType, p.pressUnitType, p.humUnitType)
@@ -330,6 +358,7 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             if key in self._confirmed:
                 continue
             if self._get(key, deadline) != self._wanted(key, stationary_ms):
+                log.info("%s: the server's %s setting was changed: set again", self._dev, key)
                 self._put(key, deadline, stationary_ms)
                 changed = True
             self._confirmed.add(key)
@@ -402,6 +431,8 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             if not suspect or not self._ensure(deadline, ms):
                 return m
             # another client changed a setting during the measurement: measure again
+            log.info("%s: a setting changed during the measurement: measuring again",
+                     self._dev)
         raise NotReady(self._dev, "ES_C_StartMeasurement",
                        "another client keeps changing the server's settings")
 
@@ -416,21 +447,22 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             p = self._next(deadline, name, beam_lost=lost)
             if isinstance(p, codec.AnswerRT | codec.BasicCommandRT) and p.command == command:
                 if p.status != RS.ES_RS_AllOK:
-                    raise status_error(self._dev, command, p.status)
+                    raise _logged(status_error(self._dev, command, p.status))
             elif isinstance(p, codec.ErrorResponseT) and p.command == command:
-                raise status_error(self._dev, command, p.status)
+                raise _logged(status_error(self._dev, command, p.status))
             elif isinstance(p, codec.SingleMeasResultT | codec.SingleMeasResult2T
                             | ProbeStationaryResultT):
                 if p.status != RS.ES_RS_AllOK:
-                    raise status_error(self._dev, command, p.status)
+                    raise _logged(status_error(self._dev, command, p.status))
                 if self._meas_status == SSC.ES_SSC_MeasStatus_NotReady:
+                    log.info("%s: beam lost during the measurement", self._dev)
                     raise BeamBroken(self._dev, name, "beam lost during the measurement "
                                      "(MeasStatus_NotReady before the result)")
                 return self._to_measurement(p), self._confirmed != before
             else:
                 self._unsolicited(p)
 
-    def _to_measurement(self, p) -> Measurement:
+    def _to_measurement(self, p: codec.Packet) -> Measurement:
         if isinstance(p, ProbeStationaryResultT):
             return self._to_pose(p)
         xyz = np.array([p.dVal1, p.dVal2, p.dVal3], float)
@@ -442,7 +474,8 @@ class EmsconTracker(EmsconCapabilities, EmsconSixDof):
             covar = (p.dCovar12, p.dCovar13, p.dCovar23)
         return Measurement(**self._fields(p, xyz, std, covar))
 
-    def _fields(self, p, xyz: np.ndarray, std: np.ndarray, covar=None) -> dict:
+    def _fields(self, p: codec.Packet, xyz: np.ndarray, std: np.ndarray,
+                covar: tuple[float, float, float] | None = None) -> dict[str, Any]:
         """The :class:`Measurement` fields of a result ``p`` (3D or 6D): ``xyz``, ``std``
         (mm), the covariance from ``covar`` (the 12, 13, 23 terms, or None), the air of
         ``p``, the reflector selected and the face."""

@@ -10,6 +10,7 @@ and two-face measurement (ChangeFace, GetFace). It uses the driver's plumbing
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -29,6 +30,26 @@ from drivers.protocols import Environment, Measurement, Readiness, Reflector, me
 
 class EmsconCapabilities:
     """ReadyGate, EnvironmentSensor, ReflectorSelect and TwoFace over emScon."""
+
+    # what the driver (:class:`~drivers.leica.driver.EmsconTracker`) gives this mixin
+    _dev: str
+    _confirmed: set[str]
+    _face: int
+    _reflectors: list[Reflector]
+    _want_reflector: str | None
+    if TYPE_CHECKING:
+        def _resync(self, deadline: float) -> None: ...
+
+        def _call(self, packet: codec.Packet, deadline: float,
+                  answers: int = 1) -> list[codec.Packet]: ...
+
+        def _get(self, key: str, deadline: float) -> Any: ...
+
+        def _put(self, key: str, deadline: float, stationary_ms: int | None = None) -> None: ...
+
+        def _wanted(self, key: str, stationary_ms: int | None = None) -> Any: ...
+
+        def measure(self, duration_s: float = 0.5, timeout: float = 10.0) -> Measurement: ...
 
     def ready(self, timeout: float = 2.0) -> Readiness:
         """The ready gate: initialised, warmed up, weather station reporting, reflector found."""

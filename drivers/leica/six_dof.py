@@ -19,13 +19,14 @@ pose, as a broken beam. A quaternion whose length is not 1 (within 1e-6) is a
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from drivers.errors import BeamBroken, ProtocolError
 from drivers.leica import codec, probe_packets
 from drivers.leica.enums import ROTATION_STATUS_BITS, ES_MeasMode, ES_ProbeType, name_of
-from drivers.protocols import PoseMeasurement
+from drivers.protocols import Measurement, PoseMeasurement
 
 #: largest accepted | |q| - 1 | of a quaternion on the wire (the server computes in doubles)
 QUAT_TOLERANCE = 1e-6
@@ -33,6 +34,22 @@ QUAT_TOLERANCE = 1e-6
 
 class EmsconSixDof:
     """SixDof over emScon (``measure_pose``, ``probes``, ``probe``)."""
+
+    # what the driver (:class:`~drivers.leica.driver.EmsconTracker`) gives this mixin
+    _dev: str
+    #: probe id -> name, learnt by GetProbes (None: not asked yet)
+    _probe_names: dict[int, str] | None
+    if TYPE_CHECKING:
+        def _resync(self, deadline: float) -> None: ...
+
+        def _call(self, packet: codec.Packet, deadline: float,
+                  answers: int = 1) -> list[codec.Packet]: ...
+
+        def _measure_in(self, mode: int, duration_s: float, deadline: float
+                        ) -> Measurement: ...
+
+        def _fields(self, p: codec.Packet, xyz: np.ndarray, std: np.ndarray,
+                    covar: tuple[float, float, float] | None = None) -> dict[str, Any]: ...
 
     def probes(self, timeout: float = 2.0) -> dict[int, str]:
         """GetProbes: the 6-DoF targets the server knows, id -> "name (type)"."""
@@ -68,7 +85,7 @@ class EmsconSixDof:
                                 "a 3D result in 6D stationary mode")
         return m
 
-    def _to_pose(self, p) -> PoseMeasurement:
+    def _to_pose(self, p: codec.Packet) -> PoseMeasurement:
         """A ProbeStationaryResultT as a PoseMeasurement (the driver's units: mm, rad)."""
         command = "ES_C_StartMeasurement"
         status = int(p.lRotationStatus)

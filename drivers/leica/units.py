@@ -8,6 +8,7 @@ own (:data:`DRIVER_UNITS`); the simulator converts to whatever is set.
 from __future__ import annotations
 
 import math
+from collections.abc import Container
 
 from drivers.leica.enums import (
     ES_AngleUnit,
@@ -76,7 +77,7 @@ def temp_to_c(t: float, unit: int) -> float:
 
 def valid_units(units: tuple[int, int, int, int, int]) -> int:
     """0 when every unit is known, else the 1-based index of the first unknown one."""
-    tables = (PER_MM, PER_RAD, (0, 1), PER_HPA, (0,))
+    tables: tuple[Container[int], ...] = (PER_MM, PER_RAD, (0, 1), PER_HPA, (0,))
     for k, (u, table) in enumerate(zip(units, tables, strict=True)):
         if u not in table:
             return k + 1

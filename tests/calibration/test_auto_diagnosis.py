@@ -60,7 +60,7 @@ def test_several_periodic_errors_and_local_bumps_are_found_down_to_the_noise_flo
     assert doc["effects"] == result.effects and doc["start_effects"] == ["geometric", "base",
                                                                           "tool"]
     assert set(doc["steps"][0]) == {"effect", "n_params", "calib_rms_mm", "heldout_rms_mm",
-                                    "seconds", "explanation"}
+                                    "range_blocked_rms_mm", "seconds", "explanation"}
     assert doc["outliers"] == [] and doc["params_file"] == "params.json"
 
 

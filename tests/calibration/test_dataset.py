@@ -92,7 +92,7 @@ def test_csv_round_trip(tmp_path):
 
 
 def test_tracker_columns_round_trip_and_subset(tmp_path):
-    """pressure_hpa, humidity_pct, reflector (text) and face (1/2): FORMATS.md §1."""
+    """pressure_hpa, humidity_pct, reflector (text) and face (1/2): docs/formats.md §1."""
     rng = np.random.default_rng(1)
     d = Dataset(
         q=rng.uniform(-1, 1, (4, 6)), tracker_p_smr=rng.normal(size=(4, 3)),

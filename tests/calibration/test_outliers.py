@@ -258,3 +258,33 @@ def test_real_ur5_data_is_not_trimmed():
     fit = identify(ErrorModel(model), data)
     assert len(fit.outliers.blunders) <= 0.02 * grid.n
     assert fit.valid["rms_mm"] <= kept.valid["rms_mm"] * 1.001
+
+
+def test_drift_check_readings_are_not_tested_for_blunders():
+    """A capture's drift checks (set=drift: one reference pose measured again while the robot
+    warms up) measure the drift itself: a reading out of line with a model that lacks the
+    drift stays in the fit and is not named; a calibration reading as far off still is."""
+    em = ErrorModel(UR10E)
+    rng = np.random.default_rng(3)
+    x = realistic_truth(em, rng)
+    q = random_joints(UR10E, 160, rng)
+    q[150:] = q[150]  # ten readings of one reference pose
+    data = simulate(em, x, q, SIGMA, rng)
+    data.tracker_p_smr[150:] += np.linspace(0.0, 0.5, 10)[:, None] * [0.6, 0.0, 0.8]
+    is_drift = np.arange(160) >= 150
+    data.is_drift = is_drift
+    fit = identify(em, data)
+    screen = fit.outliers
+    assert screen.blunders == [] and fit.data.n == 160  # every reading kept in the fit
+    assert screen.n == 150 and screen.n_exempt == 10 and not screen.beyond[150:].any()
+    assert "The 10 drift-check readings are not tested" in screen.message()
+    # the same readings as calibration rows: the drifted ones are blunders to the test
+    data.is_drift = None
+    named = identify(em, data).outliers
+    assert {b.index for b in named.blunders} & set(range(150, 160))
+    assert named.n_exempt == 0 and "drift-check" not in named.message()
+    # the test alone, given residuals: exempt points are neither counted nor named
+    r = rng.normal(0.0, SIGMA, (100, 3))
+    r[:3] += [0.0, 0.0, 1.0]
+    out = find_blunders(r, SIGMA, exempt=np.arange(100) < 2)
+    assert [b.index for b in out.blunders] == [2] and out.n == 98 and out.n_exempt == 2

@@ -234,6 +234,15 @@ def test_a_user_effect_replaces_a_builtin_only_when_it_says_so(tmp_path):
         effects.REGISTRY.update(registry)
 
 
+def test_an_effect_file_python_cannot_import_is_refused_in_one_line(tmp_path):
+    from calibration.effects import EffectError, load_effect_file
+
+    f = tmp_path / "sintwo.txt"
+    f.write_text(EFFECT)
+    with pytest.raises(EffectError, match=r"sintwo\.txt: not a Python file"):
+        load_effect_file(f)
+
+
 def test_zero_offsets_shift_the_joint_angles_and_are_recorded(fitted, tmp_path):
     from calibration.exports.params_io import with_zero_offsets, write_zero_update
 

@@ -150,3 +150,28 @@ def test_helpers():
     assert _value_std(2512.3456, 0.0123) == ("2512.346", "0.012")
     assert _value_std(3.2e-6, 4.1e-8) == ("3.200e-06", "4.10e-08")
     assert _value_std(1.5, None) == ("1.5", "")
+
+
+def test_the_blunder_sentence_agrees_with_the_table():
+    """The verdict is the last fit's; a pose only an earlier fit left out is listed in the
+    table and the sentence says so (issue 36: "No measurement is out of line" above a table
+    of one)."""
+    from calibration.fit.outliers import Blunder, BlunderScreen
+    from presentation.html_tables import blunders_section
+
+    blunder = Blunder("drift1.1", 0, 16, 0.113, 1.02, False, 74.0)
+    earlier = BlunderScreen([blunder], 318, 1, 1.0, 0.015, 0.072, True, mode="exclude")
+    clean = BlunderScreen([], 319, 0, 1.0, 0.015, 0.072, True, mode="exclude")
+    text = blunders_section([("geometric,base,tool", earlier), ("+ thermal_zero:1", clean)])
+    plain = re.sub(r"<[^>]+>", " ", html.unescape(text))
+    assert "No measurement is out of line (threshold 0.072 mm)." in plain
+    assert ("The table also lists drift1.1: only the fit of geometric,base,tool left it out "
+            "(out of line with a model that still lacked an effect); the last fit keeps it."
+            in plain)
+    assert 'id="tab-blunders"' in text and "<code>drift1.1</code>" in text
+    # named by the last fit too: the verdict itself names it, nothing is added
+    text = blunders_section([("geometric,base,tool", earlier), ("diagnosis", earlier)])
+    assert "The table also lists" not in text and "1 measurement looks like a blunder" in text
+    # named by no fit: the verdict alone, no table
+    text = blunders_section([("geometric,base,tool", clean)])
+    assert 'id="blunders-none"' in text and "tab-blunders" not in text

@@ -131,3 +131,51 @@ def test_validate_runs_the_waypoints_on_the_cell(params, tmp_path, capsys):
                          "--dry-run", *devices)
     assert rc == 0, err
     assert text.startswith("validate: 9 points") and "plan ok: 9 targets" in text
+
+
+def _thermal(params: Path, path: Path) -> Path:
+    """``params`` with thermal growth from the joint temperatures and the warm state it was
+    fitted against (issue 36: a program has no joint temperatures to give)."""
+    doc = json.loads(params.read_text())
+    doc["effects"] = [*doc["effects"], "thermal_growth"]
+    doc["parameters"].append({"name": "thermal_growth.k", "value": 1.5e-5, "std": 1e-6,
+                              "unit": "1/K", "identifiable": True, "weak": None})
+    doc["thermal"] = {"version": 1, "temp_ref_c": 20.0,
+                      "warm_state": {"joint_temp_c": [26.0, 27.5, 27.0, 25.0, 24.5, 24.0]}}
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_a_program_is_compensated_at_the_calibrations_warm_state(params, tmp_path, capsys):
+    warm = _thermal(params, tmp_path / "warm.json")
+    rc, text, err = _run(capsys, "compensate", "--params", warm, "--program", TAUGHT,
+                         "--out", tmp_path / "warm.script")
+    assert rc == 0, err
+    assert ("note: thermal: joints 24.0–27.5 °C: the calibration's warm state (the end of its "
+            "capture)") in text
+    rc, _, _ = _run(capsys, "compensate", "--params", params, "--program", TAUGHT, "--out",
+                    tmp_path / "cold.script")
+    # the arm grown by k · 5.7 K: the two programs differ by its growth, tenths of a mm
+    moved = [a != b for a, b in zip((tmp_path / "warm.script").read_text().splitlines(),
+                                    (tmp_path / "cold.script").read_text().splitlines(),
+                                    strict=True)]
+    assert rc == 0 and sum(moved) == 8
+    db = tmp_path / "cell.db"
+    devices = ["--robot", "sim://robot?model=ur10e&seed=4&tool=0,0,60",
+               "--tracker", "sim://tracker?seed=4", "--db", db]
+    assert _run(capsys, "capture", "frame", "--model", "ur10e", "--tool-mm", "0,0,60",
+                "--tracker-at", "2500,0,500", *devices)[0] == 0
+    rc, text, err = _run(capsys, "validate", "--params", warm, "--program", TAUGHT,
+                         "--dry-run", *devices)
+    assert rc == 0, err
+    assert "thermal: compensated for joints 24.0–27.5 °C" in text + err
+    from calibration.model.kinematics import tool_points  # a targets CSV: the same state
+
+    q = np.array([[0.6007, -1.9745, -2.2809, 1.2080, 0.9082, -1.6289]])
+    p = tool_points(load_model("ur10e").with_changes(tool=(0.0, 0.0, 60.0)), q)[0]
+    csv = tmp_path / "targets.csv"
+    csv.write_text("pose_id,x,y,z,q1,q2,q3,q4,q5,q6\nA," + ",".join(
+        f"{v:.6f}" for v in [*p, *np.degrees(q[0])]) + "\n")
+    rc, text, err = _run(capsys, "validate", csv, "--params", warm, "--dry-run", *devices)
+    assert rc == 0, err
+    assert "thermal: compensated for joints 24.0–27.5 °C" in err

@@ -364,6 +364,7 @@ def build_cases() -> list[Case]:
                          creates=("comp.csv",))[:3]
     gcomp = ["compensate", "targets.csv", "--params", "params.json"]
     cases += _thermal_compensate_cases()
+    cases += _envelope_cases()
     cases += _number_cases("compensate", gcomp, [
         ("--start", ["nan,0,0,0,0,0", "1,2,3", "a,b,c,d,e,f", "1e400,0,0,0,0,0"])])
     cases += _out_cases("compensate", gcomp, [
@@ -401,6 +402,8 @@ def build_cases() -> list[Case]:
                            [("--max-steps", ["0"]), ("--budget-s", ["nan", "-1"])])
     # a params.json recording a user effect: loading it needs --effect-file, same hash
     cases += _effect_record_cases()
+    cases += _check_cases(csv_m, params_v, model_v)
+    cases += _issue36_cases()
 
     # ---- zero: postures CSV, model, params, replay, store
     post_v = I.csv_variants("postures.csv", measurement=False, cols=("q4", "q2", "q3"))
@@ -632,6 +635,7 @@ def build_cases() -> list[Case]:
             c.mode, c.slow = "subprocess", True
 
     cases += _seam_cases(good_cap)
+    cases += _log_cases(good_cap)
 
     # ---- process-level: stdout without a reader, a store only readable
     cases.append(Case("runs", "broken_pipe", ["runs", "--db", "cell.db", "--json"], 0, "",
@@ -681,7 +685,7 @@ def _seam_cases(good_cap: list[str]) -> list[Case]:
         Case("capture", "seam:mostly_skipped",
              ["capture", "poses", "--count", "4", "--seed", "3", *blind, "--no-visibility",
               "--measure-s", "0.01"], 3, r"incomplete.*4 of 4 planned points missing",
-             creates=("new.db",), stores=True),
+             creates=("new.db", "new.db.run1.log"), stores=True),
         Case("resume", "seam:meteo_nan", ["resume", "--db", "cell.db", "--meteo", "20,nan,45"],
              2, r"--meteo.*finite"),
         Case("compensate", "seam:joints_contradict_target",
@@ -703,6 +707,97 @@ def _seam_cases(good_cap: list[str]) -> list[Case]:
     out += _number_cases("compensate", ["compensate", "targets.csv", "--params", "params.json"],
                          [("--joints-tolerance-mm", ["0", "-1", "nan", "inf", "x"])])
     return out
+
+
+def _log_cases(good_cap: list[str]) -> list[Case]:
+    """The logging flags every command takes: a bad level, a log file that is an input, a
+    store, a folder or in no folder (refused before the command runs: nothing written)."""
+    out = [Case(cmd, f"log:level={v}", [*argv, "--log-level", v], 2,
+                r"--log-level.*not a log level.*DEBUG, INFO, WARNING, ERROR, CRITICAL")
+           for cmd, argv in (("runs", ["runs", "--db", "cell.db"]), ("models", ["models"]),
+                             ("capture", good_cap))
+           for v in ("LOUD", "", "10", "warn")]
+    out.append(Case("models", "log:level_before_command", ["--log-level", "x", "models"], 2,
+                    r"--log-level.*not a log level"))
+    not_a_log = r"--log-file.*not a cellcal log"
+    for name, target, msg, setup in (
+            ("is_data", "good.csv", not_a_log, []), ("is_store", "cell.db", not_a_log, []),
+            ("is_params", "params.json", not_a_log, []),
+            ("directory", "adir", r"--log-file.*directory", [mkdir("adir")]),
+            ("no_folder", "nofolder/x.log", r"--log-file.*no such folder", [])):
+        out.append(Case("calibrate", f"log:file_{name}",
+                        ["calibrate", "good.csv", "--model", "ur5", "--log-file", target], 2,
+                        msg, setup))
+    out.append(Case("capture", "log:file_is_store", [*good_cap, "--log-file", "cell.db"], 2,
+                    not_a_log))
+    out.append(Case("models", "log:file_ok", ["models", "-v", "--log-file", "m.log"], 0, "",
+                    creates=("m.log",)))
+    return out
+def narrowed_params(ws: Path) -> str:
+    """The workspace's params.json with joint 2's calibrated range cut to [0, 0.1] deg:
+    every target (and program target) lies beyond it."""
+    doc = json.loads((ws / "params.json").read_text())
+    doc["envelope"]["joints_deg"][1] = [0.0, 0.1]
+    return json.dumps(doc)
+
+
+def _envelope_cases() -> list[Case]:
+    """Issue 34: targets beyond the calibrated envelope (warned; refused with
+    --strict-range, exit 3), a params.json without the envelope or with a bad one, check's
+    poses beyond it, a table's knot range in its name."""
+    def params(change):
+        def make(ws):
+            d = json.loads((ws / "params.json").read_text())
+            change(d)
+            return json.dumps(d)
+        return make
+
+    def env(**kw):
+        return lambda d: d["envelope"].update(kw)
+
+    argv = ["compensate", "targets.csv", "--params", "p.json", "--out", "comp.csv"]
+    narrow = write("p.json", narrowed_params)
+    cases = [
+        Case("compensate", "envelope:outside_warned", argv, 0,
+             r"warning: \d+ of \d+ targets lie beyond the calibrated envelope \(q2",
+             [narrow], creates=("comp.csv",)),
+        Case("compensate", "envelope:strict_outside", [*argv, "--strict-range"], 3,
+             r"beyond the calibrated envelope.*q2.*--strict-range", [narrow]),
+        Case("compensate", "envelope:strict_without_record", [*argv, "--strict-range"], 2,
+             r"records no calibrated envelope",
+             [write("p.json", params(lambda d: d.pop("envelope")))]),
+    ]
+    bad = {
+        "not_object": (lambda d: d.update(envelope="wide"), r"envelope: not an object"),
+        "newer": (env(version=99), r"envelope\.version"),
+        "reversed": (env(joints_deg=[[1, 0]] * 6), r"envelope\.joints_deg\.0"),
+        "short": (env(joints_deg=[[0, 1]] * 5), r"envelope\.joints_deg.*6 ranges"),
+        "nan": (env(t_s=[0, float("nan")]), r"envelope\.t_s"),
+        "no_joints": (lambda d: d["envelope"].pop("joints_deg"), r"joints_deg missing"),
+    }
+    cases += [Case("compensate", f"envelope:{name}", argv, 2, msg,
+                   [write("p.json", params(change))])
+              for name, (change, msg) in bad.items()]
+    # check: the poses beyond the envelope named, a file without one said, a bad one refused
+    check = ["check", "good.csv", "--params", "p.json", "--model", "ur5"]
+    cases += [
+        Case("check", "envelope:outside_named", check, 0,
+             r"outside +\d+ of \d+ poses lie beyond the envelope \(.*q2: \d+", [narrow]),
+        Case("check", "envelope:without_record", check, 0,
+             r"records no calibrated envelope.*the poses are not checked",
+             [write("p.json", params(lambda d: d.pop("envelope")))]),
+        Case("check", "envelope:reversed", check, 2, r"envelope\.joints_deg\.0",
+             [write("p.json", params(env(joints_deg=[[1, 0]] * 6)))]),
+    ]
+    cal = ["calibrate", "good.csv", "--model", "ur5", "--effects"]
+    for name, effect, msg in (("not_knots", "table5:2@-3..40", r"multiples of 5"),
+                              ("reversed", "table:2@40..-30", r"LO < HI"),
+                              ("too_short", "table:2@0..10", r"at least 20"),
+                              ("formula", "compliance:2@0..10", r"takes no range"),
+                              ("text", "table:2@a..b", r"@LO\.\.HI")):
+        cases.append(Case("calibrate", f"effects:table_range_{name}",
+                          [*cal, f"geometric,base,tool,{effect}"], 2, msg))
+    return cases
 
 
 def _thermal_compensate_cases() -> list[Case]:
@@ -802,6 +897,107 @@ def _effect_record_cases() -> list[Case]:
              r"sha256|changed|differs", [write("pe.json", make), changed]),
         Case("compensate", "effect_record:ok", [*argv, "--effect-file", "effect.py"], 0, "",
              [write("pe.json", make)]),
+    ]
+
+
+#: ``check`` evaluates the given model on any number of poses (no fit): data too few or too
+#: alike to calibrate, or all marked valid, are checked; radians are still refused
+CHECK_CSV = {**BAD_FILE_CSV, "one_pose": (0, ""), "five_poses": (0, ""),
+             "eight_poses": (0, ""), "identical_100": (0, ""), "all_valid": (0, "")}
+
+
+def _without_base(ws: Path) -> str:
+    """params.json without its base effect (and its parameters): a calibration in the
+    robot's own frame."""
+    import json
+
+    d = json.loads((ws / "params.json").read_text())
+    d["effects"] = [e for e in d["effects"] if e != "base"]
+    d["parameters"] = [p for p in d["parameters"] if not p["name"].startswith("base.")]
+    return json.dumps(d, indent=1)
+
+
+def _check_cases(csv_m, params_v, model_v) -> list[Case]:
+    """``check``: the new poses' CSV, the params.json, the model, effect files, numbers,
+    the run store of ``--db`` and the flags that need another."""
+    argv = ["check", "{DATA}", "--params", "params.json", "--model", "ur5"]
+    good = ["check", "good.csv", "--params", "params.json", "--model", "ur5"]
+    cases = _file_cases("check", argv, "{DATA}", csv_m, CHECK_CSV, src="good.csv")
+    cases += _path_cases("check", argv, "{DATA}", "good.csv")
+    cases += _special_file_cases("check", argv, "{DATA}")
+    pargv = ["check", "good.csv", "--model", "ur5", "--params", "{PARAMS}"]
+    cases += _file_cases("check", pargv, "{PARAMS}", params_v, PARAMS, src="params.json")
+    cases += _path_cases("check", pargv, "{PARAMS}", "params.json")[:3]
+    margv = ["check", "good.csv", "--params", "params.json", "--model", "{MODEL}"]
+    cases += _file_cases("check", margv, "{MODEL}", model_v, MODEL | {"seven_joints": (
+        2, r"q7|joints")}, src="model.yaml")
+    cases += _path_cases("check", margv, "{MODEL}", "model.yaml")[:3]
+    for name, body in I.effect_file_variants().items():
+        fname = f"e_{name}.py"
+        cases.append(Case("check", f"effect_file:{name}", [*good, "--effect-file", fname], 2,
+                          EFFECT_FILE[name], [write(fname, body)]))
+    cases += _number_cases("check", good, [
+        ("--sigma", ["nan", "-1", "0", "inf", "abc"]),
+        ("--tolerance-mm", ["0", "-1", "nan", "inf", "abc"])])
+    cases += _store_cases("check", [*good, "--db", "{DB}", "--robot-id", "R1"], ok=False,
+                          skip=("missing", "empty"))
+    cases += [
+        Case("check", "robot_id_without_db", [*good, "--robot-id", "R1"], 2,
+             r"--robot-id needs --db"),
+        Case("check", "db_without_robot", [*good, "--db", "new.db"], 2,
+             r"good\.csv.*name no robot.*--robot-id"),
+        Case("check", "no_params", ["check", "good.csv", "--model", "ur5"], 2, r"--params"),
+        Case("check", "refit_base_without_base",
+             ["check", "good.csv", "--params", "nobase.json", "--refit-base"], 2,
+             r"--refit-base.*nobase\.json.*no base effect", [write("nobase.json", _without_base)]),
+        Case("check", "refit_base_one_pose", ["check", "x_one_pose.csv", "--params",
+                                              "params.json", "--model", "ur5", "--refit-base"],
+             3, r"x_one_pose\.csv.*at least three points",
+             [write("x_one_pose.csv", csv_m["one_pose"])]),
+        Case("check", "ok_tolerance_met", [*good, "--tolerance-mm", "1000"], 0, ""),
+        Case("check", "tolerance_exceeded", [*good, "--tolerance-mm", "0.001"], 1,
+             r"BEYOND"),
+        Case("check", "ok_recorded", [*good, "--db", "new.db", "--robot-id", "R1"], 0, "",
+             creates=("new.db",)),
+    ]
+    return cases
+
+
+def _one_joint_with_temps(ws: Path) -> str:
+    """good.csv with only joint 1 moving (a rank-deficient design) and the joints'
+    temperatures of a controller that reports them (``joint_temp1..6``)."""
+    lines = (ws / "good.csv").read_text().splitlines()
+    meta = [ln for ln in lines if ln.startswith("#")]
+    head, *rows = [ln for ln in lines if not ln.startswith("#")]
+    cols = head.split(",")
+    first = rows[0].split(",")
+    out = [head + "," + ",".join(f"joint_temp{j}" for j in range(1, 7))]
+    for row in rows:
+        f = row.split(",")
+        for c in ("q2", "q3", "q4", "q5", "q6"):
+            f[cols.index(c)] = first[cols.index(c)]
+        out.append(",".join(f) + ",20.5,21,21.5,22,22.5,23")
+    return "\n".join(meta + out) + "\n"
+
+
+def _issue36_cases() -> list[Case]:
+    """Issue 36's seams: a rank-deficient capture with joint temperatures (its data check
+    was skipped), a params.json naming the model of data that name none, a compensated
+    program given to validate (program_cases)."""
+    return [
+        Case("calibrate", "seam:rank_deficient_with_joint_temps",
+             ["calibrate", "rank.csv", "--model", "ur5"], 3, r"rank\.csv.*rank-deficient design",
+             [write("rank.csv", _one_joint_with_temps)]),
+        Case("diagnose", "seam:rank_deficient_with_joint_temps",
+             ["diagnose", "rank.csv", "--model", "ur5"], 3, r"rank\.csv.*rank-deficient design",
+             [write("rank.csv", _one_joint_with_temps)]),
+        Case("calibrate", "seam:params_name_the_model",
+             ["calibrate", "good.csv", "--params", "params.json"], 0, ""),
+        Case("diagnose", "seam:params_name_the_model",
+             ["diagnose", "good.csv", "--params", "params.json", "--top", "3"], 0, "",
+             slow=True),
+        Case("check", "seam:params_name_the_model", ["check", "good.csv", "--params",
+                                                     "params.json"], 0, ""),
     ]
 
 

@@ -57,9 +57,9 @@ def _samples(t, xyz, sets, temps=None, refs=None):
     n = len(t)
     refs = refs or [1] * n
     return types.SimpleNamespace(
-        set_name=sets, t=np.asarray(t, float), tracker_p_smr=np.asarray(xyz, float),
-        std_mm=np.full((n, 3), 0.01), joint_temp_c=temps,
-        targets=[{"info": {"reference": r, "of": f"ref{r}"}} for r in refs])
+        set_name=sets, t_s=np.asarray(t, float), tracker_p_smr=np.asarray(xyz, float),
+        std_mm=np.full((n, 3), 0.01), joint_temp=temps,
+        target=[{"info": {"reference": r, "of": f"ref{r}"}} for r in refs])
 
 
 def test_the_drift_curve_of_each_reference_flagged_above_the_bound():

@@ -35,19 +35,19 @@ def test_iso9283_summary_is_plausible(tmp_path, capsys):
             s = store.samples(2)
         T_fit = run.context.tracker_T_base_matrix
         ctx = PoseContext(direction=None, temp_c=cell.temp0_c, t_s=0.0)
-        true_tip = np.array([truth.true_point(q, ctx) for q in s.joints_rad])
+        true_tip = np.array([truth.true_point(q, ctx) for q in s.q])
         sigma_t = np.array([cell.tracker_sigma(p) for p in s.tracker_p_smr])
         from calibration.model.kinematics import run_chain
 
         m = truth.model
-        J = run_chain(m.convention, m.dh_table(), s.joints_rad, m.tool_mm(),
+        J = run_chain(m.convention, m.dh_table(), s.q, m.tool_mm(),
                       jacobian=True).dP_dtable[..., 0]  # (n, 3, N) mm/rad
         # 3-D variance of one attained, measured position: arrival noise of every joint
         # (the repeatability) + the tracker's noise on each axis
         var3 = (np.sum(J**2, axis=(1, 2)) * cell.joint_noise_rad**2 + 3 * sigma_t**2)
     summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["summary"]["iso9283"]
     assert summary == run.summary["iso9283"]
-    pts = np.array([t["info"]["point"] for t in s.targets])
+    pts = np.array([t["info"]["point"] for t in s.target])
     T_true = truth.tracker_T_base
     rows = []
     for k in range(1, 6):
@@ -61,7 +61,7 @@ def test_iso9283_summary_is_plausible(tmp_path, capsys):
         assert 1.2 < ratio < 3.5, (k, e["RP_mm"], sigma3)
         # AP in the fitted frame: the truth's mean attained position against the commanded
         # point in that frame (what AP must be, up to the averaged noise)
-        xc = np.asarray([t["xyz"] for t in s.targets])[sel][0]
+        xc = np.asarray([t["xyz"] for t in s.target])[sel][0]
         ap_fit = float(np.linalg.norm(true_tip[sel].mean(axis=0) - (T_fit[:3, :3] @ xc
                                                                      + T_fit[:3, 3])))
         assert abs(e["AP_mm"] - ap_fit) < 3 * sigma3 / np.sqrt(CYCLES) + 0.005

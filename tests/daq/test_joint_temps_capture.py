@@ -1,8 +1,9 @@
 """Joint temperatures travel from the controller to the measurement CSV (issue 26): a
 capture over RTDE (the real ur-rtde client's receive side), Modbus and the line protocol
 of a served simulated cell that warms up stores each sample's joint temperatures, and
-``cellcal export`` writes them as ``joint_temp1..6`` beside ``t_s``; a controller without
-them gives a capture without the columns (asked once, not at every point)."""
+``cellcal export`` writes them as ``joint_temp1..6`` beside ``t_s``; one with no thermal
+model reports the air's temperature, constant, over every wire (issue 36); a controller
+without them gives a capture without the columns (asked once, not at every point)."""
 
 from __future__ import annotations
 
@@ -26,12 +27,13 @@ from .capture_helpers import (
 )
 
 
-def _capture(tmp_path, protocol: str, thermal: str | None):
+def _capture(tmp_path, protocol: str, thermal: str | None, joint_temps: bool = True):
     model = ur10e_controller_model()
     plan = make_plan("steps", model, step_mm=40.0, count=3, cell=rough_cell())
     cfg = ServeConfig(seed=3, ports=dict(FREE_PORTS), pty=False, rtde=False, thermal=thermal)
     db, csv = tmp_path / f"{protocol}.db", tmp_path / f"{protocol}.csv"
-    with SimStack(cfg, truth_factory=model_truth_factory) as stack, RunStore(db) as store:
+    with SimStack(cfg, truth_factory=model_truth_factory, joint_temps=joint_temps) as stack, \
+            RunStore(db) as store:
         tracker = open_tracker(stack.urls[2])
         tracker.connect(2.0)
         try:
@@ -61,6 +63,21 @@ def test_joint_temperatures_reach_the_csv(tmp_path, protocol, capsys):
     assert data.t_s is not None and np.all(np.diff(data.t_s) > 0)
 
 
+@pytest.mark.parametrize("protocol", ["rtde", "modbus", "line"])
+def test_a_robot_without_a_thermal_model_reports_the_air_temperature(tmp_path, protocol,
+                                                                      capsys):
+    """Issue 36: a real UR always reports its joints' temperatures; the simulated one, with
+    no thermal model, reports the air's, constant, over every wire, so the export has
+    ``joint_temp1..6`` as at a real cell (and nothing drifts)."""
+    data, final, csv = _capture(tmp_path, protocol, None)
+    header = next(h for h in csv.read_text().splitlines() if not h.startswith("#"))
+    assert [h for h in header.split(",") if h.startswith("joint_temp")] == \
+        [f"joint_temp{j}" for j in range(1, 7)]
+    assert data.joint_temp.shape == (data.n, 6)
+    np.testing.assert_array_equal(data.joint_temp, 20.0)
+    np.testing.assert_array_equal(final, 20.0)
+
+
 def test_a_controller_without_temperatures_exports_none(tmp_path, capsys):
-    data, final, _ = _capture(tmp_path, "line", None)
+    data, final, _ = _capture(tmp_path, "line", None, joint_temps=False)
     assert final is None and data.joint_temp is None

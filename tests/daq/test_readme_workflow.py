@@ -75,8 +75,8 @@ def _measure_at(robot, tracker, q: np.ndarray) -> np.ndarray:
     from below."""
     out = []
     for qi in q:
-        robot.move_joints(qi - APPROACH_RAD, speed=2.0, wait=True, timeout=20.0)
-        robot.move_joints(qi, speed=2.0, wait=True, timeout=20.0)
+        robot.move_joints(qi - APPROACH_RAD, speed=2.0, timeout=20.0)
+        robot.move_joints(qi, speed=2.0, timeout=20.0)
         out.append(tracker.measure(0.2, timeout=5.0).xyz)
     return np.array(out)
 

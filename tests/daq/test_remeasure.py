@@ -46,10 +46,10 @@ def cell():
 def _sample(plan, P, i, offset=(0.0, 0.0, 0.0), rng=None, verdict=None) -> Sample:
     t = plan.targets[i]
     rng = rng or np.random.default_rng(i)
-    return Sample(point_index=i, joints_rad=np.array(t.q), pose_id=t.label, set_name=t.set,
+    return Sample(point_index=i, q=np.array(t.q), pose_id=t.label, set_name=t.set,
                   tracker_p_smr=P[i] + rng.normal(0, SIGMA, 3) + np.asarray(offset),
-                  std_mm=np.full(3, SIGMA), n=10, t=1000.0 + i, dirs=np.array([1, -1, 1, 0,
-                                                                                 -1, 1]),
+                  std_mm=np.full(3, SIGMA), n_averaged=10, t_s=1000.0 + i,
+                  dirs=np.array([1, -1, 1, 0, -1, 1]),
                   verdict=verdict)
 
 
@@ -180,7 +180,7 @@ def test_warmup_blunders_are_revisited_with_the_next_point(cell):
     for new, (old,) in settled.revisited:
         assert new.verdict == "remeasured" and new.remeasures == 1
         assert old.reason.startswith("warm-up reading, judged once the model was fitted")
-        np.testing.assert_array_equal(new.joints_rad, plan.targets[new.point_index].q)
+        np.testing.assert_array_equal(new.q, plan.targets[new.point_index].q)
     policy.committed(settled)
     assert policy.pending == []
 
@@ -233,7 +233,7 @@ def test_rejected_readings_are_stored_with_the_point_exported_on_request_and_lis
         good = _sample(plan, P, 0, verdict="remeasured")
         good.remeasures = 1
         blunder = Reading(_sample(plan, P, 0, offset=(0, 2.0, 0)), "2.000 mm from the model")
-        blunder.sample.t -= 10  # taken before the accepted one
+        blunder.sample.t_s -= 10  # taken before the accepted one
         cov = np.diag([4e-4, 3e-4, 5e-4])  # what the tracker said of it, kept with it
         blunder.sample.reflector, blunder.sample.face, blunder.sample.cov_mm2 = "RRR", 2, cov
         assert st.add_sample(rid, good, [blunder]) is True
@@ -242,14 +242,14 @@ def test_rejected_readings_are_stored_with_the_point_exported_on_request_and_lis
         st.add_sample(rid, _sample(plan, P, 1, verdict="ok"))
         # point 1 revisited while point 2 is done: its reading replaced, the old one kept
         new1 = _sample(plan, P, 1, rng=np.random.default_rng(99), verdict="remeasured")
-        new1.remeasures, new1.t = 1, 1500.0
+        new1.remeasures, new1.t_s = 1, 1500.0
         st.add_sample(rid, _sample(plan, P, 2, verdict="ok"),
                       revisited=[(new1, [Reading(_sample(plan, P, 1), "warm-up: off")])])
         unresolved = _sample(plan, P, 3, offset=(0, 0, 1.0), verdict="unresolved")
         unresolved.remeasures = 2
         other = Reading(_sample(plan, P, 3, offset=(3.0, 0, 0)), "3.000 mm; no two readings "
                         "agree")
-        other.sample.t -= 10
+        other.sample.t_s -= 10
         st.add_sample(rid, unresolved, [other])
         s = st.samples(rid)
         assert len(s) == 4 and s.verdict == ["remeasured", "remeasured", "ok", "unresolved"]

@@ -226,4 +226,4 @@ def test_linear_targets_are_re_measured_through_their_own_approach(routine, para
                                atol=MATCH_MM)
     np.testing.assert_allclose(s.tracker_p_smr[k], blunder.true_xyz, atol=MATCH_MM)
     # back where the suspect reading was taken (the joints carry the arrival noise)
-    np.testing.assert_allclose(s.joints_rad[k], rej.sample.joints_rad, atol=1e-3)
+    np.testing.assert_allclose(s.q[k], rej.sample.q, atol=1e-3)

@@ -62,7 +62,7 @@ def _off_plan(store: RunStore, run_id: int) -> float:
     plan = Plan.from_json(store.run(run_id).plan_json)
     s = store.samples(run_id)
     q = np.array([plan.targets[i].q for i in s.point_index])
-    return float(np.abs(s.joints_rad - q).max())
+    return float(np.abs(s.q - q).max())
 
 
 # -------------------------------------------------- one owner per run and robot
@@ -236,7 +236,7 @@ def test_a_tracker_repeating_its_reply_is_not_stored_twice(tmp_path, capsys):
     with RunStore(db) as st:
         s = st.samples(1)
         faults = [(k, m) for _, _, k, m in st.interruptions(1) if k not in ("resume",)]
-    assert np.all(np.diff(s.t) > 0) and len({tuple(p) for p in s.tracker_p_smr}) == 6
+    assert np.all(np.diff(s.t_s) > 0) and len({tuple(p) for p in s.tracker_p_smr}) == 6
     assert len(faults) == 1 and faults[0][0] == "protocol" and "stale measurement" in faults[0][1]
 
 
@@ -254,9 +254,9 @@ def test_a_720_deg_frame_circle_completes(tmp_path, capsys):
         s = st.samples(1)
         assert st.interruptions(1) == []  # the controller refused nothing
         assert _off_plan(st, 1) < 0.06
-    j1 = np.degrees(s.joints_rad[:17, 0])
+    j1 = np.degrees(s.q[:17, 0])
     assert j1.min() == pytest.approx(-360.0, abs=0.01) and j1.max() == pytest.approx(360, abs=0.01)
-    assert abs(np.degrees(s.joints_rad[17, 0])) < 10.0  # back for the line
+    assert abs(np.degrees(s.q[17, 0])) < 10.0  # back for the line
     # turned from 20 deg, the same circle leaves the joint range: refused before motion
     rc = main(["capture", "frame", *UR0, "--start-deg", "20,-100,100,-90,-90,0",
                "--circle-span-deg", "720", "--robot", "socket://127.0.0.1:9", "--tracker",

@@ -209,7 +209,7 @@ def test_a_repeated_measurement_is_never_stored(tmp_path):
         s = st.samples(rid)
         kinds = [k for _, _, k, _ in st.interruptions(rid)]
     assert kinds == ["stale_measurement"]
-    assert np.all(np.diff(s.t) > 0) and len({tuple(x) for x in s.tracker_p_smr}) == 4
+    assert np.all(np.diff(s.t_s) > 0) and len({tuple(x) for x in s.tracker_p_smr}) == 4
     assert issubclass(StaleMeasurement, Exception) and StaleMeasurement.transient
 
 
@@ -324,7 +324,7 @@ def test_a_repeated_re_measurement_is_never_stored(tmp_path):
         kinds = [k for _, _, k, _ in st.interruptions(rid)]
     assert status == "completed" and kinds == ["stale_measurement"]
     assert s.verdict == ["unresolved"] * 2 and len(readings) == 2
-    t = sorted([*s.t, *(r.sample.t for r in readings)])
+    t = sorted([*s.t_s, *(r.sample.t_s for r in readings)])
     assert np.all(np.diff(t) > 0)  # four distinct readings, none a repeat
 
 

@@ -39,7 +39,7 @@ def test_six_dof_capture_export_and_full_pose_calibration(tmp_path):
     assert json.loads(out.stdout)["status"] == "completed"
     with RunStore(db) as store:
         s = store.samples(1)
-        assert s.quat_wxyz is not None and np.all(np.isfinite(s.quat_wxyz))
+        assert s.quat is not None and np.all(np.isfinite(s.quat))
         np.testing.assert_allclose(s.sigma_deg, 0.01, rtol=0.5)
     assert _run("export", "1", "--db", str(db), "--out", str(csv)).returncode == 0
     data = load_csv(csv, load_model("ur10e"))

@@ -22,10 +22,10 @@ TOYM = load_model(TOY)
 
 
 def sample(i, n_joints=3):
-    return Sample(point_index=i, joints_rad=np.full(n_joints, 0.1 * i),
+    return Sample(point_index=i, q=np.full(n_joints, 0.1 * i),
                   tracker_p_smr=np.array([i + 1234.567890123456, 2.0, 3.0]),
-                  std_mm=np.full(3, 0.01), n=500, t=1.7e9 + i + 0.123456, pose_id=f"p{i}",
-                  temp_c=20.0, base_p_tcp_cmd=np.array([1.0, 2.0, 3.0]),
+                  std_mm=np.full(3, 0.01), n_averaged=500, t_s=1.7e9 + i + 0.123456,
+                  pose_id=f"p{i}", temp_c=20.0, cmd=np.array([1.0, 2.0, 3.0]),
                   dirs=np.array([1, 0, -1]))
 
 
@@ -67,7 +67,7 @@ def test_idempotent_and_durable(store_address):
         assert r.seed == 2**40 + 3 and r.status == "running"
         s = st.samples(rid)
         assert s.tracker_p_smr[0, 0] == 1234.567890123456  # doubles, not 4-byte reals
-        assert s.t[1] == 1.7e9 + 3.123456
+        assert s.t_s[1] == 1.7e9 + 3.123456
         assert s.dirs.tolist() == [[1, 0, -1], [1, 0, -1]] and s.pose_id == ["p0", "p3"]
         st.set_status(rid, "completed")
         assert st.latest_run("poses").id == rid
@@ -109,7 +109,7 @@ def test_upgrades_an_older_store(store_address, version):
         r = st.run(1)
         assert r.routine == "poses" and r.frame is None and r.robot_id is None
         s = st.samples(1)
-        assert s.joints_rad.tolist() == [[0.1, 0.2, 0.3]] and np.isnan(s.base_p_tcp_cmd).all()
+        assert s.q.tolist() == [[0.1, 0.2, 0.3]] and np.isnan(s.cmd).all()
         st.add_interruption(1, None, "test", "the new table exists")
         assert st.interruptions(1)[0][2] == "test"
         assert st.add_calibration("r", {"parameters": []})[1] is True  # schema 7's table
@@ -209,7 +209,7 @@ def test_tracker_metadata_identities_and_readings_round_trip(store_address):
         assert st.add_sample(rid, warm)
         # point 1 revisited while point 2 is done: its reading is replaced, the old one kept
         again = sample(1)
-        again.t, again.verdict, again.remeasures = warm.t + 100.0, "remeasured", 1
+        again.t_s, again.verdict, again.remeasures = warm.t_s + 100.0, "remeasured", 1
         again.tracker_p_smr = again.tracker_p_smr + 0.001
         pair = (again, [Reading(warm, "revisited: 1.5 mm from the model")])
         assert st.add_sample(rid, sample(2), revisited=[pair])
@@ -228,12 +228,12 @@ def test_tracker_metadata_identities_and_readings_round_trip(store_address):
         assert np.isnan(s.cov_mm2[1:]).all()
         assert s.verdict == ["remeasured", "remeasured", None]
         assert s.remeasures.tolist() == [1, 1, 0]
-        assert s.t[1] == warm.t + 100.0 and s.tracker_p_smr[1, 0] == again.tracker_p_smr[0]
+        assert s.t_s[1] == warm.t_s + 100.0 and s.tracker_p_smr[1, 0] == again.tracker_p_smr[0]
         readings = st.readings(rid)
         assert [(x.sample.point_index, x.reason) for x in readings] == [
             (0, "2.000 mm from the model"), (1, "revisited: 1.5 mm from the model")]
         assert readings[0].sample.model_residual_mm == 2.0
-        assert readings[0].sample.pose_id == "p0" and readings[1].sample.t == warm.t
+        assert readings[0].sample.pose_id == "p0" and readings[1].sample.t_s == warm.t_s
         np.testing.assert_array_equal(readings[0].sample.tracker_p_smr, bad.tracker_p_smr)
         counts = st.remeasure_counts(rid)
         assert counts == {"judged": 2, "warmup": 0, "suspects": 2, "remeasurements": 2,
@@ -250,29 +250,29 @@ def test_joint_temperatures_and_full_pose_round_trip(store_address):
     with RunStore(store_address) as st:
         rid = st.create_run(plan)
         full = sample(0)
-        full.joint_temp_c = np.array([31.5, 33.25, 29.0])
-        full.quat_wxyz, full.sigma_deg, full.tool_id = quat, 0.01, "nest2"
+        full.joint_temp = np.array([31.5, 33.25, 29.0])
+        full.quat, full.sigma_deg, full.tool_id = quat, 0.01, "nest2"
         bad = sample(0)
-        bad.joint_temp_c, bad.quat_wxyz, bad.tool_id = full.joint_temp_c, -quat, "nest2"
+        bad.joint_temp, bad.quat, bad.tool_id = full.joint_temp, -quat, "nest2"
         assert st.add_sample(rid, full, [Reading(bad, "1 mm from the model")])
         warm = sample(1)
-        warm.joint_temp_c = np.array([32.0, 34.0, 30.0])
+        warm.joint_temp = np.array([32.0, 34.0, 30.0])
         assert st.add_sample(rid, warm)
         other = st.create_run(plan)
         assert st.add_sample(other, sample(0)) and st.add_sample(other, warm)
     with open_store(store_address, create=False, read_only=True) as st:
-        assert st.samples(other).joint_temp_c is None  # not every sample has them
+        assert st.samples(other).joint_temp is None  # not every sample has them
         s = st.samples(rid)
-        np.testing.assert_array_equal(s.joint_temp_c[1], [32.0, 34.0, 30.0])
-        np.testing.assert_array_equal(s.quat_wxyz[0], quat)
-        assert np.isnan(s.quat_wxyz[1]).all() and np.isnan(s.sigma_deg[1])
+        np.testing.assert_array_equal(s.joint_temp[1], [32.0, 34.0, 30.0])
+        np.testing.assert_array_equal(s.quat[0], quat)
+        assert np.isnan(s.quat[1]).all() and np.isnan(s.sigma_deg[1])
         assert s.sigma_deg[0] == 0.01 and s.tool_id == ["nest2", None]
         first, second = s.sample(0), s.sample(1)
-        np.testing.assert_array_equal(first.joint_temp_c, [31.5, 33.25, 29.0])
-        assert first.tool_id == "nest2" and second.quat_wxyz is None
+        np.testing.assert_array_equal(first.joint_temp, [31.5, 33.25, 29.0])
+        assert first.tool_id == "nest2" and second.quat is None
         (reading,) = st.readings(rid)
-        np.testing.assert_array_equal(reading.sample.quat_wxyz, -quat)
-        np.testing.assert_array_equal(reading.sample.joint_temp_c, full.joint_temp_c)
+        np.testing.assert_array_equal(reading.sample.quat, -quat)
+        np.testing.assert_array_equal(reading.sample.joint_temp, full.joint_temp)
         assert reading.sample.tool_id == "nest2"
 
 
@@ -408,3 +408,4 @@ def test_the_executor_waits_for_a_lost_store_then_pauses(pg_url, pg_server, wait
         inproc.reset_cells()
     assert s.point_index.tolist() == list(range(12))
     assert kinds == (["store"] if wait_s else ["pause"])
+

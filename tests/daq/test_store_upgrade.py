@@ -1,7 +1,8 @@
 """A run store written at schema 2 (by commit 5ca46ae: ``data/schema_v2``, built by
 ``data/make_schema_v2_store.py``) is upgraded in place: its loose options become typed run
 contexts, it exports as that version exported, and its paused run resumes. A schema-3
-store (the same file taken to 3 by hand) gains the per-sample tracker columns of 4."""
+store (the same file taken to 3 by hand) gains the per-sample tracker columns of 4. A
+schema-9 store (on both backends) gains the checks table of 10, its calibrations kept."""
 
 from __future__ import annotations
 
@@ -19,10 +20,12 @@ from daq.plans import Plan
 from daq.routines.zero20 import ZeroLoopOptions
 from daq.run_context import CONTEXT_VERSION, ExecutorOptions
 from daq.store import RunStore, Sample
+from daq.store.dialect import connect
 from daq.store.schema import _V2_EXECUTOR_KEYS, SCHEMA_VERSION, UPGRADES
 from sim_drivers.model_truth import model_truth_factory
 
 from .capture_helpers import DATA, served_cell
+from .test_store import _at_version
 
 V2 = DATA / "schema_v2"
 
@@ -109,7 +112,7 @@ def test_upgraded_store_exports_as_schema_2_did(v2_db, tmp_path, capsys):
         text, old = out.read_text(), (V2 / f"run{run}.csv").read_text()
         cols, cols2 = _columns(text), _columns(old)
         # every column as schema 2 exported it, plus the air schema 2 stored but did not
-        # export (FORMATS.md §1 optional columns); no reflector or face: not recorded then
+        # export (docs/formats.md §1 optional columns); no reflector or face: not recorded then
         assert {k: cols[k] for k in cols2} == cols2, run
         assert set(cols) - set(cols2) == {"pressure_hpa", "humidity_pct"}
         assert set(cols["pressure_hpa"]) == {"1013.25"}
@@ -179,8 +182,8 @@ def test_schema_3_gains_reflector_face_and_covariance(v3_db, tmp_path):
         assert s.reflector == [None] * len(s) and np.all(s.face == 0)
         assert np.all(np.isnan(s.cov_mm2))
         cov = np.array([[4e-4, 1e-5, -2e-5], [1e-5, 3e-4, 0.0], [-2e-5, 0.0, 5e-4]])
-        new = Sample(point_index=99, joints_rad=np.zeros(6), tracker_p_smr=np.ones(3),
-                     std_mm=np.sqrt(np.diag(cov)), n=1, t=1.0, reflector="RRR 1.5in",
+        new = Sample(point_index=99, q=np.zeros(6), tracker_p_smr=np.ones(3),
+                     std_mm=np.sqrt(np.diag(cov)), n_averaged=1, t_s=1.0, reflector="RRR 1.5in",
                      face=2, cov_mm2=cov)
         assert st.add_sample(2, new)
         s = st.samples(2)
@@ -195,3 +198,38 @@ def test_schema_3_gains_reflector_face_and_covariance(v3_db, tmp_path):
     # the old rows are untouched, their new columns NULL (6's remeasures: 0)
     assert [r[:n_cols] for r in after[:len(before)]] == before
     assert all(v is None for r in after[:len(before)] for v in r[n_cols:n_cols + len(v4)])
+
+
+def test_a_schema_9_store_gains_the_checks_table_and_keeps_its_calibrations(store_address):
+    """v10 is additive: the calibrations recorded before it stay as they were, and a check
+    of one links to it."""
+    _at_version(store_address, 9)
+    params = {"parameters": [{"name": "x", "value": 1.5}], "effects": ["base"]}
+    db = connect(store_address)
+    try:
+        with db.transaction():
+            db.execute("INSERT INTO calibrations (robot_id, t, recorded, params_json, "
+                       "params_sha256, software) VALUES (?,?,?,?,?,?)",
+                       ("R1", 10.0, 11.0, json.dumps(params, sort_keys=True),
+                        RunStore.params_digest(params), "cellcal 0.0.9"))
+    finally:
+        db.close()
+    result = {"n": 12, "rms_mm": 0.03, "mean_mm": 0.02, "p95_mm": 0.05, "max_mm": 0.06,
+              "tolerance_mm": 0.05, "within_tolerance": True, "refitted": []}
+    with RunStore(store_address) as st:
+        assert st.version == SCHEMA_VERSION
+        (cal,) = st.calibrations("R1")
+        assert (cal.t, cal.params, cal.software) == (10.0, params, "cellcal 0.0.9")
+        assert st.checks("R1") == []
+        check_id, new, cal_id = st.add_check("R1", params, result, t=20.0, source_file="a.csv")
+        assert new and cal_id == cal.id
+        assert st.add_check("R1", params, result, t=30.0) == (check_id, False, cal.id)
+        other = st.add_check("R1", {"parameters": []}, {**result, "within_tolerance": False,
+                                                        "refitted": ["base"]})
+        assert other[1] and other[2] is None  # parameters no calibration of R1 was
+        c, d = st.checks("R1")
+        assert (c.id, c.t, c.n, c.rms_mm, c.within_tolerance, c.refitted, c.source_file) == \
+            (check_id, 20.0, 12, 0.03, True, (), "a.csv")
+        assert c.result == result and c.software.startswith("cellcal")
+        assert d.within_tolerance is False and d.refitted == ("base",)
+        assert st.checked_robots() == [("R1", 2)] and st.checks("R2") == []

@@ -85,4 +85,4 @@ def test_compensated_program_reaches_the_validation_rms(tmp_path, monkeypatch):
     with RunStore(tmp_path / "cell.db") as store:  # the measurements are a run
         run = store.run(3)
         assert run.routine == "validate" and run.summary.validation is not None
-        assert len(store.samples(3).targets) == 3 * 2 * out["waypoints"]
+        assert len(store.samples(3).target) == 3 * 2 * out["waypoints"]

@@ -152,10 +152,10 @@ def test_two_pass_flow_with_replay(tmp_path, capsys):
         plan2 = json.loads(store.run(2).plan_json)
     assert plan2["params"]["replay_run"] == 1
     # the same 20 postures (the recorded joints, not re-solved) ...
-    np.testing.assert_allclose([t["q"] for t in plan2["targets"]], r1.joints_rad, atol=0)
+    np.testing.assert_allclose([t["q"] for t in plan2["targets"]], r1.q, atol=0)
     assert r2.pose_id == r1.pose_id
     # ... which the loop moved by about the adjustment to put the tip on the point again
-    moved = np.degrees(np.abs(r2.joints_rad - r1.joints_rad).max(axis=0))
+    moved = np.degrees(np.abs(r2.q - r1.q).max(axis=0))
     assert moved[1:5].max() > 0.05
     rc, fine = _zero(capsys, "--db", str(db), "--replay", str(first))
     assert rc == 0, fine["reasons"]

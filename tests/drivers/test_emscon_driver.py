@@ -1,4 +1,7 @@
-"""EmsconTracker over real sockets against the simulated emScon server."""
+"""EmsconTracker's own behaviour over real sockets against the simulated emScon server:
+units and coordinates another client set, packet framing, status changes, emScon's result
+codes. What every tracker driver does is checked by the conformance suite
+(tests/drivers/conformance/), on this driver too."""
 
 from __future__ import annotations
 
@@ -19,30 +22,10 @@ from drivers.leica.enums import (
     ES_TemperatureUnit,
 )
 from drivers.leica.enums import ES_CoordinateSystemType as CS
-from drivers.protocols import EnvironmentSensor, ReadyGate, ReflectorSelect, TrackerDriver, TwoFace
+from drivers.protocols import ReflectorSelect
 from drivers.urls import open_tracker
-from sim_drivers.emscon_server import EmsconServer
-from sim_drivers.tracker_optics import refractive_index
+from tests.drivers.rigs import serve_tracker
 from tests.sim_drivers.helpers import MARGIN, elapsed_below, make_cell
-
-
-@pytest.fixture
-def cell():
-    return make_cell(seed=3)
-
-
-@pytest.fixture
-def server(cell):
-    with EmsconServer(cell) as srv:
-        yield srv
-
-
-@pytest.fixture
-def tracker(server):
-    trk = open_tracker(server.url)
-    trk.connect(timeout=2.0)
-    yield trk
-    trk.close()
 
 
 def _raw(trk, packet):
@@ -55,36 +38,27 @@ def _close_to_truth(m, cell, k=6.0):
     assert np.all(np.abs(m.xyz - truth) < k * cell.tracker_sigma(truth)), (m.xyz, truth)
 
 
-def test_measure_against_truth(cell, server, tracker):
-    assert isinstance(tracker, EmsconTracker) and isinstance(tracker, TrackerDriver)
-    for cap in (ReadyGate, EnvironmentSensor, ReflectorSelect, TwoFace):
-        assert isinstance(tracker, cap)
-    st = tracker.status()
-    assert st.initialised and st.warmed_up and st.beam_ok
+def test_measure_against_truth(emscon_tracker):
+    cell, server, tracker = emscon_tracker.cell, emscon_tracker.server, emscon_tracker.driver
+    assert isinstance(tracker, EmsconTracker) and isinstance(tracker, ReflectorSelect)
     assert server.stationary[0] != 200
     m = tracker.measure(duration_s=0.2, timeout=2.0)
     assert server.stationary == (200, 0)  # the measuring time went to the server
     _close_to_truth(m, cell)
-    sigma = cell.tracker_sigma(cell.true_point())
-    assert np.allclose(m.std, sigma, rtol=0.5)
     assert m.cov is not None and np.allclose(np.diag(m.cov), m.std**2)
-    assert m.temp_c == pytest.approx(20.0, abs=0.1) and m.pressure_hpa == pytest.approx(1013.25)
-    assert m.humidity_pct == pytest.approx(45.0)
     assert m.reflector == "RRR 1.5in" and m.face == 1 and m.n == 1
 
 
-def test_connect_initialises_a_tracker_that_is_not(cell, server):
+def test_connect_initialises_a_tracker_that_is_not(cell):
     cell.tracker_initialised = False
-    with EmsconTracker(server.url, "127.0.0.1", server.port) as trk:
-        trk.connect(2.0)
+    with serve_tracker("emscon", cell) as rig:
         assert cell.tracker_initialised
-        trk.measure(0.01, 2.0)
+        rig.driver.measure(0.01, 2.0)
 
 
 def test_result_without_covariances(cell):
-    with EmsconServer(cell, result2=False) as srv, open_tracker(srv.url) as trk:
-        trk.connect(2.0)
-        m = trk.measure(0.05, 2.0)
+    with serve_tracker("emscon", cell, serve_kw={"result2": False}) as rig:
+        m = rig.driver.measure(0.05, 2.0)
         assert m.cov is None
         _close_to_truth(m, cell)
 
@@ -98,9 +72,8 @@ def test_result_without_covariances(cell):
       ES_PressureUnit.ES_PU_InHg, 0), CS.ES_CS_SCC),
 ])
 def test_a_server_left_in_other_units_by_another_client(cell, units, coords):
-    with EmsconServer(cell) as srv:
-        other = open_tracker(srv.url)
-        other.connect(2.0)
+    with serve_tracker("emscon", cell) as rig:
+        srv, other = rig.server, rig.driver
         # the other client leaves the server in its own units and coordinates
         _raw(other, codec.SetUnitsCT(lenUnitType=units[0], angUnitType=units[1],
                                      tempUnitType=units[2], pressUnitType=units[3]))
@@ -115,7 +88,8 @@ def test_a_server_left_in_other_units_by_another_client(cell, units, coords):
         assert m.pressure_hpa == pytest.approx(1013.25, abs=1e-6)
 
 
-def test_units_changed_by_another_client_between_measurements(cell, server, tracker):
+def test_units_changed_by_another_client_between_measurements(emscon_tracker):
+    cell, server, tracker = emscon_tracker.cell, emscon_tracker.server, emscon_tracker.driver
     tracker.measure(0.05, 2.0)
     with open_tracker(server.url) as other:
         other.connect(2.0)
@@ -128,7 +102,8 @@ def test_units_changed_by_another_client_between_measurements(cell, server, trac
     assert "ES_SSC_UnitsChanged" in names and "ES_SSC_StationaryModeParamsChanged" in names
 
 
-def test_units_changed_during_the_measurement_measures_again(cell, server, tracker):
+def test_units_changed_during_the_measurement_measures_again(emscon_tracker):
+    cell, server, tracker = emscon_tracker.cell, emscon_tracker.server, emscon_tracker.driver
     tracker.measure(0.05, 2.0)
     calls = {"n": 0}
     real = cell.tracker_measure
@@ -149,15 +124,15 @@ def test_units_changed_during_the_measurement_measures_again(cell, server, track
 
 @pytest.mark.parametrize("chunk", [1, 5, 13])
 def test_packets_split_over_many_reads(cell, chunk):
-    with EmsconServer(cell, chunk_bytes=chunk) as srv, open_tracker(srv.url) as trk:
-        trk.connect(5.0)
+    with serve_tracker("emscon", cell, serve_kw={"chunk_bytes": chunk}) as rig:
+        trk = rig.driver
         _close_to_truth(trk.measure(0.05, 5.0), cell)
         assert len(trk.reflectors(5.0)) == 5
 
 
 def test_interleaved_status_changes_and_packets_in_one_read(cell):
-    with EmsconServer(cell, chatter=True) as srv, open_tracker(srv.url) as trk:
-        trk.connect(2.0)
+    with serve_tracker("emscon", cell, serve_kw={"chatter": True}) as rig:
+        trk = rig.driver
         for _ in range(3):
             _close_to_truth(trk.measure(0.05, 2.0), cell)
         assert trk.environment().temp_c == pytest.approx(20.0)
@@ -165,7 +140,8 @@ def test_interleaved_status_changes_and_packets_in_one_read(cell):
         assert names.count("ES_SSC_EnvironmentParamsChanged") >= 10
 
 
-def test_beam_break_in_the_middle_of_measuring(cell, server, tracker):
+def test_beam_break_in_the_middle_of_measuring(emscon_tracker):
+    cell, tracker = emscon_tracker.cell, emscon_tracker.driver
     cell.faults.arm("beam")
     with elapsed_below(2.0 + MARGIN), pytest.raises(BeamBroken, match="10009 ES_RS_NoStationary"):
         tracker.measure(0.05, 2.0)
@@ -174,19 +150,16 @@ def test_beam_break_in_the_middle_of_measuring(cell, server, tracker):
     assert "ES_SSC_MeasStatus_NotReady" in names and "ES_SSC_MeasStatus_Ready" in names
 
 
-def test_occluded_beam_is_beam_broken_with_the_code(cell, server, tracker):
-    cell.beam_ok = False
+def test_occluded_beam_is_beam_broken_with_the_code(emscon_tracker):
+    emscon_tracker.cell.beam_ok = False
     with pytest.raises(BeamBroken, match="10004 ES_RS_MeasurementStatusNotReady"):
-        tracker.measure(0.05, 2.0)
-    assert not tracker.status().beam_ok
-    assert not tracker.ready().target
+        emscon_tracker.driver.measure(0.05, 2.0)
 
 
-def test_not_initialised_and_not_warmed_up(cell, server):
+def test_not_initialised_and_not_warmed_up(cell):
     cell.tracker_initialised = False
-    trk = EmsconTracker(server.url, "127.0.0.1", server.port, auto_init=False)
-    trk.connect(2.0)
-    try:
+    with serve_tracker("emscon", cell, auto_init=False) as rig:
+        trk = rig.driver
         with pytest.raises(NotReady, match="39 ES_RS_TrackerNotInitialized"):
             trk.measure(0.05, 2.0)
         with pytest.raises(NotReady, match="not initialised"):
@@ -197,25 +170,26 @@ def test_not_initialised_and_not_warmed_up(cell, server):
             trk.measure(0.05, 2.0)
         r = trk.ready()
         assert r.initialised and not r.warmed_up and "ES_LPS_LaserHeatingUp" in r.problems[0]
-    finally:
-        trk.close()
 
 
-def test_robot_moving_is_no_stationary_result(cell, server, tracker):
+def test_robot_moving_is_no_stationary_result(emscon_tracker):
+    cell, tracker = emscon_tracker.cell, emscon_tracker.driver
     cell.time_scale = 1e-3
     cell.command_move_joints(np.array([0.5, 0.5, -0.5]), speed=0.01)
     with pytest.raises(BeamBroken, match="ES_RS_NoStationaryResult"):
         tracker.measure(0.05, 2.0)
 
 
-def test_garbage_is_protocol_error_within_timeout_then_recovers(cell, server, tracker):
+def test_garbage_is_protocol_error_within_timeout_then_recovers(emscon_tracker):
+    cell, tracker = emscon_tracker.cell, emscon_tracker.driver
     cell.faults.arm("garbage")
     with elapsed_below(1.0 + MARGIN), pytest.raises(ProtocolError, match="not emScon"):
         tracker.measure(0.05, 1.0)
     _close_to_truth(tracker.measure(0.05, 2.0), cell)  # reconnected
 
 
-def test_slow_server_is_a_timeout_then_recovers(cell, server, tracker):
+def test_slow_server_is_a_timeout_then_recovers(emscon_tracker):
+    cell, tracker = emscon_tracker.cell, emscon_tracker.driver
     cell.faults.spec.delay_s = 1.0
     cell.faults.arm("slow")
     with elapsed_below(0.3 + MARGIN), pytest.raises(CommandTimeout, match="no answer in time"):
@@ -261,12 +235,13 @@ def test_silence_or_garbage_at_connect_is_a_typed_error_within_timeout(reply):
         t.join(2.0)
 
 
-def test_unknown_reflector_is_rejected_naming_the_known_ones(tracker):
+def test_unknown_reflector_is_rejected_naming_the_known_ones(emscon_tracker):
     with pytest.raises(CommandRejected, match="RRR 0.5in"):
-        tracker.set_reflector("Nope 2in")
+        emscon_tracker.driver.set_reflector("Nope 2in")
 
 
-def test_reflector_by_name_and_its_distance_constant(cell, server, tracker):
+def test_reflector_by_name_and_its_distance_constant(emscon_tracker):
+    cell, server, tracker = emscon_tracker.cell, emscon_tracker.server, emscon_tracker.driver
     r = tracker.set_reflector("catseye 3IN")
     assert (r.name, r.target_type) == ("CatsEye 3in", "ES_TT_CatsEye")
     assert tracker.reflector().name == "CatsEye 3in" and cell.tracker_reflector.id == r.id
@@ -284,41 +259,11 @@ def test_reflector_by_name_and_its_distance_constant(cell, server, tracker):
     assert cell.tracker_reflector.name == "CatsEye 3in"
 
 
-def test_environment_by_hand_without_weather_station():
-    cell = make_cell(seed=5, weather_station=False)
-    cell.manual_environment = (20.0, 1013.25, 45.0)  # right air: no refraction error
-    with EmsconServer(cell) as srv, open_tracker(srv.url) as trk:
-        trk.connect(2.0)
-        r = trk.ready()
-        assert not r.weather_station and not r.ok and "set_environment" in r.problems[0]
-        with pytest.raises(NotReady, match="weather station"):
-            trk.check_ready()
-        truth = cell.true_point()
-        base = np.mean([np.linalg.norm(trk.measure(0.05, 2.0).xyz) for _ in range(40)])
-        trk.set_environment(40.0, 1013.25, 45.0)  # 20 °C too warm
-        env = trk.environment()
-        assert (env.temp_c, env.pressure_hpa, env.source) == (40.0, 1013.25, "manual")
-        m = trk.measure(0.05, 2.0)
-        assert m.temp_c == 40.0
-        hot = np.mean([np.linalg.norm(trk.measure(0.05, 2.0).xyz) for _ in range(40)])
-    L = np.linalg.norm(truth)
-    expected = L * (refractive_index(20, 1013.25, 45) / refractive_index(40, 1013.25, 45) - 1)
-    assert expected == pytest.approx(L * 18.6e-6, rel=0.05)  # ~0.93 ppm/K
-    assert hot - base == pytest.approx(expected, abs=0.006)
-
-
-def test_environment_from_the_station(cell, tracker):
-    cell.pressure_hpa = 990.0
-    env = tracker.environment()
-    assert (env.pressure_hpa, env.source) == (990.0, "station")
-    assert tracker.check_ready().ok
-
-
 def test_two_faces_cancel_the_collimation_error():
     c = 20e-6
     cell = make_cell(seed=6, tracker_collimation_rad=c)
-    with EmsconServer(cell) as srv, open_tracker(srv.url) as trk:
-        trk.connect(2.0)
+    with serve_tracker("emscon", cell) as rig:
+        trk = rig.driver
         truth = cell.true_point()
         pairs = [trk.measure_faces(0.05, 10.0) for _ in range(20)]
         assert trk.face() in (1, 2)

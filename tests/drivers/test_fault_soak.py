@@ -9,11 +9,8 @@ import numpy as np
 import pytest
 
 from drivers.errors import DriverError
-from drivers.urls import open_robot, open_tracker
 from sim_drivers.faults import FaultSpec
-from sim_drivers.modbus_server import ModbusRobotServer
-from sim_drivers.robot_server import RobotLineServer
-from sim_drivers.tracker_server import TrackerServer
+from tests.drivers.rigs import serve_robot, serve_tracker
 from tests.sim_drivers.helpers import MARGIN, make_cell
 
 SPEC = "beam=0.15,garbage=0.1,drop=0.1,slow=0.04,pstop=0.1,modbus=0.1,delay=0.4"
@@ -41,11 +38,11 @@ def _soak(call, reconnect, n=40):
     return ok, errors
 
 
-@pytest.mark.parametrize("server_cls", [TrackerServer])
-def test_tracker_soak(server_cls):
+@pytest.mark.parametrize("kind", ["line-tcp"])
+def test_tracker_soak(kind):
     cell = make_cell(seed=21)
-    with server_cls(cell) as srv, open_tracker(srv.url) as trk:
-        trk.connect(2.0)
+    with serve_tracker(kind, cell) as rig:
+        trk = rig.driver
         cell.faults.spec = FaultSpec.parse(SPEC)
         ok, errors = _soak(lambda i: trk.measure(0.01, timeout=TIMEOUT), lambda: _reconnect(trk))
     assert ok > 15, errors
@@ -53,12 +50,12 @@ def test_tracker_soak(server_cls):
     assert errors, "the spec should have caused some errors"
 
 
-@pytest.mark.parametrize("server_cls", [RobotLineServer, ModbusRobotServer])
-def test_robot_soak(server_cls):
+@pytest.mark.parametrize("kind", ["line-tcp", "modbus"])
+def test_robot_soak(kind):
     cell = make_cell(seed=22)
     targets = np.random.default_rng(0).uniform(-1, 1, (40, 3))
-    with server_cls(cell) as srv, open_robot(srv.url) as rob:
-        rob.connect(2.0)
+    with serve_robot(kind, cell) as rig:
+        rob = rig.driver
         cell.faults.spec = FaultSpec.parse(SPEC)
 
         def step(i):

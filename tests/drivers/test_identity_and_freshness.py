@@ -1,42 +1,15 @@
-"""Who a device says it is (simulators name themselves), and measurements that must be new."""
+"""Who a device says it is, and measurements that must be new, at the wire (that every
+simulator names itself and stamps its measurements strictly later: the conformance suite,
+tests/drivers/conformance/)."""
 
 from __future__ import annotations
 
 import pytest
 
 from drivers.errors import ProtocolError
-from drivers.protocols import DeviceIdentity, Identified
+from drivers.protocols import DeviceIdentity
 from drivers.urls import open_robot, open_tracker
-from sim_drivers.cell import SimCell
-from sim_drivers.emscon_server import EmsconServer
-from sim_drivers.modbus_server import ModbusRobotServer
-from sim_drivers.model_truth import ModelTruth
-from sim_drivers.robot_server import RobotLineServer
-from sim_drivers.tracker_server import TrackerServer
 from tests.sim_drivers.helpers import ScriptedPeer
-
-
-@pytest.fixture(scope="module")
-def cell():
-    return SimCell(ModelTruth.from_spec("ur10e", None, 7), seed=7)
-
-
-def test_every_simulated_server_names_itself_a_simulator(cell):
-    with RobotLineServer(cell) as line, ModbusRobotServer(cell) as modbus, \
-            TrackerServer(cell) as tracker, EmsconServer(cell) as emscon:
-        for url in (line.url, modbus.url):
-            with open_robot(url) as robot:
-                robot.connect(2.0)
-                assert isinstance(robot, Identified)
-                ident = robot.identify()
-                assert ident.simulator and ident.kinematics == "ur10e", (url, ident)
-                assert ident.serial == "SIM-ur10e-7" and ident.n_joints == 6
-        for url in (tracker.url, emscon.url):
-            with open_tracker(url) as trk:
-                trk.connect(2.0)
-                ident = trk.identify()
-                assert ident.kind == "tracker" and ident.simulator, (url, ident)
-                assert ident.serial in ("SIMTRK-7", "390130")  # line protocol, emScon
 
 
 def test_a_controller_that_does_not_say_so_is_real_hardware():
@@ -80,10 +53,3 @@ def test_a_repeated_or_older_measurement_reply_is_refused():
         finally:
             trk.close()
         peer.check()
-
-
-def test_the_simulated_tracker_numbers_its_replies(cell):
-    with TrackerServer(cell) as srv, open_tracker(srv.url) as trk:
-        trk.connect(2.0)
-        ts = [trk.measure(0.001, 2.0).timestamp for _ in range(5)]
-    assert ts == sorted(ts) and len(set(ts)) == 5  # strictly later, even within a millisecond

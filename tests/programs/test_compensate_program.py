@@ -118,3 +118,13 @@ def test_krl_points_with_their_tool(calibrated, tmp_path):
     report = compensate_program(CORPUS / "taught.dat", em, fit.values, out, allow_partial=True,
                                 options=Options(temp_c=20.0))
     assert sum("TOOL_DATA[1] is not given" in r.reason for r in report.refusals) == 2
+
+
+def test_a_program_of_pose_targets_only(calibrated, tmp_path):
+    """No joint target to seed from: the default posture (or --start) seeds them."""
+    em, _, fit = calibrated
+    src = tmp_path / "poses.script"
+    src.write_text("def p():\n  movel(p[0.6, -0.2, 0.5, 0, 3.1416, 0])\nend\n")
+    report = compensate_program(src, em, fit.values, tmp_path / "out.script",
+                                options=Options(temp_c=20.0))
+    assert report.exit_code == 0 and report.written and len(report.rows) == 1

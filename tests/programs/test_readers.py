@@ -9,11 +9,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cellcal.programs import krl, urscript
+from cellcal.programs import krl, rapid, urscript
 from cellcal.programs.targets import Correction, ProgramError
 
 CORPUS = Path(__file__).parent / "corpus"
-READERS = {".script": urscript, ".dat": krl}
+READERS = {".script": urscript, ".dat": krl, ".mod": rapid, ".modx": rapid}
 
 #: file -> (targets as (line, kind, context), refused lines)
 EXPECTED = {
@@ -28,6 +28,16 @@ EXPECTED = {
                     (12, "pose", "E6POS XP2"), (15, "pose", "E6POS xP3"),
                     (18, "pose", "E6POS XPATH[1]"), (19, "pose", "E6POS XPATH[2]")], [16]),
     "windows.dat": ([(4, "joints", "E6AXIS XSTART"), (5, "pose", "E6POS XDROP")], []),
+    "cell.mod": ([(9, "joints", "jointtarget jHome"), (10, "pose", "robtarget pApproach"),
+                  (11, "pose", "robtarget pPick"), (12, "pose", "robtarget pPlace"),
+                  (17, "pose", "robtarget pPath{1}"), (18, "pose", "robtarget pPath{2}"),
+                  (19, "pose", "robtarget pPath{3}"), (20, "pose", "robtarget pLower"),
+                  (33, "pose", "MoveC"), (34, "pose", "MoveC"), (36, "pose", "MoveL"),
+                  (37, "joints", "MoveAbsJ")], []),
+    "refused.mod": ([(6, "pose", "robtarget pA"), (10, "pose", "robtarget pTrack")],
+                    [15, 17, 18, 19, 20, 21, 22, 26, 27, 31]),
+    "gripper.modx": ([(6, "joints", "jointtarget jStart"), (7, "pose", "robtarget pOver"),
+                      (8, "pose", "robtarget pGrab"), (9, "pose", "robtarget pDrop")], []),
 }
 
 
@@ -48,7 +58,7 @@ def _skeleton(text: str, program) -> str:
         out += [text[at:a], "<T>"]
         at = b
     out.append(text[at:])
-    return re.sub(r"  [#;] cellcal: [^\r\n]*", "", "".join(out))
+    return re.sub(r"  [#;!] cellcal: [^\r\n]*", "", "".join(out))
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))

@@ -186,7 +186,7 @@ def test_sim_serve_places_the_tracker_and_reads_the_cell(tmp_path):
                 rob.connect(2.0)
                 trk.connect(2.0)
                 for q, seen in ((q_here, not blocked), (q_default, False)):
-                    rob.move_joints(q, speed=2.0, wait=True, timeout=5.0)
+                    rob.move_joints(q, speed=2.0, timeout=5.0)
                     rob.wait_settled(timeout=5.0)
                     if seen:
                         assert np.all(np.isfinite(trk.measure(0.05).xyz))

@@ -106,7 +106,7 @@ def test_blunders_in_process(fresh_cells):
         rob.connect()
         trk.connect()
         cell = inprocess.get_cell("bl", 11)
-        rob.move_joints([0.2, 0.3, 0.1], wait=True, timeout=5.0)
+        rob.move_joints([0.2, 0.3, 0.1], timeout=5.0)
         m = trk.measure(0.1)
     (b,) = cell.blunder_log
     assert b.measurement == 1

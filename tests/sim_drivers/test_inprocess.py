@@ -33,7 +33,7 @@ def test_robot_and_tracker_share_a_cell():
     rob.connect()
     trk.connect()
     p0 = trk.measure(0.1).xyz
-    rob.move_joints(np.array([0.4, 0.2, 0.1]), wait=True, timeout=1.0)
+    rob.move_joints(np.array([0.4, 0.2, 0.1]), timeout=1.0)
     p1 = trk.measure(0.1).xyz
     assert np.linalg.norm(p1 - p0) > 10
     assert np.linalg.norm(p1 - rob.cell.true_point()) < 0.1

@@ -37,7 +37,7 @@ def test_cellcal_sim_serve_subprocess():
         for robot_url in urls[:2]:
             with open_robot(robot_url) as rob:
                 rob.connect(2.0)
-                rob.move_joints(target, speed=0.5, wait=True, timeout=2.0)
+                rob.move_joints(target, speed=0.5, timeout=2.0)
                 assert np.allclose(rob.read_joints().q, target, atol=1e-4)
         points = []
         for tracker_url in urls[2:5]:
@@ -118,7 +118,7 @@ def test_sim_serve_ur10e_with_rtde_read_by_the_real_ur_client():
         target = np.radians([10.0, -70.0, 95.0, -110.0, -90.0, 5.0])
         with open_robot(urls[0]) as rob:
             rob.connect(2.0)
-            rob.move_joints(target, speed=1.0, wait=True, timeout=5.0)
+            rob.move_joints(target, speed=1.0, timeout=5.0)
         with open_robot(ur[0]) as urrob:
             urrob.connect(5.0)
             assert np.allclose(urrob.read_joints(timeout=2.0).q, target, atol=1e-3)

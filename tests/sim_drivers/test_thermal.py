@@ -48,8 +48,18 @@ def test_a_warm_start_and_bad_starts():
 def test_off_by_default_and_the_truth_unchanged():
     truth = ModelTruth.from_spec("ur10e", None, 3)
     cell = SimCell(truth, seed=3)
-    assert cell.thermal is None and cell.joint_temperatures() is None
-    assert cell.pose_context().joint_temp is None and cell.robot_state().joint_temp is None
+    # no thermal model: the joints report the air's temperature, constant (issue 36: a
+    # real UR always reports them); a controller may report none
+    assert cell.thermal is None and cell.joint_temperatures().tolist() == [20.0] * 6
+    assert cell.pose_context().joint_temp.tolist() == [20.0] * 6
+    assert cell.robot_state().joint_temp.tolist() == [20.0] * 6
+    worked = SimCell(truth, seed=3)
+    worked.command_move_joints(worked.robot_state().q + 0.3, 0.5)
+    worked.advance(3600.0)
+    assert worked.joint_temperatures().tolist() == [20.0] * 6  # an hour later: constant
+    quiet = SimCell(truth, seed=3, joint_temps=False)
+    assert quiet.joint_temperatures() is None and quiet.robot_state().joint_temp is None
+    assert quiet.pose_context().joint_temp is None
     warming = truth.with_thermal(3)
     k = truth.error_model.n_params
     np.testing.assert_array_equal(warming.x_true[:k], truth.x_true)
@@ -78,11 +88,17 @@ def test_sim_url_thermal_option():
     inprocess.reset_cells()
     try:
         robot = open_robot("sim://robot?model=ur10e&seed=8&thermal=cold")
+        robot.connect()
         assert isinstance(robot, JointTemperatures)
         assert robot.joint_temperatures() == (20.0,) * 6
         plain = open_robot("sim://robot?model=ur10e&seed=9")
+        plain.connect()
+        assert plain.joint_temperatures() == (20.0,) * 6  # the air's, constant
+        inprocess.get_cell("quiet", 9, "ur10e", joint_temps=False)
+        quiet = open_robot("sim://robot?name=quiet&seed=9")
+        quiet.connect()
         with pytest.raises(CommandRejected, match="no joint temperatures"):
-            plain.joint_temperatures()
+            quiet.joint_temperatures()
         with pytest.raises(ValueError, match="thermal=hot: expected cold or warm"):
             open_robot("sim://robot?model=ur10e&seed=10&thermal=hot")
         with pytest.raises(ValueError, match="no thermal model"):

@@ -16,12 +16,15 @@ anneal  simulated annealing: Be-SA (improved), classic SA, Be-SA polished by LM
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from .anneal import solve_besa, solve_besa_lm, solve_sa
 from .common import Problem, SolverResult
 from .lm import solve_lm
 from .ridge import igg3_weights, solve_ridge
 
-SOLVERS = {
+#: each solver: ``solve(problem, **options) -> SolverResult``
+SOLVERS: dict[str, Callable[..., SolverResult]] = {
     "lm": solve_lm,
     "ridge": solve_ridge,
     "besa": solve_besa,

@@ -61,6 +61,7 @@ for 300 poses); the chain is sequential in the candidates, because
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -82,7 +83,8 @@ def _levels(t_max: float, bounds: list[float], rates: list[float]) -> list[float
 
 def _anneal(problem: Problem, guided: bool, max_evals: int, seed: int, t_max: float,
             t_mid1: float, t_mid2: float, t_min: float, rates: tuple[float, float, float],
-            ideal: float | None, space: str, pull: float, xf0: np.ndarray | None):
+            ideal: float | None, space: str, pull: float,
+            xf0: np.ndarray | None) -> SolverResult:
     rng = np.random.default_rng(seed)
     x0 = problem.xf0.copy() if xf0 is None else np.asarray(xf0, float).copy()
     p = x0.size
@@ -101,7 +103,7 @@ def _anneal(problem: Problem, guided: bool, max_evals: int, seed: int, t_max: fl
 
     evals = 0
 
-    def f(z):
+    def f(z: np.ndarray) -> float:
         nonlocal evals
         evals += 1
         r = problem.residual(x0 + z / d)
@@ -224,7 +226,7 @@ def solve_sa(
     return _polish(problem, res) if polish else res
 
 
-def solve_besa_lm(problem: Problem, max_iter: int = 100, **options) -> SolverResult:
+def solve_besa_lm(problem: Problem, max_iter: int = 100, **options: Any) -> SolverResult:
     """Be-SA as a global start, then Levenberg-Marquardt from its best state."""
     return _polish(problem, solve_besa(problem, **options), max_iter)
 

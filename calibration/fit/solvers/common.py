@@ -32,9 +32,10 @@ class Problem:
     weights: np.ndarray | None = None
     pose: OrientationRows | None = None
     #: the last few (x, P, J) evaluated (see :meth:`evaluate`), newest first
-    seen: list = field(default_factory=list, repr=False)
+    seen: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=list,
+                                                                   repr=False)
     #: the same for (x, P, J, R, W) of :meth:`evaluate_pose`
-    seen_pose: list = field(default_factory=list, repr=False)
+    seen_pose: list[tuple[np.ndarray, ...]] = field(default_factory=list, repr=False)
 
     @property
     def scales(self) -> np.ndarray:
@@ -81,12 +82,14 @@ class Problem:
         self.remember(x, P, J)
         return P, J
 
-    def evaluate_pose(self, x: np.ndarray):
+    def evaluate_pose(
+            self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(P, J, R, W) of :meth:`ErrorModel.evaluate_pose` at ``x``, kept like
         :meth:`evaluate`'s (and its (P, J) there too)."""
-        for xs, *out in self.seen_pose:
+        for xs, *kept in self.seen_pose:
             if np.array_equal(xs, x):
-                return tuple(out)
+                P, J, R, W = kept
+                return P, J, R, W
         out = self.error_model.evaluate_pose(x, self.bound, jacobian=True)
         self.seen_pose = [(np.array(x, float), *out), *self.seen_pose[: REMEMBERED - 1]]
         self.remember(x, out[0], out[1])

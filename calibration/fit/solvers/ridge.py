@@ -204,7 +204,7 @@ def solve_ridge(
     names = [nm for nm, f in zip(em.names, problem.free, strict=True) if f]
     if penalize not in ("errors", "all"):
         raise ValueError(f"penalize must be 'errors' or 'all', not {penalize!r}")
-    families = np.array([em.effect_of(k).family for k in np.flatnonzero(problem.free)])
+    families = np.array([em.effect_of(int(k)).family for k in np.flatnonzero(problem.free)])
     penal = (np.ones(m, bool) if penalize == "all"
              else ~np.isin(families, ["base", "tool", "tracker_scale"]))
     if m == 0 or not penal.any():
@@ -217,11 +217,8 @@ def solve_ridge(
     if xi_method == "fixed" and not float(xi) >= 0:
         raise ValueError(f"xi must be >= 0, not {xi!r}")
 
-    def evaluate(xf, jac=True):
-        if jac:
-            rr, Jr = _unweighted(problem, xf)
-            return rr, Jr
-        return problem.error_model.residuals(problem.full(xf), problem.bound), None
+    def evaluate(xf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return _unweighted(problem, xf)
 
     r, Jr = evaluate(x)
     d = np.linalg.norm(Jr.reshape(-1, m), axis=0)
@@ -250,7 +247,7 @@ def solve_ridge(
             c = np.concatenate([c, pen_rows[0] - Ap @ u])
         # everything below depends only on |A u + c|: work on the triangular factor of
         # [A c] ((m+1) x (m+1)) instead of the 3n rows
-        Rf = np.linalg.qr(np.column_stack([A, c]), mode="r")
+        Rf = np.asarray(np.linalg.qr(np.column_stack([A, c]), mode="r"))
         A, c = Rf[:, :m], Rf[:, m]
         # re-check identifiability on the weighted system: pivoted QR of A
         _, R, piv = scipy.linalg.qr(A, mode="economic", pivoting=True)
@@ -293,7 +290,7 @@ def solve_ridge(
         t = 1.0
         for _ in range(30):
             x_try = centre + (u + t * step) / d
-            r_try, _ = evaluate(x_try, jac=False)
+            r_try = problem.error_model.residuals(problem.full(x_try), problem.bound)
             phi_try = (_cost(problem, x_try, r_try, w)
                        + xi_val * float(np.sum((u + t * step)[pen] ** 2)))
             if np.isfinite(phi_try) and phi_try <= phi * (1 + 1e-12):
@@ -339,7 +336,7 @@ def _unweighted(problem: Problem, xf: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return problem.bound.data.tracker_p_smr - P, -J[:, :, problem.free]
 
 
-def _penalty(problem: Problem, xf: np.ndarray):
+def _penalty(problem: Problem, xf: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """Penalty rows of regularised effects as (residual (k,), d residual / d xf (k, m)), or None."""
     pen = problem.error_model.penalty(problem.full(xf))
     if pen is None:
