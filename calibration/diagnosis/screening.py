@@ -109,11 +109,13 @@ def _evaluate_all(lin: Linearised, items: list, out: list[Screened], heldout: bo
         return
     size = batch_size(lin.n, items[0][0].n_params)
     for i in range(0, len(items), size):
+        chunk = items[i : i + size]
+        # the harmonics' columns, every order of a joint in one call (harmonic_columns)
+        periodic = harmonic_columns(lin, [eff for eff, c, _ in chunk if c is None])
         batch: list[tuple[Effect, np.ndarray, Any]] = []  # Cv: None without validation
-        for eff, c, cv in items[i : i + size]:
-            if c is None:
-                assert isinstance(eff, Harmonic)  # the only candidates without columns
-                c, cv = _harmonic(lin, eff)
+        for eff, c, cv in chunk:
+            if c is None:  # a harmonic
+                c, cv = periodic[id(eff)]
             batch.append((eff, c, cv))
         C = np.stack([c for _, c, _ in batch], axis=2)
         Cv = None if lin.valid is None else np.stack([c for _, _, c in batch], axis=2)
@@ -124,10 +126,6 @@ def _evaluate_all(lin: Linearised, items: list, out: list[Screened], heldout: bo
                 held = (None, None) if type(eff) is Harmonic else (c, cv)
                 waiting.append((len(out) - 1, eff, *held))
 
-
-def _harmonic(lin: Linearised, eff: Harmonic) -> tuple[np.ndarray, np.ndarray | None]:
-    """(C, Cv) of one harmonic candidate (what :func:`harmonic_columns` gives it)."""
-    return harmonic_columns(lin, [eff])[id(eff)]
 
 
 def kfold_errors(fit: Fit, folds: int = 10, seed: int = 0) -> np.ndarray:
