@@ -18,7 +18,7 @@ cell/         the cell YAML, the tracker's line of sight, the frame routine's fi
 effects/      the physical causes of error (geometric, base, tool, compliance, ...)
 data/         the Dataset and the measurement CSV, the column table, the capture's context
 model/        the nominal robot: models, kinematics, inverse kinematics, transforms, gravity
-numerics/     linear algebra, the chi(3) quantile, BLAS threads, the heap
+numerics/     linear algebra, the chi(3) quantile, BLAS threads, the heap, memory
 errors        the core's error family, each with its exit code
 files         reading inputs strictly and writing outputs atomically (one helper each)
 version       the software's version, as recorded with runs and calibrations

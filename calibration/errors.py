@@ -1,7 +1,8 @@
 """The calibration core's errors, each with the exit code the command line gives it.
 
 Bad input (a file, a value or a model the core refuses) is exit 2; data too poor for
-what was asked (they cannot decide: too few poses, a rank-deficient design) is exit 3.
+what was asked (they cannot decide: too few poses, a rank-deficient design) is exit 3, and
+so are data too large for the memory the machine has (:class:`TooLarge`).
 The command line maps every error of every layer through ``exit_code``
 (:mod:`cellcal.cli`); the codes are documented once, in docs/formats.md §6.
 """
@@ -54,6 +55,13 @@ class ExportError(InputError):
 class InsufficientData(CalibrationError):  # noqa: N818 - named for what the data are
     """The data are too poor for what was asked (exit code 3): the message says why and
     what to capture instead."""
+
+    exit_code = 3
+
+
+class TooLarge(CalibrationError):  # noqa: N818 - named for what the data are
+    """The data are too large for the memory this machine has left (exit code 3), said
+    before the work starts: the message gives the size that would fit."""
 
     exit_code = 3
 

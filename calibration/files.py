@@ -24,7 +24,7 @@ import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 #: the first bytes of every SQLite database file
 SQLITE_MAGIC = b"SQLite format 3\x00"
@@ -134,8 +134,10 @@ def decode_text(raw: bytes, source: str, error: type[Exception], what: str = "fi
     UTF-16 or another encoding, naming the line of the first bad byte."""
     if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
         raise error(f"{source}: UTF-16 text; save the {what} as UTF-8")
+    if raw.startswith(b"\xef\xbb\xbf"):  # a byte-order mark: dropped (and not counted)
+        raw = raw[3:]
     try:
-        text = raw.decode("utf-8-sig")
+        text = raw.decode("utf-8")
     except UnicodeDecodeError as e:
         line = raw[: e.start].count(b"\n") + 1
         if b"\x00" in raw[:4096]:
@@ -152,6 +154,109 @@ def read_text(path: str | Path, error: type[Exception], what: str = "file",
               max_bytes: int = 200 << 20) -> str:
     """:func:`read_input` then :func:`decode_text`."""
     return decode_text(read_input(path, error, what, max_bytes), str(path), error, what)
+
+
+class TextLines:
+    """The lines of a UTF-8 text file, ``(line number, line)`` as
+    ``enumerate(read_text(...).splitlines(), 1)`` gives them, read a block at a time: a
+    large file is never held whole.
+
+    The file is checked as :func:`read_input` and :func:`decode_text` check it, and the
+    same error comes first: a byte that is not UTF-8 anywhere in the file before a NUL
+    byte anywhere. A caller that stops at an error of its own (a bad row) calls
+    :meth:`check_rest`, which raises the file's encoding error instead when there is one.
+    """
+
+    #: bytes read at a time
+    BLOCK = 1 << 20
+
+    def __init__(self, path: str | Path, error: type[Exception], what: str = "file",
+                 max_bytes: int = 200 << 20) -> None:
+        p = check_regular_file(path, error, what)
+        size = p.stat().st_size
+        if size > max_bytes:
+            raise error(f"{path}: {size / 1e6:.0f} MB is too large for a {what} "
+                        f"(limit {max_bytes / 1e6:.0f} MB)")
+        self.path, self.source, self.error, self.what = p, str(path), error, what
+        self._file: BinaryIO | None = None
+        self._rest = b""  # the bytes after the last line feed read
+        self._head = b""  # the file's first bytes (what decode_text looks at)
+        self._newlines = 0  # line feeds in the pieces decoded so far
+        self._nul_line: int | None = None  # the line of the first NUL byte seen
+        self._first = True  # the next piece is the file's first (a byte-order mark)
+        self._done = False  # read to the end (or failed)
+        self._bad: str | None = None  # the encoding error found
+
+    def __iter__(self) -> Iterator[tuple[int, str]]:
+        line_no = 0
+        for text in self._pieces():
+            if self._nul_line is not None:
+                self.check_rest()
+            for line in text.splitlines():
+                line_no += 1
+                yield line_no, line
+
+    def check_rest(self) -> None:
+        """Read the rest of the file: its encoding error, if any, else the NUL byte's."""
+        for _ in self._pieces():
+            pass
+        if self._bad is not None:  # said already, and said again here
+            raise self.error(self._bad)
+        if self._nul_line is not None:
+            raise self.error(f"{self.source}: line {self._nul_line}: a NUL byte: a binary "
+                             f"file, not a {self.what}")
+
+    def _pieces(self) -> Iterator[str]:
+        """The file's text, decoded a piece at a time, each piece ending with a line feed
+        (but the last): a line break (``\r\n`` too) never spans two pieces. Resumes where
+        the last call stopped."""
+        try:
+            if self._file is None and not self._done:
+                f = open(self.path, "rb")  # noqa: SIM115 - closed at the end below
+                self._file = f
+                self._head = self._rest = f.read(4096)
+                if self._head.startswith((b"\xff\xfe", b"\xfe\xff")):
+                    raise self.error(f"{self.source}: UTF-16 text; save the {self.what} "
+                                     "as UTF-8")
+            while self._file is not None:
+                block = self._file.read(self.BLOCK)
+                data = self._rest + block
+                cut = data.rfind(b"\n") + 1 if block else len(data)
+                piece, self._rest = data[:cut], data[cut:]
+                if not block:
+                    self._close()
+                if piece:
+                    first = self._first
+                    self._first = False
+                    yield self._decode(piece, first)
+        except Exception:  # not GeneratorExit: a caller that stops may call check_rest
+            self._close()
+            raise
+
+    def _decode(self, piece: bytes, first: bool) -> str:
+        if first and piece.startswith(b"\xef\xbb\xbf"):  # a byte-order mark: dropped
+            piece = piece[3:]
+        try:
+            text = piece.decode("utf-8")
+        except UnicodeDecodeError as e:
+            line = self._newlines + piece[: e.start].count(b"\n") + 1
+            if b"\x00" in self._head:
+                self._bad = (f"{self.source}: a binary file, not a {self.what} (UTF-8 text "
+                             "expected)")
+            else:
+                self._bad = (f"{self.source}: line {line}: byte 0x{piece[e.start]:02x} is not "
+                             f"UTF-8; save the {self.what} as UTF-8")
+            raise self.error(self._bad) from None
+        if self._nul_line is None and "\x00" in text:
+            self._nul_line = self._newlines + text[: text.index("\x00")].count("\n") + 1
+        self._newlines += piece.count(b"\n")
+        return text
+
+    def _close(self) -> None:
+        self._done = True
+        if self._file is not None:
+            self._file.close()
+            self._file = None
 
 
 def sha256_file(path: str | Path) -> str:

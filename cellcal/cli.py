@@ -169,6 +169,11 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"cellcal {name}: interrupted", file=sys.stderr)
         return 130
+    except MemoryError as e:  # what the estimate before the work did not foresee
+        print(f"cellcal {name}: error: out of memory{f' ({_one_line(e)})' if str(e) else ''}: "
+              "the data are too large for the memory this machine has left; split them "
+              "or run where there is more memory", file=sys.stderr)
+        return 3
     except OSError as e:
         print(f"cellcal {name}: error: {_os_error(e)}", file=sys.stderr)
         return 2 if e.errno in _INPUT_ERRNOS else 1

@@ -19,7 +19,7 @@ import numpy as np
 from calibration.compensation.compensation import Compensation, Targets
 from calibration.data.capture_meta import CaptureMeta
 from calibration.model.robot_model import RobotModel
-from calibration.model.transforms import matrix_to_rotvec
+from calibration.model.transforms import matrix_to_rotvec_each
 
 from .text_table import fmt
 
@@ -43,12 +43,12 @@ def compensated_csv(t: Targets, c: Compensation, outside: list[list[str]] | None
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(head)
     qd, nd = np.degrees(c.q), np.degrees(c.q_nominal)
-    for i in range(len(c.q)):
-        rv = np.degrees(matrix_to_rotvec(c.cmd_R[i]))
-        row = ([t.pose_id[i]] + list(c.target[i]) + list(qd[i]) + list(c.cmd_point[i])
-               + list(rv) + list(nd[i]) + [c.correction_mm[i], c.residual_mm[i]])
-        w.writerow([r if isinstance(r, str) else repr(float(r)) for r in row]
-                   + [int(c.success[i]), ";".join(outside[i])])
+    rv = np.degrees(matrix_to_rotvec_each(c.cmd_R))
+    numbers = np.column_stack([c.target, qd, c.cmd_point, rv, nd, c.correction_mm,
+                               c.residual_mm]).astype(float).tolist()
+    w.writerows([pid, *map(repr, row), ok, ";".join(out)] for pid, row, ok, out in
+                zip(t.pose_id, numbers, np.asarray(c.success).astype(int).tolist(),
+                    outside, strict=True))
     return buf.getvalue()
 
 

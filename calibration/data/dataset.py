@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import DataError
-from ..files import read_text, write_atomic
+from ..files import TextLines, write_atomic
 from ..model.robot_model import RobotModel
 from .capture_meta import CaptureMeta
 from .columns import (
@@ -237,22 +237,30 @@ class Dataset:
             buf.write(f"# {key}: {text}\n")
         w = csv.writer(buf, lineterminator="\n")
         w.writerow(cols.keys())
-        columns = list(cols.values())
-        for i in range(self.n):
-            row = []
-            for column in columns:
-                v = column[i]
-                if isinstance(v, (float, np.floating)):
-                    row.append(repr(float(v)))
-                elif isinstance(v, (np.integer,)):
-                    row.append(str(int(v)))
-                else:
-                    row.append(str(v))
-            w.writerow(row)
+        w.writerows(zip(*(_column_text(c) for c in cols.values()), strict=True))
         text = buf.getvalue()
         if path is not None:
             write_atomic(path, text)
         return text
+
+
+def _column_text(c: Any) -> list[str]:
+    """The CSV text of a column's values: floats at full precision (``repr``), integers
+    as integers, anything else as ``str``; a numeric array converted at once."""
+    kind = getattr(getattr(c, "dtype", None), "kind", "")
+    if kind == "f":
+        return list(map(repr, np.asarray(c, float).tolist()))
+    if kind in "iu" and kind:
+        return list(map(str, np.asarray(c).tolist()))
+    out: list[str] = []
+    for v in c:
+        if isinstance(v, (float, np.floating)):
+            out.append(repr(float(v)))
+        elif isinstance(v, (np.integer,)):
+            out.append(str(int(v)))
+        else:
+            out.append(str(v))
+    return out
 
 
 # ---- reading ----------------------------------------------------------------
@@ -290,17 +298,29 @@ def read_meta(path: str | Path) -> dict[str, str]:
     return meta
 
 
-def _read_rows(path: Path, source: str
-               ) -> tuple[dict[str, str], list[str], int, list[tuple[int, list[str]]]]:
-    """Metadata, header, its line number and the data rows as (line_no, fields)."""
-    text = read_text(path, DataError, "CSV file", MAX_CSV_BYTES)
+_Rows = tuple[dict[str, str], list[str], int, list[tuple[int, list[str]]]]
+
+
+def _read_rows(path: Path, source: str) -> _Rows:
+    """Metadata, header, its line number and the data rows as (line_no, fields); the file
+    is read a block at a time (:class:`calibration.files.TextLines`), never held whole."""
+    lines = TextLines(path, DataError, "CSV file", MAX_CSV_BYTES)
+    try:
+        return _parse_rows(lines, source)
+    except DataError:
+        lines.check_rest()  # an encoding error anywhere in the file is said first
+        raise
+
+
+def _parse_rows(lines: TextLines, source: str) -> _Rows:
     meta: dict[str, str] = {}
     meta_line: dict[str, int] = {}
     header = None
     header_line = 0
-    rows = []
+    rows: list[tuple[int, list[str]]] = []
     in_preamble = True
-    for line_no, line in enumerate(text.splitlines(), start=1):
+    plain = csv.field_size_limit()  # below it, a line without quotes is split on commas
+    for line_no, line in lines:
         stripped = line.strip()
         if not stripped:
             continue
@@ -315,10 +335,13 @@ def _read_rows(path: Path, source: str
                 meta[k], meta_line[k] = v.strip(), line_no
             continue
         in_preamble = False
-        try:
-            fields = next(csv.reader([line]))
-        except csv.Error as e:
-            raise DataError(f"{source}: line {line_no}: {e}") from None
+        if '"' not in line and len(line) <= plain:
+            fields = line.split(",")  # what csv.reader gives a line without quotes
+        else:
+            try:
+                fields = next(csv.reader([line]))
+            except csv.Error as e:
+                raise DataError(f"{source}: line {line_no}: {e}") from None
         for f in fields:
             if len(f) > MAX_FIELD_CHARS:
                 raise DataError(f"{source}: line {line_no}: a field of {len(f)} characters "

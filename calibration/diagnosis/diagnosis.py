@@ -42,11 +42,11 @@ import numpy as np
 from ..data.dataset import Dataset
 from ..effects import Effect, EffectError, parse_effect
 from ..effects.physical import derive_directions
-from ..fit.error_model import ErrorModel
+from ..fit.error_model import Bound, ErrorModel
 from ..fit.identify import Fit, identify, screen_for_diagnosis
-from ..fit.outliers import BlunderScreen, concentration
+from ..fit.outliers import BlunderScreen, concentration, concentration_of
 from ..model.gravity import gravity_torques, has_mass_model
-from .candidate_columns import effect_columns
+from .candidate_columns import effect_columns, joint_partials
 from .f_test import log10_f_sf
 
 #: harmonic orders scanned on every joint
@@ -334,29 +334,7 @@ def diagnose(
     n_screened = len(effects)
 
     # screen: every candidate's explained sum of squares
-    screened = []
-    for eff in effects:
-        try:
-            C = effect_columns(eff, calib, bound, G, em, x).reshape(3 * n, -1)
-        except EffectError as e:
-            notes.append(f"{eff.label}: skipped ({e})")
-            continue
-        if eff.family == "table":
-            C = C[:, np.abs(C).sum(axis=0) > 0]  # knots without data
-        Cp = C - Q @ (Q.T @ C)
-        norms = np.linalg.norm(Cp, axis=0)
-        keep = norms > 1e-9 * max(float(np.linalg.norm(C)), 1e-300)
-        if not keep.any():
-            screened.append((eff, 0, 0.0, "no effect beyond what the model already absorbs"))
-            continue
-        Cp = Cp[:, keep] / norms[keep]
-        U, s, _ = np.linalg.svd(Cp, full_matrices=False)
-        U = U[:, s > 1e-6 * s[0]]
-        proj = U.T @ r
-        conc = concentration(r, U @ proj, n)
-        note = (f"two points carry {100 * conc:.0f} % of what it explains: it fits points, "
-                "not an effect" if conc > MAX_CONCENTRATION else "")
-        screened.append((eff, U.shape[1], float(proj @ proj), note))
+    screened = _screen(effects, calib, bound, G, em, x, Q, r, notes)
 
     # significance (F-test, Bonferroni over everything screened)
     sigma = calib.sigma() if fit.data.sigma() is None else fit.data.sigma()
@@ -405,11 +383,12 @@ def diagnose(
     # confirm the best few with a refit and a held-out check
     t1 = time.perf_counter()
     n_confirmed = 0
+    before: dict[int, float] = {}  # the current model's k-fold errors, shared
     for c in [c for c in cands if c.significant][: 2 * confirm]:
         if n_confirmed >= confirm:
             c.note = f"significant, not refitted (only the best {confirm} are)"
             continue
-        _confirm(c, fit, data, folds, seed)
+        _confirm(c, fit, data, folds, seed, before)
         if c.confirmed:
             n_confirmed += 1
         else:
@@ -429,7 +408,107 @@ def diagnose(
                      confirm_s, notes, fit.outliers)
 
 
-def _confirm(c: Candidate, fit: Fit, data: Dataset, folds: int, seed: int) -> None:
+#: a joint candidate is judged from per-pose products (never forming its 3n x k columns)
+#: when every projected column keeps more than this share of its squared norm (no
+#: cancellation) and their Gram matrix is better conditioned than :data:`_GRAM_RCOND`;
+#: else from its columns, projected, by their SVD
+_KEPT_SHARE = 1e-6
+_GRAM_RCOND = 1e-4
+
+
+def _screen(effects: list[Effect], calib: Dataset, bound: Bound, G: np.ndarray,
+            em: ErrorModel, x: np.ndarray, Q: np.ndarray, r: np.ndarray, notes: list[str]
+            ) -> list[tuple]:
+    """Every candidate's (effect, columns kept, explained sum of squares, note): its
+    columns projected out of the span of Q (the current model's), the residual ``r``
+    projected on what is left.
+
+    A joint effect's columns are ``C_i = g_i p_iᵀ`` (g_i = dP_i/dq_J, p_i its partials at
+    pose i), so QᵀC, CᵀC and Cᵀr come from per-pose products: ``U_i = Q_iᵀ g_i``,
+    ``|g_i|²``, ``g_i·r_i`` (once per joint), at O(n k) per candidate instead of O(3n m k).
+    """
+    n, m = calib.n, Q.shape[1]
+    Q3 = Q.reshape(n, 3, m)
+    Rq = np.einsum("nim,ni->nm", Q3, r.reshape(n, 3))  # Q_iᵀ r_i
+    Qtr = Rq.sum(axis=0)
+    per_joint: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+    out: list[tuple] = []
+    for eff in effects:
+        try:
+            if eff.stage == "joint" and eff.family != "table":
+                partials = joint_partials(eff, calib, bound)
+                assert eff.joint is not None  # a joint effect
+                j = eff.joint - 1
+                if j not in per_joint:
+                    g = G[:, :, j]
+                    per_joint[j] = (np.einsum("nim,ni->nm", Q3, g), np.sum(g * g, axis=1),
+                                    np.sum(g * r.reshape(n, 3), axis=1))
+                res = _explained_joint(eff, partials, *per_joint[j], Rq, Qtr, n)
+                if res is not None:
+                    out.append(res)
+                    continue
+            C = effect_columns(eff, calib, bound, G, em, x).reshape(3 * n, -1)
+        except EffectError as e:
+            notes.append(f"{eff.label}: skipped ({e})")
+            continue
+        if eff.family == "table":
+            C = C[:, np.abs(C).sum(axis=0) > 0]  # knots without data
+        out.append(_explained(eff, C, Q, r, n))
+    return out
+
+
+def _explained_joint(eff: Effect, Pj: np.ndarray, U: np.ndarray, gg: np.ndarray,
+                     gr: np.ndarray, Rq: np.ndarray, Qtr: np.ndarray, n: int
+                     ) -> tuple | None:
+    """:func:`_explained` of a joint effect with partials ``Pj`` (n, k) from per-pose
+    products (see :func:`_screen`); None when they cannot decide it to rounding (a column
+    almost absorbed, or nearly dependent ones): then its columns are formed."""
+    Y = U.T @ Pj  # QᵀC (m, k)
+    CtC = Pj.T @ (gg[:, None] * Pj)
+    gram = CtC - Y.T @ Y  # CpᵀCp
+    col2 = np.diag(CtC)
+    kept2 = np.diag(gram)
+    if not (kept2 > _KEPT_SHARE * col2).all():
+        return None
+    norms = np.sqrt(kept2)
+    keep = norms > 1e-9 * max(math.sqrt(float(col2.sum())), 1e-300)
+    if not keep.any():
+        return eff, 0, 0.0, "no effect beyond what the model already absorbs"
+    d = 1.0 / norms[keep]
+    gram = gram[np.ix_(keep, keep)] * np.outer(d, d)
+    w = np.linalg.eigvalsh(gram)
+    if not w[0] > _GRAM_RCOND * w[-1]:
+        return None
+    b = (Pj[:, keep].T @ gr - Y[:, keep].T @ Qtr) * d  # Cpᵀ r, columns normalised
+    coef = np.linalg.solve(gram, b)
+    z = coef * d  # the fitted correction Cp z: per pose r_i·(g_i p_iᵀz - Q_i Y z)
+    c = gr * (Pj[:, keep] @ z) - Rq @ (Y[:, keep] @ z)
+    conc = concentration_of(c)
+    note = (f"two points carry {100 * conc:.0f} % of what it explains: it fits points, "
+            "not an effect" if conc > MAX_CONCENTRATION else "")
+    return eff, int(keep.sum()), float(b @ coef), note
+
+
+def _explained(eff: Effect, C: np.ndarray, Q: np.ndarray, r: np.ndarray, n: int) -> tuple:
+    """(effect, rank, explained sum of squares, note) of one candidate with columns ``C``
+    (3n, k): projected out of the span of ``Q``, the residual on what is left."""
+    Cp = C - Q @ (Q.T @ C)
+    norms = np.linalg.norm(Cp, axis=0)
+    keep = norms > 1e-9 * max(float(np.linalg.norm(C)), 1e-300)
+    if not keep.any():
+        return eff, 0, 0.0, "no effect beyond what the model already absorbs"
+    Cp = Cp[:, keep] / norms[keep]
+    U, s, _ = np.linalg.svd(Cp, full_matrices=False)
+    U = U[:, s > 1e-6 * s[0]]
+    proj = U.T @ r
+    conc = concentration(r, U @ proj, n)
+    note = (f"two points carry {100 * conc:.0f} % of what it explains: it fits points, "
+            "not an effect" if conc > MAX_CONCENTRATION else "")
+    return eff, U.shape[1], float(proj @ proj), note
+
+
+def _confirm(c: Candidate, fit: Fit, data: Dataset, folds: int, seed: int,
+             before: dict | None = None) -> None:
     """Refit with the candidate; judge it on held-out poses."""
     em = fit.error_model
     ext = em.with_effects(c.effect)
@@ -446,11 +525,18 @@ def _confirm(c: Candidate, fit: Fit, data: Dataset, folds: int, seed: int) -> No
         calib = data.calib() if data.is_valid.any() else data
         fold_of = np.random.default_rng(seed).permutation(calib.n) % folds
         sq = np.zeros(2)
+        before = {} if before is None else before  # the current model's folds: fitted once
         for f in range(folds):
             train, test = calib.subset(fold_of != f), calib.subset(fold_of == f)
             for i, model in enumerate((em, ext)):
+                if i == 0 and f in before:
+                    sq[i] += before[f]
+                    continue
                 ft = identify(model, train, fit.solver)
-                sq[i] += float(np.sum((test.tracker_p_smr - ft.predict(test)) ** 2))
+                err = float(np.sum((test.tracker_p_smr - ft.predict(test)) ** 2))
+                sq[i] += err
+                if i == 0:
+                    before[f] = err
         c.heldout_before_mm, c.heldout_after_mm = np.sqrt(sq / calib.n)
     # a real effect lowers the held-out error by more than estimation noise does
     c.confirmed = bool(c.heldout_after_mm < c.heldout_before_mm * 0.995)

@@ -98,16 +98,18 @@ def orientation_blindness(fit: Fit, sigma_deg: float | None = None) -> Blindness
                      else TARGET_SIGMA_DEG)
     prior = _prior_precision(em)[live]
     Jp, Wo = Jp[:, live], Wo[:, live]
+    WtW = Wo.T @ Wo
     info_pos = Jp.T @ Jp / sigma_mm**2 + np.diag(prior)
-    info_full = info_pos + Wo.T @ Wo / np.radians(sigma_deg) ** 2
+    info_full = info_pos + WtW / np.radians(sigma_deg) ** 2
     n = data.n
+    # trace(Wo C Woᵀ) = trace(C WoᵀWo): p x p products only, never the 3n x 3n matrix
     C_pos = np.linalg.pinv(info_pos, hermitian=True)
-    hidden = float(np.degrees(np.sqrt(max(np.trace(Wo @ C_pos @ Wo.T), 0.0) / n)))
-    C_full = np.linalg.pinv(info_full, hermitian=True)
-    with_o = float(np.degrees(np.sqrt(max(np.trace(Wo @ C_full @ Wo.T), 0.0) / n)))
     # each parameter's share of the trace: diag(C WᵀW) sums to it (a redundant pair's
     # invisible combination adds nothing)
-    share = np.einsum("ij,ji->i", C_pos, Wo.T @ Wo)
+    share = np.einsum("ij,ji->i", C_pos, WtW)
+    hidden = float(np.degrees(np.sqrt(max(share.sum(), 0.0) / n)))
+    C_full = np.linalg.pinv(info_full, hermitian=True)
+    with_o = float(np.degrees(np.sqrt(max(np.einsum("ij,ji->", C_full, WtW), 0.0) / n)))
     names = np.array(em.names)[live]
     top = [str(names[k]) for k in np.argsort(-share)[:3] if share[k] > 0.1 * share.max()]
     return Blindness(hidden, with_o, float(sigma_deg), top,

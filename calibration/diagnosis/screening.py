@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -32,8 +33,10 @@ from .linear_screen import (  # noqa: F401 - _loo, linearise: with screen, this 
 )
 from .table_screening import TABLE_SPACINGS_DEG, data_gap_deg, screen_table  # noqa: F401
 
-#: candidates evaluated together (memory: 3n x batch x k doubles per array)
+#: candidates evaluated together (memory: 3n x batch x k doubles per array), and the
+#: memory their arrays may take at once (fewer together on many poses)
 _BATCH = 64
+_BATCH_BYTES = 256 << 20
 
 
 def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = None,
@@ -54,8 +57,7 @@ def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = 
     fit = lin.fit
     em, x = fit.error_model, fit.values
     out: list[Screened] = []
-    groups: dict[int, list[tuple[Effect, np.ndarray, np.ndarray | None]]] = {}
-    periodic = harmonic_columns(lin, [e for e in effects if type(e) is Harmonic])
+    groups: dict[int, list[tuple[Effect, np.ndarray | None, np.ndarray | None]]] = {}
     for eff in effects:
         try:
             if isinstance(eff, Table):
@@ -63,8 +65,8 @@ def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = 
                 if s is not None:
                     out.append(s)
                 continue
-            if id(eff) in periodic:
-                C, Cv = periodic[id(eff)]
+            if type(eff) is Harmonic:  # its columns when its batch is evaluated
+                C = Cv = None
             else:
                 C = effect_columns(eff, lin.calib, lin.bound, lin.G, em, x, lin.P)
                 Cv = valid_columns(eff, lin, em, x, lin.Pv)
@@ -73,7 +75,7 @@ def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = 
             continue
         groups.setdefault(eff.n_params, []).append((eff, C, Cv))
     # (index in out, effect, C, Cv): held-out figures still to compute
-    waiting: list[tuple[int, Effect, np.ndarray, np.ndarray | None]] = []
+    waiting: list[tuple[int, Effect, np.ndarray | None, np.ndarray | None]] = []
     for items in groups.values():
         _evaluate_all(lin, items, out, heldout=heldout_alpha is None, waiting=waiting)
     if heldout_alpha is not None and waiting:
@@ -90,20 +92,40 @@ def screen(lin: Linearised, effects: list[Effect], *, notes: list[str] | None = 
     return out
 
 
+def batch_size(n: int, k: int) -> int:
+    """Candidates of ``k`` columns evaluated together on ``n`` poses: :data:`_BATCH`, fewer
+    when their arrays (about 90 doubles a pose each, with the held-out figures) would pass
+    :data:`_BATCH_BYTES`."""
+    return max(1, min(_BATCH, _BATCH_BYTES // max(8 * n * (72 + 18 * k), 1)))
+
+
 def _evaluate_all(lin: Linearised, items: list, out: list[Screened], heldout: bool = True,
                   waiting: list | None = None) -> None:
     """Evaluate candidates ``items`` [(effect, C, Cv)] with the same number of columns in
-    batches of :data:`_BATCH`, appending their :class:`Screened` to ``out`` (and, without
-    the ``heldout`` figures, ``(index, effect, C, Cv)`` to ``waiting``)."""
-    for i in range(0, len(items), _BATCH):
-        batch = items[i : i + _BATCH]
+    batches (:func:`batch_size`), appending their :class:`Screened` to ``out`` (and,
+    without the ``heldout`` figures, ``(index, effect, C, Cv)`` to ``waiting``). A
+    harmonic's columns (C None) are made with its batch."""
+    if not items:
+        return
+    size = batch_size(lin.n, items[0][0].n_params)
+    for i in range(0, len(items), size):
+        chunk = items[i : i + size]
+        # the harmonics' columns, every order of a joint in one call (harmonic_columns)
+        periodic = harmonic_columns(lin, [eff for eff, c, _ in chunk if c is None])
+        batch: list[tuple[Effect, np.ndarray, Any]] = []  # Cv: None without validation
+        for eff, c, cv in chunk:
+            if c is None:  # a harmonic
+                c, cv = periodic[id(eff)]
+            batch.append((eff, c, cv))
         C = np.stack([c for _, c, _ in batch], axis=2)
         Cv = None if lin.valid is None else np.stack([c for _, _, c in batch], axis=2)
         res = evaluate_candidates(lin, C, Cv, heldout=heldout)
         for a, (eff, c, cv) in enumerate(batch):
             out.append(as_screened(lin, eff, {k: v[a] for k, v in res.items()}))
             if not heldout and waiting is not None:
-                waiting.append((len(out) - 1, eff, c, cv))
+                held = (None, None) if type(eff) is Harmonic else (c, cv)
+                waiting.append((len(out) - 1, eff, *held))
+
 
 
 def kfold_errors(fit: Fit, folds: int = 10, seed: int = 0) -> np.ndarray:
@@ -174,15 +196,16 @@ def blocked_errors(fit: Fit, share: float = BLOCK_SHARE, lp: _LinearProblem | No
 
 def linear_problem(fit: Fit) -> _LinearProblem:
     """``fit``'s calibration problem linearised (for :func:`kfold_with` and
-    :func:`blocked_errors` on one evaluation)."""
-    return _LinearProblem(fit)
+    :func:`blocked_errors` on one evaluation), its normal matrix by BLAS (the k-fold
+    errors the same to ~1e-15: the auto loop's choices and figures unchanged)."""
+    return _LinearProblem(fit, blas=True)
 
 
 class _LinearProblem:
     """A fit's calibration problem linearised at its parameters (penalties included): the
     normal equations ``A δ = b`` over the free parameters, from which a fold's refit is
-    ``A - X_tᵀ X_t``, ``b - X_tᵀ r_t``. ``blas``: XᵀX as one matrix product (the k-fold
-    errors keep the per-pose sum they always had, to the last bit)."""
+    ``A - X_tᵀ X_t``, ``b - X_tᵀ r_t``. ``blas``: XᵀX as one matrix product (else the
+    per-pose sum of einsum's loops: a tenth of the speed at a few hundred parameters)."""
 
     def __init__(self, fit: Fit, blas: bool = False):
         em, x, free = fit.error_model, fit.values, fit.free

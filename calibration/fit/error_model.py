@@ -25,6 +25,7 @@ from ..model.kinematics import A, ChainResult, D, run_chain
 from ..model.orientation_model import target_orientations
 from ..model.robot_model import RobotModel
 from ..model.transforms import fit_rigid, matrix_to_rotvec, rotvec_to_matrix
+from ..numerics.heap import keep_freed_memory
 
 _STAGES = ("joint", "table", "length", "tool", "target", "base", "drift", "measure")
 #: stages that need per-pose data (a bound data set) to be applied
@@ -178,6 +179,9 @@ class ErrorModel:
 
     # ---- evaluation -----------------------------------------------------------
     def bind(self, data: Dataset) -> Bound:
+        # the first arrays over the poses are made here: from now on the heap keeps what
+        # is freed (else the first identification's temporaries fault their pages in)
+        keep_freed_memory()
         if data.n_joints != self.model.n_joints:
             raise ValueError(
                 f"{data.source}: data have {data.n_joints} joints, model {self.model.name} "

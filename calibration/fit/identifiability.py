@@ -97,8 +97,35 @@ def analyse(
     ``normal``: ``JᵀJ`` (p, p) when the caller has it (the solver's normal matrix at the
     same point): the column geometry then comes from its eigen-decomposition, a p x p
     factor ``F`` with ``FᵀF = JᵀJ``, instead of a QR of the m x p ``J`` (the same
-    geometry: a pivot is exact to ~1e-8 of a unit column, far below ``rtol``).
+    geometry: a pivot is exact to ~1e-8 of a unit column, far below ``rtol``). With
+    penalised groups only while the free columns are well conditioned (condition number
+    below :data:`GUARD_COND`, so that a redundancy's coefficients over them are exact to
+    ~1e-8 too); else the analysis is made again from the QR (a table's columns need not
+    be of full rank: their coefficients would depend on the factor's rounding).
     """
+    if penalised and normal is not None and J.shape[0] > J.shape[1]:
+        out = _analyse(J, names, scales, families, rtol, always_free, n_poses, penalised,
+                       normal, guard=True)
+        if out is not None:
+            return out
+        normal = None
+    out = _analyse(J, names, scales, families, rtol, always_free, n_poses, penalised,
+                   normal)
+    assert out is not None  # unguarded: always an analysis
+    return out
+
+
+#: with penalised groups, the normal matrix's factor serves only when the free columns'
+#: condition number is below this (else the QR of the Jacobian)
+GUARD_COND = 1e4
+
+
+def _analyse(J: np.ndarray, names: list[str], scales: np.ndarray, families: list[str] | None,
+             rtol: float, always_free: np.ndarray | None, n_poses: int | None,
+             penalised: list[tuple[np.ndarray, np.ndarray]] | None,
+             normal: np.ndarray | None, guard: bool = False) -> Identifiability | None:
+    """:func:`analyse`; with ``guard`` None when the free columns are too ill-conditioned
+    for the normal matrix's factor."""
     m, p = J.shape
     norms = np.linalg.norm(J, axis=0) if normal is None else \
         np.sqrt(np.clip(np.diag(normal), 0.0, None))
@@ -141,9 +168,19 @@ def analyse(
     if always_free is not None:
         free |= always_free & live
     dropped = [k for k in np.flatnonzero(live & ~in_group) if not free[k]]
+    gram = None
+    if guard and free.any():
+        gram = Jn[:, free].T @ Jn[:, free]
+        w = np.linalg.eigvalsh(gram)
+        if not w[0] > w[-1] / GUARD_COND**2:
+            return None
     if dropped:
-        # explain each dropped column as a combination of the kept ones
-        coef, *_ = np.linalg.lstsq(Jn[:, free], Jn[:, dropped], rcond=None)
+        # explain each dropped column as a combination of the kept ones (guarded: the
+        # normal equations of the well-conditioned free columns, the same to ~1e-8)
+        if gram is not None:
+            coef = np.linalg.solve(gram, Jn[:, free].T @ Jn[:, dropped])
+        else:
+            coef, *_ = np.linalg.lstsq(Jn[:, free], Jn[:, dropped], rcond=None)
         free_names = [names[k] for k in np.flatnonzero(free)]
         for c, k in enumerate(dropped):
             order = np.argsort(-np.abs(coef[:, c]))[:3]

@@ -14,7 +14,7 @@ from ..data.dataset import Dataset
 from ..effects import display_unit
 from ..numerics.blas import blas_threads
 from ..numerics.heap import keep_freed_memory
-from ..numerics.linalg import cho_solve, cholesky_upper, triangular_inverse
+from ..numerics.linalg import cholesky_upper, triangular_inverse
 from . import full_pose
 from .error_model import Bound, ErrorModel
 from .identifiability import Identifiability, analyse, penalised_groups
@@ -210,12 +210,14 @@ def covariance_and_factor(J: np.ndarray, r: np.ndarray, free: np.ndarray,
     if m:
         d = np.linalg.norm(Jf, axis=0)
         d[d == 0] = 1.0
-        A = (Jf / d).T @ (Jf / d)
+        Jd = Jf / d
+        A = Jd.T @ Jd  # one operand twice: a symmetric rank-k update
         try:
             U = cholesky_upper(A)
-            inv = cho_solve(U, np.eye(m))
-            # A = Uᵀ U, so A⁻¹ = U⁻¹ U⁻ᵀ
-            M = triangular_inverse(U) / d[:, None]
+            # A = Uᵀ U, so A⁻¹ = U⁻¹ U⁻ᵀ: one triangular inverse for both
+            Ui = triangular_inverse(U)
+            inv = Ui @ Ui.T
+            M = Ui / d[:, None]
         except np.linalg.LinAlgError:
             inv = np.linalg.pinv(A)
             w, V = np.linalg.eigh(0.5 * (inv + inv.T))
@@ -259,9 +261,9 @@ def _structural(error_model: ErrorModel, calib: Dataset, rtol: float) -> tuple[
         n_poses=calib.n,
         penalised=groups,
         # the normal matrix (one p x p product) instead of a QR of the 3n x p J; with
-        # penalised groups the QR: their columns need not be of full rank, and the
-        # redundancies' coefficients over them would depend on the factor's rounding
-        normal=None if groups else J2.T @ J2,
+        # penalised groups only while the free columns are well conditioned (else the
+        # QR: their columns need not be of full rank, see analyse)
+        normal=J2.T @ J2,
     )
     for e, st in zip(error_model.effects, bound.states, strict=True):
         for local, why in e.pinned(st).items():

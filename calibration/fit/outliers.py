@@ -408,8 +408,13 @@ def concentration(r: np.ndarray, d: np.ndarray, n: int, k: int = 2) -> float:
     correction); point i contributes ``r_i . d_i`` (they sum to ``|d|^2``). Near 1: the
     candidate explains one or two points, not an effect.
     """
-    c = np.sum((r * d).reshape(n, 3), axis=1)
+    return concentration_of(np.sum((r * d).reshape(n, 3), axis=1), k)
+
+
+def concentration_of(c: np.ndarray, k: int = 2) -> float:
+    """:func:`concentration` from each point's contribution ``c`` (n,)."""
     total = float(c.sum())
     if total <= 0:
         return 0.0
-    return float(np.sort(c)[::-1][:k].sum() / total)
+    top = np.partition(c, c.size - k)[c.size - k :] if c.size > k else c  # O(n), no sort
+    return float(np.sort(top)[::-1].sum() / total)

@@ -48,6 +48,23 @@ def matrix_to_rotvec(R: np.ndarray) -> np.ndarray:
     return th / (2 * np.sin(th)) * w
 
 
+def matrix_to_rotvec_each(R: np.ndarray) -> np.ndarray:
+    """:func:`matrix_to_rotvec` of every matrix of a stack (n, 3, 3), (n, 3): the same
+    numbers, the same formula vectorised (the rare angle near pi one at a time)."""
+    R = np.asarray(R, float)
+    c = np.clip((R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2] - 1) / 2, -1.0, 1.0)
+    th = np.arccos(c)
+    w = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]],
+                 axis=1)
+    small = th < 1e-8
+    s = np.sin(th)
+    out = (th / (2 * np.where(small, 1.0, s)))[:, None] * w
+    out[small] = 0.5 * w[small]
+    for i in np.flatnonzero(~small & (np.pi - th < 1e-4)):
+        out[i] = matrix_to_rotvec(R[i])
+    return out
+
+
 def right_jacobian(r: np.ndarray) -> np.ndarray:
     """Right Jacobian of SO(3) at rotation vector r: R(r + dr) ~= R(r) exp([J_r dr]x)."""
     r = np.asarray(r, float)

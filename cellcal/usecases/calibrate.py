@@ -89,7 +89,8 @@ def calibrate(request: CalibrateRequest,
     Raises
     ------
     UsageError, calibration.errors.InputError
-        Bad input (exit 2); InsufficientData: data too poor for the model (exit 3).
+        Bad input (exit 2); InsufficientData: data too poor for the model, TooLarge: too
+        large for the memory left (exit 3).
     """
     request.check()
     check_outputs({"--out": request.out, "--ridge-plot": request.ridge_plot},

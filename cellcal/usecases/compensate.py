@@ -22,6 +22,7 @@ from calibration.effects import load_effect_file
 from calibration.exports.params_io import capture_of, read_params
 from calibration.files import write_atomic
 from calibration.fit.thermal_state import target_state
+from calibration.numerics.memory import check_memory
 from presentation.compensation_text import compensated_csv
 
 from ..errors import UsageError
@@ -97,7 +98,7 @@ def compensate_targets(request: CompensateRequest) -> Compensated:
     Raises
     ------
     UsageError, calibration.errors.InputError
-        Bad input (exit 2).
+        Bad input (exit 2); TooLarge: more targets than the memory left holds (exit 3).
     calibration.errors.OutsideEnvelope
         ``--strict-range`` and a target beyond the calibrated envelope (exit 3); nothing
         is written.
@@ -116,6 +117,7 @@ def compensate_targets(request: CompensateRequest) -> Compensated:
     t = start = columns = None
     if request.targets:  # every input checked before anything is written
         t = load_targets(request.targets, em.model)
+        check_memory("compensate", "compensate", len(t.base_p_tcp), em.n_params)
         check_joints_reach(t, em.model, request.joints_tolerance_mm, request.targets)
         start = _parse_start(request.start, em.model.n_joints) if request.start else None
         columns, done.thermal = target_state(em, loaded.thermal, t.columns,

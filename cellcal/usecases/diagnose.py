@@ -95,12 +95,13 @@ def diagnose(request: DiagnoseRequest, *, on_note: Callable[[str], None] | None 
     Raises
     ------
     UsageError, calibration.errors.InputError
-        Bad input (exit 2); InsufficientData: data too poor for the model (exit 3).
+        Bad input (exit 2); InsufficientData: data too poor for the model, TooLarge: too
+        large for the memory left (exit 3).
     """
     request.check()
     model, data = load_inputs(request)
     em, params, notes = current_model(request, model)
-    notes += check_data(em, data)
+    notes += check_data(em, data, "diagnose", "auto" if request.auto else "diagnose")
     for n in notes if on_note is not None else ():
         on_note(n)
     fit = current_fit(model, data, request.effects, params, request.solver)

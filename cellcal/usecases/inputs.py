@@ -118,9 +118,13 @@ def current_model(request: CurrentModelInputs, model: RobotModel):
     return error_model_of(model, request.effects), None, []
 
 
-def check_data(error_model: ErrorModel, data: Dataset) -> list[str]:
-    """Refuse data too poor to identify ``error_model`` (InsufficientData: exit 3); the
-    notes on marginal data otherwise."""
+def check_data(error_model: ErrorModel, data: Dataset, command: str = "calibrate",
+               work: str = "fit") -> list[str]:
+    """Refuse data too large for the memory left (TooLarge: exit 3, before any work:
+    ``work`` a kind of :data:`calibration.numerics.memory.WORK`) or too poor to identify
+    ``error_model`` (InsufficientData: exit 3); the notes on marginal data otherwise."""
     from calibration.fit.data_quality import check_for_fit
+    from calibration.numerics.memory import check_memory
 
+    check_memory(command, work, data.n, error_model.n_params)
     return check_for_fit(error_model, data).notes

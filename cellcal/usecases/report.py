@@ -85,7 +85,7 @@ def write_report(request: ReportRequest,
                                  request.effect_file))
     model, data = load_inputs(request)
     em, _, notes = current_model(request, model)
-    notes += check_data(em, data)
+    notes += check_data(em, data, "report", "auto" if request.auto else "diagnose")
     for n in notes if on_note is not None else ():
         on_note(n)
     prov = _as_usage_error(lambda: Provenance.of(model.name, request.data, data,

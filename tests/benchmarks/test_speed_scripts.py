@@ -20,3 +20,16 @@ def test_benchmark_runs_on_a_tiny_size(script):
                          capture_output=True, text=True, timeout=600, env=env, cwd=ROOT)
     assert out.returncode == 0, out.stderr
     assert "reference" in out.stdout or script == "identify.py"
+
+
+@pytest.mark.slow
+def test_the_scaling_benchmark_runs_on_small_sizes(tmp_path):
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    out = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "scaling.py"), "--sizes",
+                          "150,1000", "--quick", "--workdir", str(tmp_path)],
+                         capture_output=True, text=True, timeout=1200, env=env, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    for row in ("calibrate", "diagnose --auto", "report", "compensate", "export", "history",
+                "solve, in process", "500 real-shaped poses", "first solve"):
+        assert row in out.stdout, row
+    assert "fails" not in out.stdout

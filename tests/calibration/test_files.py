@@ -8,7 +8,7 @@ import stat
 
 import pytest
 
-from calibration.files import atomic_output, read_text, write_atomic
+from calibration.files import TextLines, atomic_output, read_text, write_atomic
 
 
 class Refused(ValueError):
@@ -79,3 +79,47 @@ def test_special_files_and_missing_folders(tmp_path):
     p = tmp_path / "bom.csv"
     p.write_bytes(b"\xef\xbb\xbfq1,q2\r\n")
     assert read_text(p, Refused) == "q1,q2\r\n"
+
+
+@pytest.mark.parametrize("raw", [
+    b"", b"a", b"a\n", b"\n\n", b"\xef\xbb\xbfq1,q2\r\nx\ry\x0bz\x0c\n",
+    "é,ü\u2028x\x85y\r\n\r\n".encode(), b"a\r\nb\r\n" * 50 + b"c",
+])
+@pytest.mark.parametrize("block", [1, 3, 7, 1 << 20])
+def test_lines_read_a_block_at_a_time_are_the_lines_of_the_text(tmp_path, raw, block,
+                                                                 monkeypatch):
+    p = tmp_path / "in.csv"
+    p.write_bytes(raw)
+    monkeypatch.setattr(TextLines, "BLOCK", block)
+    want = list(enumerate(read_text(p, Refused).splitlines(), start=1))
+    assert list(TextLines(p, Refused)) == want
+
+
+@pytest.mark.parametrize("raw", [
+    b"a,b\nc,\xe9\n", b"\xef\xbb\xbfa\nb,\xff,c\n", b"a\x00b\n" + b"x\n" * 30 + b"\xfe\n",
+    b"a\n" * 30 + b"b\x00\n" + b"c\n" * 30, b"\x00" + b"a\n" * 30 + b"\xfe",
+    "x".encode("utf-16"),
+])
+@pytest.mark.parametrize("block", [1, 5, 1 << 20])
+def test_lines_read_a_block_at_a_time_say_the_error_reading_the_text_says(
+        tmp_path, raw, block, monkeypatch):
+    p = tmp_path / "in.csv"
+    p.write_bytes(raw)
+    monkeypatch.setattr(TextLines, "BLOCK", block)
+    with pytest.raises(Refused) as want:
+        read_text(p, Refused, "CSV file")
+    with pytest.raises(Refused) as got:
+        list(TextLines(p, Refused, "CSV file"))
+    assert str(got.value) == str(want.value)
+    lines = TextLines(p, Refused, "CSV file")  # a caller that stops at its own error
+    with pytest.raises(Refused) as got:
+        next(iter(lines), None)
+        lines.check_rest()
+    assert str(got.value) == str(want.value)
+
+
+def test_a_byte_order_mark_does_not_shift_the_bad_byte_named(tmp_path):
+    p = tmp_path / "in.csv"
+    p.write_bytes(b"\xef\xbb\xbfab,c\nd,\xe9\n")
+    with pytest.raises(Refused, match="line 2: byte 0xe9"):
+        read_text(p, Refused)

@@ -33,3 +33,22 @@ def test_fit_rigid_recovers_the_transform():
     R_fit, t_fit = fit_rigid(src, src @ R.T + t)
     np.testing.assert_allclose(R_fit, R, atol=1e-12)
     np.testing.assert_allclose(t_fit, t, atol=1e-9)
+
+
+def test_rotation_vectors_of_a_stack_are_those_of_each_matrix():
+    from calibration.model.transforms import (
+        matrix_to_rotvec,
+        matrix_to_rotvec_each,
+        random_rotation,
+        rotvec_to_matrix,
+    )
+
+    rng = np.random.default_rng(5)
+    R = [random_rotation(rng) for _ in range(200)]
+    R += [rotvec_to_matrix(np.array([1e-10, 0.0, 0.0])), np.eye(3),
+          rotvec_to_matrix(np.array([0.0, np.pi - 1e-6, 0.0])),
+          rotvec_to_matrix(np.array([0.3, -0.2, 0.1]))]
+    R = np.array(R)
+    got = matrix_to_rotvec_each(R)
+    want = np.array([matrix_to_rotvec(r) for r in R])
+    assert np.array_equal(got, want)  # the same numbers, bit for bit

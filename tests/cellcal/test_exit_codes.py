@@ -52,6 +52,8 @@ def _drivers_error():
     (calibration.errors.DataError("a.csv:3: column q1: not a number"), 2, "error"),
     (calibration.errors.CellError("cell.yaml: tracker: missing"), 2, "error"),
     (calibration.errors.InsufficientData("3 poses for 24 parameters"), 3, "data too poor"),
+    (calibration.errors.TooLarge("calibrate of 9 poses needs 2 GiB; 1 GiB is left"), 3,
+     "error"),
     (daq.errors.RequestError("unknown run 7"), 2, "error"),
     (daq.errors.NotEnoughVisible("the tracker would not see 12 of 20 targets"), 3, "error"),
     (daq.errors.ConnectFailed("robot sim://: connect: refused"), 1, "error"),
@@ -81,3 +83,24 @@ def test_the_command_line_maps_each_family_by_its_exit_code(error, rc, said, mon
     expected = ("cellcal models: interrupted\n" if said is None
                 else f"cellcal models: {said}: {' '.join(str(error).split())}\n")
     assert err == expected
+
+
+def test_running_out_of_memory_is_exit_3_and_says_so(monkeypatch, capsys):
+    import cellcal.cli
+
+    def fail(args):
+        raise MemoryError("Unable to allocate 168. GiB")
+
+    parser = cellcal.cli.build_parser
+
+    def with_fail():
+        p = parser()
+        for action in p._subparsers._group_actions:
+            action.choices["models"].set_defaults(func=fail)
+        return p
+
+    monkeypatch.setattr(cellcal.cli, "build_parser", with_fail)
+    assert cellcal.cli.main(["models"]) == 3
+    err = capsys.readouterr().err
+    assert err.startswith("cellcal models: error: out of memory (Unable to allocate 168. GiB)")
+    assert "internal error" not in err and err.count("\n") == 1
