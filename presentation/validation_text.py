@@ -14,19 +14,26 @@ from .text_table import fmt, table
 #: what each variant is, in the table
 VARIANT_NAMES = {"uncompensated": "as written", "compensated": "compensated",
                  "geometric": "calibration.conf only"}
+#: the geometric variant's name where the controller is not a UR's (an ABB's has no
+#: calibration.conf: the variant is a controller with the calibrated geometry alone)
+GEOMETRY_ONLY = "geometry only"
 
 
-def validation_lines(summary: dict, valid_rms_mm: float | None, notes: list[str]
-                     ) -> list[str]:
+def validation_lines(summary: dict, valid_rms_mm: float | None, notes: list[str],
+                     robot: str | None = None) -> list[str]:
     """The table of variants (error RMS, mean, max, ISO 9283 AP and RP at worst, and the
-    RMS as a multiple of the calibration's validation RMS), then the notes."""
+    RMS as a multiple of the calibration's validation RMS), then the notes. ``robot``: the
+    robot's URL (an ``abb://`` robot's geometric variant is called "geometry only")."""
+    names = dict(VARIANT_NAMES)
+    if robot is not None and robot.lower().startswith("abb:"):
+        names["geometric"] = GEOMETRY_ONLY
     figures = summary.get("validation") or {}
     if not figures:
         return [f"note: {n}" for n in notes]
     rows = []
     for v, f in figures.items():
         ratio = (f"{f['rms_mm'] / valid_rms_mm:.2f}" if valid_rms_mm else "-")
-        rows.append([VARIANT_NAMES.get(v, v), str(f["n"]), fmt(f["rms_mm"]),
+        rows.append([names.get(v, v), str(f["n"]), fmt(f["rms_mm"]),
                      fmt(f["mean_mm"]), fmt(f["max_mm"]), fmt(f.get("ap_max_mm")),
                      fmt(f.get("rp_max_mm")), ratio])
     out = ["", f"waypoint error, in {summary.get('validation_frame', 'the run frame')}:",

@@ -30,14 +30,15 @@ def register(sub) -> None:
     p = command_parser(
         sub, "validate",
         help="run a program's waypoints as written and compensated; measure the error",
-        description="Run the waypoints of a robot program (URScript, KUKA KRL .dat) or of a "
-        "targets CSV (x, y, z and q1..qN nominal joints, deg) on the cell, by joint moves: "
-        "as the nominal controller runs the program as written, as it runs the program "
-        "compensated with the calibration (cellcal compensate --program), and as a "
-        "controller that carries only the calibration's DH deltas (calibration.conf) runs "
-        "it. The tracker measures every waypoint; the run is stored (resumable) and its "
-        "summary gives each variant's error, ISO 9283 AP per waypoint and RP with --cycles "
-        "2 or more, beside the calibration's validation RMS. Needs a frame run in --db "
+        description="Run the waypoints of a robot program (URScript, KUKA KRL .dat, ABB "
+        "RAPID .mod) or of a targets CSV (x, y, z and q1..qN nominal joints, deg) on the "
+        "cell, by joint moves: as the nominal controller runs the program as written, as it "
+        "runs the program compensated with the calibration (cellcal compensate --program), "
+        "and as a controller that carries only the calibration's DH deltas (a UR's "
+        "calibration.conf; 'geometry only' on an ABB) runs it. The tracker measures every "
+        "waypoint; the run is stored (resumable) and its summary gives each variant's error, "
+        "ISO 9283 AP per waypoint and RP with --cycles 2 or more, beside the calibration's "
+        "validation RMS. Needs a frame run in --db "
         "(cellcal capture frame). docs/programs.md.\n\n"
         "Waypoints beyond the calibrated envelope (the ranges the calibration measured) are "
         "named in the notes; --strict-range refuses them (exit 3).\n\n"
@@ -117,5 +118,6 @@ def _run(args, run_log) -> int:
                     "outside_range": done.outside_range})
     else:
         print("\n".join(outcome_lines(out)
-                        + validation_lines(summary, done.valid_rms_mm, done.notes)))
+                        + validation_lines(summary, done.valid_rms_mm, done.notes,
+                                         robot=capture_args.robot)))
     return outcome_exit_code(out)
