@@ -29,7 +29,8 @@ The running model (:class:`RunningModel`)
 Re-measuring a suspect
     The robot moves away and back: to the target's pre-position when the plan has one
     (the approach is the plan's own), else a retract of ``retract_rad`` on every
-    joint against its approach direction (clipped to the model's joint limits), then
+    joint against its approach direction (clipped to the model's joint limits; shortened
+    so that the nominal tool point moves at most :data:`RETRACT_TOOL_MM`), then
     to the target again (a linear target without a pre-position: by a joint move to
     the joints read at the suspect reading, since a linear move to the same position
     may end in another wrist posture), both through the executor's own moves (checked
@@ -97,6 +98,11 @@ EFFECTS = "geometric,base,tool"
 #: the running model is fitted once the accepted calibration rows are this many times
 #: the parameters the plan's calibration poses identify
 WARMUP_FACTOR = 2
+#: a retract moves the nominal tool point about this far at most (mm; scaled to first
+#: order), within the motion guard's 25 mm for an adaptive move (``max_dev_mm``): 0.01 rad
+#: a joint moves a UR10e's tool up to 25 mm and an IRB 2600's (1.65 m) up to 31 mm, so a
+#: long arm's retract is shortened (the same direction) instead of refused
+RETRACT_TOOL_MM = 20.0
 #: the running model's solver options: IGG3 weights without a ridge (robust, no shrinkage)
 SOLVER_OPTIONS = {"ridge": {"xi": 0.0}}
 #: how each accepted reading was judged (samples' ``verdict``), and the note ``cellcal
@@ -272,11 +278,14 @@ class Remeasure:
     retract_rad : the retract away from a target without a pre-position (rad per joint)
     limits : (N, 2) joint limits (rad) the retract stays within
     deadband_rad : a joint moved less than this approached with direction 0
+    model : the robot model whose nominal tool point a retract moves at most
+        :data:`RETRACT_TOOL_MM` (None: the retract as given)
     """
 
     def __init__(self, running: RunningModel, plan: Plan, *, n: int, retract_rad: float,
-                 limits: np.ndarray, deadband_rad: float = 1e-6) -> None:
+                 limits: np.ndarray, deadband_rad: float = 1e-6, model=None) -> None:
         self.running, self.n = running, max(1, int(n))
+        self.model = model
         self.targets = {t.index: t for t in plan.targets}
         self.retract_rad, self.limits = float(retract_rad), np.asarray(limits, float)
         self.deadband_rad = float(deadband_rad)
@@ -303,7 +312,8 @@ class Remeasure:
             return None
         running = RunningModel(model, plan, refit_every=options.remeasure_refit_every)
         policy = cls(running, plan, n=options.remeasure, retract_rad=options.remeasure_retract_rad,
-                     limits=model.limits_rad(), deadband_rad=options.dir_deadband_rad)
+                     limits=model.limits_rad(), deadband_rad=options.dir_deadband_rad,
+                     model=model)
         stored = store.samples(run_id)
         for i in range(len(stored)):
             if stored.verdict[i] != "unresolved":
@@ -425,7 +435,14 @@ class Remeasure:
         dirs = np.zeros(len(q)) if ref.dirs is None else np.asarray(ref.dirs, float)
         if not dirs.any():
             dirs = np.ones(len(q))
-        return np.clip(q - self.retract_rad * dirs, self.limits[:, 0], self.limits[:, 1])
+        away = np.clip(q - self.retract_rad * dirs, self.limits[:, 0], self.limits[:, 1])
+        if self.model is None:
+            return away
+        p = tool_points(self.model, np.vstack([q, away]))
+        dist = float(np.linalg.norm(p[1] - p[0]))
+        if dist <= RETRACT_TOOL_MM:
+            return away
+        return q + (away - q) * (RETRACT_TOOL_MM / dist)  # the same direction, shorter
 
 
 def _with_model(s: Sample, j: Judgement, verdict: str | None, remeasures: int | None = None

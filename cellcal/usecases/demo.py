@@ -29,7 +29,6 @@ from calibration.diagnosis.diagnosis import diagnose
 from calibration.exports.params_io import save_params
 from calibration.files import write_atomic
 from calibration.workflow import UNCALIBRATED_LABEL, AutoStory, staged_fit
-from daq.run_context import ExecutorOptions
 from daq.run_data import dataset_from_run
 from daq.service import CaptureRequest, plan_run, start_run
 from daq.store import RunStore, RunSummary
@@ -112,7 +111,7 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     check_demo_folder(out, force)
     out.mkdir(parents=True, exist_ok=True)
     controller, scheme, arm, arm_words, _ = DEMO_ROBOTS[robot]
-    options = cold_start_demo.capture_options() if cold_start else _capture_options(robot)
+    options = cold_start_demo.capture_options() if cold_start else {}
     hidden = hidden or (None if cold_start else pick_hidden(seed, robot))
     db_path, csv_path = out / "cell.db", out / "capture.csv"
     params_path, report_path = out / "params.json", out / "report.html"
@@ -220,15 +219,6 @@ def run_demo(out: str | Path = "cellcal-demo", *, seed: int = 1, hidden: str | N
     say("")
     say(before_after(result))
     return result
-
-
-def _capture_options(robot: str) -> dict:
-    """The poses capture's settings for ``robot``: the IRB 2600 re-measures a suspect
-    reading after a retract of 0.005 rad per joint (the default 0.01 rad moves its 1.65 m
-    arm's tool beyond the motion guard's 25 mm from the planned posture)."""
-    if robot != "abb":
-        return {}
-    return {"executor": ExecutorOptions(remeasure_retract_rad=0.005)}
 
 
 def _capture(store, routine, params, model, robot, tracker, urls, progress, seed,

@@ -16,9 +16,11 @@ import sqlite3
 import numpy as np
 import pytest
 
-from calibration import Dataset, load_csv
+from calibration import Dataset, load_csv, load_model
+from calibration.model.kinematics import tool_points
 from cellcal.cli import main
-from daq.remeasure import Remeasure, RunningModel
+from daq.motion_guard import MotionGuard
+from daq.remeasure import RETRACT_TOOL_MM, Remeasure, RunningModel
 from daq.routines import make_plan
 from daq.run_context import ExecutorOptions, RunContext
 from daq.store import Reading, RunStore, Sample
@@ -305,3 +307,29 @@ def test_remeasure_option_is_validated_and_0_disables_the_model(cell, tmp_path):
         assert Remeasure.for_run(st, rid, plan, model, ExecutorOptions(remeasure=0)) is None
         policy = Remeasure.for_run(st, rid, plan, model, ExecutorOptions())
         assert policy.n == 2 and policy.running.fit is None
+
+
+def test_a_long_arms_retract_is_shortened_to_pass_the_motion_guard():
+    """0.01 rad a joint moves an IRB 2600's tool up to 31 mm, beyond the guard's 25 mm for
+    an adaptive move: the retract keeps its direction and moves the tool 20 mm."""
+    model = load_model("irb2600_12_165")
+    plan = make_plan("poses", model, count=150, seed=1)
+    signs = np.random.default_rng(0).choice([-1, 1], size=(len(plan.targets), 6))
+    guard = MotionGuard(model)
+    bare, capped = (Remeasure(None, plan, n=1, retract_rad=0.01, limits=model.limits_rad(),
+                              model=m) for m in (None, model))
+    far_bare, far = [], []
+    for t, dirs in zip(plan.targets, signs, strict=True):
+        q = np.array(t.q)
+        ref = Sample(point_index=t.index, q=q, tracker_p_smr=np.zeros(3),
+                     std_mm=np.full(3, 0.01), n_averaged=1, t_s=0.0, dirs=dirs)
+        a, b = bare.retract(t, ref), capped.retract(t, ref)
+        p = tool_points(model, np.vstack([q, a, b]))
+        far_bare.append(float(np.linalg.norm(p[1] - p[0])))
+        far.append(float(np.linalg.norm(p[2] - p[0])))
+        k = np.linalg.norm(b - q) / np.linalg.norm(a - q)
+        np.testing.assert_allclose(b - q, k * (a - q), atol=1e-15)  # the same direction
+        assert not guard.deviation_problems(b, q)
+    assert max(far_bare) > 25.0  # the bare retract: the guard refuses these
+    assert max(far) == pytest.approx(RETRACT_TOOL_MM, abs=0.05)  # scaled to first order
+    assert np.all(np.array(far) <= np.minimum(far_bare, RETRACT_TOOL_MM + 0.05) + 1e-9)
