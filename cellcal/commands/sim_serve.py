@@ -3,7 +3,8 @@
 Prints one driver URL per line (Modbus robot, line robot, tracker over TCP, tracker over
 a pty, emScon tracker, with ``--abb`` the ABB robot over Robot Web Services, then the
 read-only RTDE robot when port 30004 was free), then a
-ready-to-paste ``export R=... T=...`` line (the Modbus robot and the TCP tracker), then
+ready-to-paste ``export R=... T=...`` line (the Modbus robot, with ``--abb`` the ABB robot,
+and the TCP tracker), then
 serves until Ctrl-C or SIGTERM and stops cleanly (exit code 0). A port in use is an
 error (exit 2) unless ``--any-port``. The simulated tracker's line of sight is honest
 (:mod:`sim_drivers.beam`): ``--tracker-at`` places it, ``--cell`` adds fixtures.
@@ -34,7 +35,8 @@ def register(sub) -> None:
         "per line (Modbus robot, line-protocol robot, line-protocol tracker over TCP and "
         "over a pty, emScon tracker; with --abb the ABB robot over Robot Web Services; the "
         "read-only RTDE robot when port 30004 is free), then an `export R=... T=...` line "
-        "to paste into the shell that captures.\n\n"
+        "to paste into the shell that captures (R: the Modbus robot, with --abb the ABB "
+        "robot).\n\n"
         "Ports: Modbus robot 15020, line robot 15021, tracker 15700, emScon 15701, ABB "
         "robot 15080 by default; --port-base N serves them on N, N+1, N+2, N+3, N+4; a port "
         "flag sets one (0: any free port). A port in use is an error (exit 2) unless "
@@ -100,8 +102,10 @@ def register(sub) -> None:
 
 def export_line(urls: list[str]) -> str:
     """``export R='modbus+tcp://...' T='tracker+tcp://...'``: the robot and tracker URLs the
-    README's commands use, ready to paste."""
-    robot = next(u for u in urls if u.startswith("modbus+tcp://"))
+    README's commands use, ready to paste; the ABB robot when it is served (``--abb``: the
+    user asked for an ABB cell)."""
+    robot = next((u for u in urls if u.startswith("abb://")),
+                 next(u for u in urls if u.startswith("modbus+tcp://")))
     tracker = next(u for u in urls if u.startswith("tracker+tcp://"))
     return f"export R='{robot}' T='{tracker}'"
 

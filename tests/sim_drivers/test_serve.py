@@ -156,9 +156,10 @@ def test_sim_serve_abb_serves_the_robot_over_rws_too():
          "--no-pty", "--no-rtde", "--port-base", "0"],
         cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
-        urls = read_lines(proc, 5, timeout=20.0)
+        urls = read_lines(proc, 6, timeout=20.0)
         assert urls[3].startswith("emscon://") and urls[4].startswith("abb://127.0.0.1:")
         assert urls[4].endswith("?joints=3")
+        assert urls[5] == f"export R='{urls[4]}' T='{urls[2]}'"  # the ABB, ready to paste
         target = np.array([0.3, -0.2, 0.4])
         with open_robot(urls[4]) as abb:
             abb.connect(5.0)
