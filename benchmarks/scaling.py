@@ -168,9 +168,10 @@ def write_store(path: Path, poses: Path, n: int) -> None:
         rid = st.create_run(plan, RunContext(routine="poses", model="ur10e"), robot_id=ROBOT)
         std = np.full(3, 0.015)
         for i in range(n):
-            st.add_sample(rid, Sample(point_index=i, joints_rad=data.q[i],
-                                      tracker_p_smr=data.tracker_p_smr[i], std_mm=std, n=100,
-                                      t=1.7e9 + 2.0 * i, pose_id=data.pose_id[i]))
+            st.add_sample(rid, Sample(point_index=i, q=data.q[i],
+                                      tracker_p_smr=data.tracker_p_smr[i], std_mm=std,
+                                      n_averaged=100, t_s=1.7e9 + 2.0 * i,
+                                      pose_id=data.pose_id[i]))
         st.set_status(rid, "completed")
     first = path.parent / "first.csv"
     first.write_text("".join(poses.read_text().splitlines(keepends=True)[:153]))
