@@ -211,12 +211,18 @@ class _LinearProblem:
         em, x, free = fit.error_model, fit.values, fit.free
         calib = fit.data
         self.fit, self.n, self.m = fit, calib.n, int(free.sum())
-        P, J = em.evaluate(x, em.bind(calib), jacobian=True)
+        J = fit.jacobian  # the solver's last one, when the fit kept it: the same numbers
+        if J is not None and J.shape == (calib.n, 3, em.n_params):
+            self.r = fit.residuals
+        else:
+            P, J = em.evaluate(x, em.bind(calib), jacobian=True)
+            self.r = calib.tracker_p_smr - P
         self.X = J[:, :, free].reshape(self.n, 3, self.m)
-        self.r = calib.tracker_p_smr - P
+        #: XᵀX without the penalty (BLAS only), for the tables' GCV at the same fit
+        self.XtX: np.ndarray | None = None
         if blas:
             X2 = self.X.reshape(-1, self.m)
-            self.A = X2.T @ X2
+            self.A = self.XtX = X2.T @ X2
             self.b = X2.T @ self.r.ravel()
         else:
             self.A = np.einsum("nim,nik->mk", self.X, self.X)

@@ -306,21 +306,28 @@ def choose_smoothing(error_model: Any, data: Dataset, fit_fn: Callable[[Any, Dat
 
 
 def gcv_smoothing(fit: Any, tables: list[Any] | None = None,
-                  grid: np.ndarray = SMOOTHING_GRID) -> bool:
+                  grid: np.ndarray = SMOOTHING_GRID,
+                  linear: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> bool:
     """Re-choose the smoothing of ``tables`` (default: every table of the fit's model) by
     GCV on the problem linearised at ``fit``, one table after the other, twice round.
     Records ``cv_curve`` on each as (smoothing, GCV RMS mm). Returns True when any
-    smoothing changed (the fit is then out of date)."""
+    smoothing changed (the fit is then out of date). ``linear``: the fit linearised
+    already, (X (3n, m) the Jacobian's free columns, r (n, 3) the residuals, XᵀX)."""
     em, free, x = fit.error_model, fit.free, fit.values
     if tables is None:
         tables = [e for e in em.effects if hasattr(e, "penalty_matrix")]
     if not tables or not free.any():
         return False
     before = [e.smoothing for e in tables]
-    P, J = em.evaluate(x, em.bind(fit.data), jacobian=True)
-    X = J[:, :, free].reshape(-1, int(free.sum()))
-    y = (fit.data.tracker_p_smr - P).ravel() + X @ x[free]
-    XtX, b, y2 = X.T @ X, X.T @ y, float(y @ y)
+    if linear is None:
+        P, J = em.evaluate(x, em.bind(fit.data), jacobian=True)
+        X = J[:, :, free].reshape(-1, int(free.sum()))
+        r = fit.data.tracker_p_smr - P
+        XtX = X.T @ X
+    else:
+        X, r, XtX = linear
+    y = r.ravel() + X @ x[free]
+    b, y2 = X.T @ y, float(y @ y)
     omegas: dict[int, tuple[Any, np.ndarray]] = {}
     for e, sl in zip(em.effects, em.slices, strict=True):
         if hasattr(e, "penalty_matrix"):

@@ -62,7 +62,7 @@ class Fit:
         parameters (from the covariance's factorisation): a point's hat-matrix block is
         ``Q_i Q_iᵀ`` with ``Q_i = J_i M`` (the blunder test's leverage)
     jacobian : (n, 3, p) the Jacobian at ``values`` on the calibration rows, kept for the
-        blunder test while :func:`identify` runs (None after it)
+        blunder test while :func:`identify` runs (None after it, unless asked to keep it)
     orientation_residuals, valid_orientation_residuals : (n, 3) rad, the rotation vectors
         of measured times predicted-transposed orientations on calibration and validation
         rows, when the data have orientations (else None); ``orientation_fitted`` says
@@ -285,6 +285,7 @@ def identify(
     fixed: list[str] | None = None,
     solver_options: dict[str, Any] | None = None,
     outliers: str = "exclude",
+    keep_jacobian: bool = False,
 ) -> Fit:
     """Identify the parameters of ``error_model`` from ``data``.
 
@@ -306,6 +307,8 @@ def identify(
         (blunders) are left out and the model refitted until the set settles; ``flag``:
         every point is fitted, the blunders only named; ``keep``: no test (see
         :mod:`calibration.fit.outliers`). The result's ``outliers`` says what was found.
+    keep_jacobian : keep the solver's last Jacobian as the result's ``jacobian`` (for a
+        caller that linearises the fit next, e.g. its held-out folds; it then drops it)
 
     Non-convergence is reported in the result (``converged``, ``reason``), not raised.
     """
@@ -315,8 +318,11 @@ def identify(
         raise ValueError(f"outliers must be one of {', '.join(OUTLIER_MODES)}, not {outliers!r}")
     keep_freed_memory()
     with blas_threads(3 * data.n * error_model.n_params):
-        return _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
-                         outliers)
+        fit = _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
+                        outliers)
+    if not keep_jacobian and outliers != "keep":  # kept for the blunder test's refits
+        fit.jacobian = None
+    return fit
 
 
 def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Dataset | None,
@@ -391,7 +397,6 @@ def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Datase
                             fixed=fixed, solver_options=solver_options, outliers="keep")
 
         fit = screen_fit(fit, outliers, refit)
-        fit.jacobian = None
     fit.solve_s = time.perf_counter() - t0
     return fit
 
