@@ -228,6 +228,11 @@ class Table(JointEffect):
         """Ω with penalty = smoothing · pᵀ Ω p (mm²), (K, K)."""
         return _PENALTY_ARM_MM**2 * (self._D2.T @ self._D2)
 
+    def penalty_factor(self) -> np.ndarray:
+        """F (K - 2, K) with ``FᵀF`` = :meth:`penalty_matrix` (to rounding): the penalty's
+        rows, of rank K - 2 (:func:`gcv_smoothing` works in that low rank)."""
+        return _PENALTY_ARM_MM * self._D2
+
     def null_space(self) -> np.ndarray:
         """The directions the penalty leaves free: constant and linear in θ, (K, 2)."""
         return np.column_stack([np.ones(len(self.knots)), self.knots - self.knots.mean()])
@@ -287,6 +292,54 @@ def penalised_path(N0: np.ndarray, b: np.ndarray, h: np.ndarray, Q: np.ndarray, 
             "solve": solve}
 
 
+def _low_rank_path(N0: np.ndarray, b: np.ndarray, Q: np.ndarray, r2: float,
+                   omega: np.ndarray, F: np.ndarray, others: list[tuple[float, np.ndarray]],
+                   grid: np.ndarray, n_obs: int) -> dict[str, Any] | None:
+    """:func:`penalised_path` with ``h = b`` for a penalty of low rank, ``omega = FᵀF``
+    (F (r, k), r much below k: one table's rows among every parameter), when
+    ``N0 = Q + Σ s_o F_oᵀF_o`` (``others``: the other tables' (s_o, F_o)); without its
+    k x k eigen-decomposition and products (the same figures to rounding).
+
+    In the scaled variables of :func:`penalised_path`, with N = N0s + ε I = L Lᵀ and
+    Z = L⁻¹ Fᵀ V, V the eigenvectors (eigenvalues μ) of the r x r ``(L⁻¹Fᵀ)ᵀ L⁻¹Fᵀ``:
+    ``(N + s FᵀF)⁻¹ = N⁻¹ + H diag(-s / (1 + s μ)) Hᵀ`` with H = L⁻ᵀ Z, so every figure
+    of the path is O(k r) per weight after O(k² r) once; ``tr(N⁻¹ Q)`` comes from
+    ``Q = N - ε I - Σ s_o F_oᵀF_o``. None when N is not positive definite (the caller
+    takes :func:`penalised_path`)."""
+    import scipy.linalg  # here: scipy's import is half of `cellcal calibrate`'s start-up
+
+    k = N0.shape[0]
+    d = np.sqrt(np.maximum(np.diag(N0) + np.diag(omega), 1e-300))
+    N0s, Qs = N0 / np.outer(d, d), Q / np.outer(d, d)
+    bs = b / d
+    eps = 1e-10 * max(float(np.trace(N0s)) / max(k, 1), 1e-300)
+    try:
+        L = np.linalg.cholesky(N0s + eps * np.eye(k))
+    except np.linalg.LinAlgError:
+        return None
+    Li = scipy.linalg.solve_triangular(L, np.eye(k), lower=True, check_finite=False)
+    W = Li @ (F / d).T  # (k, r)
+    mu, V = np.linalg.eigh(W.T @ W)
+    mu = np.maximum(mu, 0.0)
+    H = Li.T @ (W @ V)  # (k, r)
+    c0 = Li.T @ (Li @ bs)
+    QH, Qc0 = Qs @ H, Qs @ c0
+    HQH = H.T @ QH
+    beta = H.T @ bs
+    w = -grid[:, None] / (1.0 + grid[:, None] * mu[None, :])  # (g, r)
+    g = w * beta  # c(s) = c0 + H g(s)
+    rss = (r2 - 2.0 * (bs @ c0 + g @ beta) + c0 @ Qc0 + 2.0 * g @ (H.T @ Qc0)
+           + np.einsum("gi,ij,gj->g", g, HQH, g))
+    trace_q = k - eps * float(np.sum(Li * Li))
+    for s_o, F_o in others:
+        Wo = Li @ (F_o / d).T
+        trace_q -= s_o * float(np.sum(Wo * Wo))
+    edf = trace_q + w @ np.diag(HQH)
+    n = max(n_obs, 1)
+    gcv = n * np.maximum(rss, 0.0) / np.maximum(n - edf, 1e-9) ** 2
+    return {"grid": grid, "rss": rss, "edf": edf, "gcv": gcv, "best": int(np.argmin(gcv))}
+
+
 def choose_smoothing(error_model: Any, data: Dataset, fit_fn: Callable[[Any, Dataset], Any],
                      grid: np.ndarray = SMOOTHING_GRID) -> None:
     """Set the ``smoothing`` of every table (any effect with ``penalty_matrix``) whose
@@ -329,15 +382,29 @@ def gcv_smoothing(fit: Any, tables: list[Any] | None = None,
     y = r.ravel() + X @ x[free]
     b, y2 = X.T @ y, float(y @ y)
     omegas: dict[int, tuple[Any, np.ndarray]] = {}
+    factors: dict[int, np.ndarray] = {}  # the penalties' rows over the free parameters
     for e, sl in zip(em.effects, em.slices, strict=True):
         if hasattr(e, "penalty_matrix"):
             O = np.zeros((em.n_params, em.n_params))
             O[sl, sl] = e.penalty_matrix()
             omegas[id(e)] = (e, O[np.ix_(free, free)])
+            if hasattr(e, "penalty_factor"):
+                Fe = e.penalty_factor()
+                F = np.zeros((Fe.shape[0], em.n_params))
+                F[:, sl] = Fe
+                factors[id(e)] = F[:, free]
+    grid = np.asarray(grid, float)
     for _ in range(2):
         for e in tables:
             A0 = XtX + sum(o.smoothing * O for key, (o, O) in omegas.items() if key != id(e))
-            path = penalised_path(A0, b, b, XtX, y2, omegas[id(e)][1], grid, X.shape[0])
+            path = None
+            if len(factors) == len(omegas):  # every penalty of low rank: no k x k eigh
+                others = [(o.smoothing, factors[key]) for key, (o, _) in omegas.items()
+                          if key != id(e)]
+                path = _low_rank_path(A0, b, XtX, y2, omegas[id(e)][1], factors[id(e)],
+                                      others, grid, X.shape[0])
+            if path is None:
+                path = penalised_path(A0, b, b, XtX, y2, omegas[id(e)][1], grid, X.shape[0])
             e.smoothing = float(grid[path["best"]])
             e.cv_curve = [(float(s), float(np.sqrt(3 * g))) for s, g in zip(grid, path["gcv"],
                                                                              strict=True)]
