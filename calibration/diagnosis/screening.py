@@ -331,7 +331,7 @@ class _LinearProblem:
 def _fold(M: np.ndarray, own: np.ndarray, tied: list[tuple[int, int]]) -> np.ndarray:
     """Tᵀ M for the 0/1 matrix T of a fold's ties (:meth:`_LinearProblem._ties`): the rows
     ``own`` in order, each tied row added to the row of the column it follows."""
-    out = M[own].copy()
+    out = M[own]  # a copy (fancy indexing)
     for k, col in tied:
         out[col] += M[k]
     return out

@@ -149,11 +149,16 @@ class Table(JointEffect):
         """(K,) bool: the knots the poses at angles ``theta_rad`` support: the hat holds at
         least :data:`MIN_KNOT_SHARE` of the median knot's weight and :data:`MIN_KNOT_POSES`
         poses (poses beyond an end knot count for it: it is their value)."""
-        B = self.basis(np.asarray(theta_rad, float))
-        w = B.sum(axis=0)
+        i, f = self._hat(np.asarray(theta_rad, float))
+        # the columns of basis() summed without forming it: each pose's two weights in
+        # pose order (a column's sum adds them in that order: the same sums)
+        at = np.stack([i, i + 1], axis=1).ravel()
+        value = np.stack([1.0 - f, f], axis=1).ravel()
+        K = len(self.knots)
+        w = np.bincount(at, value, minlength=K)
         if not (w > 0).any():
-            return np.zeros(len(self.knots), bool)
-        count = (B > 1e-12).sum(axis=0)
+            return np.zeros(K, bool)
+        count = np.bincount(at, value > 1e-12, minlength=K)
         return (w >= MIN_KNOT_SHARE * np.median(w[w > 0])) & (count >= MIN_KNOT_POSES)
 
     def supported_knots(self, theta_rad: np.ndarray) -> Table:
@@ -192,12 +197,17 @@ class Table(JointEffect):
                      knots_deg=sorted(knots), explicit_range=self.explicit_range)
 
     # ---- the correction --------------------------------------------------------
-    def basis(self, theta: np.ndarray) -> np.ndarray:
-        """Hat-function values at angles ``theta`` (rad), shape (n, n_knots)."""
+    def _hat(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(i, f): at angles ``theta`` (rad) the hat functions of knots i and i + 1 hold
+        1 - f and f (every other knot 0)."""
         h = self.knots[1] - self.knots[0]
         u = (np.clip(theta, self.knots[0], self.knots[-1]) - self.knots[0]) / h
         i = np.minimum(np.floor(u).astype(int), len(self.knots) - 2)
-        f = u - i
+        return i, u - i
+
+    def basis(self, theta: np.ndarray) -> np.ndarray:
+        """Hat-function values at angles ``theta`` (rad), shape (n, n_knots)."""
+        i, f = self._hat(theta)
         B = np.zeros((theta.size, len(self.knots)))
         rows = np.arange(theta.size)
         B[rows, i] = 1.0 - f

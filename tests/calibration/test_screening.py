@@ -8,7 +8,14 @@ import pytest
 from calibration import ErrorModel, identify, load_model
 from calibration.diagnosis.screening import _loo, data_gap_deg, kfold_errors, linearise, screen
 from calibration.effects import parse_effect
-from calibration.effects.table import Table, _low_rank_path, gcv_smoothing, penalised_path
+from calibration.effects.table import (
+    MIN_KNOT_POSES,
+    MIN_KNOT_SHARE,
+    Table,
+    _low_rank_path,
+    gcv_smoothing,
+    penalised_path,
+)
 from calibration.exports.params_io import fit_to_dict, params_from_dict
 from calibration.fit.identify import fit_at
 from calibration.fit.simulate import random_joints, realistic_truth, simulate
@@ -172,3 +179,15 @@ def test_low_rank_path_matches_the_general_one():
     assert low is not None and low["best"] == ref["best"]
     for key in ("rss", "edf", "gcv"):
         np.testing.assert_allclose(low[key], ref[key], rtol=1e-9)
+
+
+def test_knot_support_sums_the_basis_columns_exactly():
+    # knot_support sums each pose's two hat weights without forming basis(): the same sums
+    rng = np.random.default_rng(5)
+    for spacing, n in ((2, 40), (3, 500), (10, 5000)):
+        t = Table(UR10E, 2, spacing, knots_deg=np.arange(-60, 61, spacing))
+        theta = rng.uniform(np.radians(-70), np.radians(70), n)
+        B = t.basis(theta)
+        w, count = B.sum(axis=0), (B > 1e-12).sum(axis=0)
+        ref = (w >= MIN_KNOT_SHARE * np.median(w[w > 0])) & (count >= MIN_KNOT_POSES)
+        np.testing.assert_array_equal(t.knot_support(theta), ref)
