@@ -249,8 +249,11 @@ class _LinearProblem:
         import scipy.linalg  # here: scipy's import is half of `cellcal calibrate`'s start-up
 
         m = self.m
-        Xt, rt = self.X[te].reshape(-1, m), self.r[te].ravel()
-        Af, bf = self.A - Xt.T @ Xt, self.b - Xt.T @ rt
+        idx = np.flatnonzero(te)
+        Xt, rt = self.X.take(idx, axis=0).reshape(-1, m), self.r.take(idx, axis=0).ravel()
+        Af = Xt.T @ Xt
+        np.subtract(self.A, Af, out=Af)
+        bf = self.b - Xt.T @ rt
         ties = self._ties(~te) if tie else None
         if ties is not None:
             own, tied, c, drop = ties
@@ -264,7 +267,9 @@ class _LinearProblem:
             Af = _fold(_fold(Af, own, tied).T, own, tied)
             Af = 0.5 * (Af + Af.T)
         d = np.sqrt(np.maximum(np.diag(Af), 1e-300))
-        L = cholesky_nudged(Af / np.outer(d, d))
+        scaled = np.outer(d, d)
+        np.divide(Af, scaled, out=scaled)
+        L = cholesky_nudged(scaled, overwrite=True)
         delta = scipy.linalg.cho_solve((L, True), bf / d, check_finite=False) / d
         if ties is not None:
             full = c.copy()

@@ -246,7 +246,8 @@ def _structural(error_model: ErrorModel, calib: Dataset, rtol: float) -> tuple[
     bound: Bound = error_model.bind(calib)
     x_nominal = error_model.initial(bound)
     P0, J0 = error_model.evaluate(x_nominal, bound, jacobian=True)
-    families = [error_model.effect_of(k).family for k in range(error_model.n_params)]
+    families = [e.family for e, sl in zip(error_model.effects, error_model.slices, strict=True)
+                for _ in range(sl.start, sl.stop)]
     J2 = J0.reshape(-1, error_model.n_params)
     rows = full_pose.structural_rows(error_model, bound, x_nominal)
     if rows is not None:  # a full-pose problem: what orientations determine too
