@@ -353,7 +353,7 @@ def _refit(em: Any, data: Dataset, solver: str, x0: np.ndarray, folds: int, seed
     GCV: ``Heldout.linear``, dropped by whoever is done with it)."""
     fit = identify(em, data, solver, x0=x0, keep_jacobian=True)
     ho = heldout_errors(fit, folds, seed, keep_linear=True)
-    fit.jacobian = None
+    fit.jacobian = fit.normal = None
     return fit, ho
 
 

@@ -212,7 +212,8 @@ class _LinearProblem:
         calib = fit.data
         self.fit, self.n, self.m = fit, calib.n, int(free.sum())
         J = fit.jacobian  # the solver's last one, when the fit kept it: the same numbers
-        if J is not None and J.shape == (calib.n, 3, em.n_params):
+        kept = J is not None and J.shape == (calib.n, 3, em.n_params)
+        if J is not None and kept:
             self.r = fit.residuals
         else:
             P, J = em.evaluate(x, em.bind(calib), jacobian=True)
@@ -220,9 +221,11 @@ class _LinearProblem:
         self.X = J[:, :, free].reshape(self.n, 3, self.m)
         #: XᵀX without the penalty (BLAS only), for the tables' GCV at the same fit
         self.XtX: np.ndarray | None = None
+        # the fit's normal matrices (identify's normal_matrix: these products, once)
+        normal = fit.normal if kept and blas else None
         if blas:
             X2 = self.X.reshape(-1, self.m)
-            self.A = self.XtX = X2.T @ X2
+            self.A = self.XtX = X2.T @ X2 if normal is None else normal[0]
             self.b = X2.T @ self.r.ravel()
         else:
             self.A = np.einsum("nim,nik->mk", self.X, self.X)
@@ -233,7 +236,7 @@ class _LinearProblem:
         self.pen, self.pen_rows = None, {}
         if pen is not None:
             Pf = pen[1][:, free]
-            self.A = self.A + Pf.T @ Pf
+            self.A = self.A + Pf.T @ Pf if normal is None else normal[1]
             self.b = self.b - Pf.T @ pen[0]
             self.pen = (pen[0], Pf)
             k = 0

@@ -93,6 +93,9 @@ class Fit:
     outliers: BlunderScreen | None = None
     hat_factor: np.ndarray | None = field(default=None, repr=False)
     jacobian: np.ndarray | None = field(default=None, repr=False)
+    #: (XᵀX, XᵀX + PᵀP) over the free parameters at ``values`` (X the Jacobian's free
+    #: columns, P the penalty's rows), kept with ``jacobian`` when asked
+    normal: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
     orientation_residuals: np.ndarray | None = field(default=None, repr=False)
     valid_orientation_residuals: np.ndarray | None = field(default=None, repr=False)
     orientation_fitted: bool | None = None
@@ -192,26 +195,49 @@ def covariance(J: np.ndarray, r: np.ndarray, free: np.ndarray, sigma: float | No
     return cov, s
 
 
+def normal_matrix(J: np.ndarray, free: np.ndarray,
+                  penalty: tuple[np.ndarray, np.ndarray] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """(XᵀX, XᵀX + PᵀP) over the free parameters: X the free columns of the Jacobian
+    J (n, 3, p) as rows (3 n, m), P the penalty rows' (the held-out folds' normal
+    equations, :class:`calibration.diagnosis.screening._LinearProblem`, the same numbers)."""
+    n, m = J.shape[0], int(free.sum())
+    X = J[:, :, free].reshape(n, 3, m).reshape(-1, m)
+    XtX = X.T @ X
+    if penalty is None:
+        return XtX, XtX
+    Pf = penalty[1][:, free]
+    return XtX, XtX + Pf.T @ Pf
+
+
 def covariance_and_factor(J: np.ndarray, r: np.ndarray, free: np.ndarray,
                           sigma: float | None = None,
-                          penalty: tuple[np.ndarray, np.ndarray] | None = None
+                          penalty: tuple[np.ndarray, np.ndarray] | None = None,
+                          normal: np.ndarray | None = None
                           ) -> tuple[np.ndarray, float, np.ndarray]:
     """:func:`covariance`, and M (m, m) with ``M Mᵀ`` the free block of the covariance over
-    sigma², from the same factorisation (see :attr:`Fit.hat_factor`)."""
+    sigma², from the same factorisation (see :attr:`Fit.hat_factor`). ``normal``: the
+    normal matrix over the free parameters, penalty included (:func:`normal_matrix`),
+    when the caller has it (the same covariance to rounding)."""
     p = J.shape[-1]
-    Jf = J[:, :, free].reshape(-1, int(free.sum()))
-    m = Jf.shape[1]
-    dof = max(Jf.shape[0] - m, 1)
+    m = int(free.sum())
+    dof = max(J.shape[0] * J.shape[1] - m, 1)
     s2 = sigma**2 if sigma is not None else float(np.sum(r**2)) / dof
-    if penalty is not None:
-        Jf = np.vstack([Jf, penalty[1][:, free]])
     cov = np.zeros((p, p))
     M = np.zeros((m, m))
-    if m:
+    if m and normal is not None:
+        d = np.sqrt(np.diag(normal))
+        d[d == 0] = 1.0
+        A = normal / np.outer(d, d)
+    elif m:
+        Jf = J[:, :, free].reshape(-1, m)
+        if penalty is not None:
+            Jf = np.vstack([Jf, penalty[1][:, free]])
         d = np.linalg.norm(Jf, axis=0)
         d[d == 0] = 1.0
         Jd = Jf / d
         A = Jd.T @ Jd  # one operand twice: a symmetric rank-k update
+    if m:
         try:
             U = cholesky_upper(A)
             # A = Uᵀ U, so A⁻¹ = U⁻¹ U⁻ᵀ: one triangular inverse for both
@@ -320,15 +346,18 @@ def identify(
     keep_freed_memory()
     with blas_threads(3 * data.n * error_model.n_params):
         fit = _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
-                        outliers)
+                        outliers, keep_jacobian)
     if not keep_jacobian and outliers != "keep":  # kept for the blunder test's refits
         fit.jacobian = None
+    if not keep_jacobian:
+        fit.normal = None
     return fit
 
 
 def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Dataset | None,
               x0: np.ndarray | None, rtol: float, fixed: list[str] | None,
-              solver_options: dict[str, Any] | None, outliers: str) -> Fit:
+              solver_options: dict[str, Any] | None, outliers: str,
+              keep_jacobian: bool = False) -> Fit:
     """:func:`identify` (its arguments, positionally)."""
     t0 = time.perf_counter()
     data = error_model.prepare(data)
@@ -365,7 +394,13 @@ def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Datase
     r_w = resid if weights is None else resid * np.sqrt(weights)[:, None]
     J_w = J if weights is None else J * np.sqrt(weights)[:, None, None]
     r_w, J_w = full_pose.with_orientation_rows(problem, x, r_w, J_w)
-    cov, sigma, hat = covariance_and_factor(J_w, r_w, ident.free, penalty=error_model.penalty(x))
+    penalty = error_model.penalty(x)
+    normal = None
+    if keep_jacobian and J_w is J and ident.free.any():
+        # the normal matrix the caller's linearisation forms (its folds), once for both
+        normal = normal_matrix(J, ident.free, penalty)
+    cov, sigma, hat = covariance_and_factor(J_w, r_w, ident.free, penalty=penalty,
+                                            normal=None if normal is None else normal[1])
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     fit = Fit(
         error_model=error_model,
@@ -385,6 +420,7 @@ def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Datase
         info=result.info,
         hat_factor=hat,
         jacobian=J,
+        normal=normal,
     )
     for e, st in zip(error_model.effects, bound.states, strict=True):
         fit.notes.extend(e.describe(st))
@@ -395,7 +431,8 @@ def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Datase
     if outliers != "keep":
         def refit(rows: Dataset, x: np.ndarray) -> Fit:
             return identify(error_model, rows, solver, valid=held, x0=x, rtol=rtol,
-                            fixed=fixed, solver_options=solver_options, outliers="keep")
+                            fixed=fixed, solver_options=solver_options, outliers="keep",
+                            keep_jacobian=keep_jacobian)
 
         fit = screen_fit(fit, outliers, refit)
     fit.solve_s = time.perf_counter() - t0
