@@ -46,6 +46,9 @@ _PENALTY_ARM_MM = 1000.0
 DEFAULT_SPACING_DEG = 10
 #: smoothing weights GCV chooses among, and the weight of the first fit
 SMOOTHING_GRID = np.logspace(-6, 6, 25)
+#: :meth:`Table.knot_support` remembers its answers for at most this many sets of angles,
+#: each of at most this many angles
+_MEMO_ENTRIES, _MEMO_MAX_ANGLES = 64, 20_000
 START_SMOOTHING = 1.0
 #: an end knot is kept only when its hat holds at least this share of the median knot's
 #: data weight (the sum of its hat function over the poses): half, so the data must fill
@@ -120,6 +123,9 @@ class Table(JointEffect):
         self._D2 = D
         #: (smoothing, GCV estimate of the held-out RMS, mm) of the last GCV choice
         self.cv_curve: list[tuple[float, float]] = []
+        #: knot_support's answers by the angles asked about (the auto loop's range-blocked
+        #: folds ask the same few sets at every step)
+        self._support_memo: dict[bytes, np.ndarray] = {}
 
     @property
     def label(self) -> str:
@@ -149,7 +155,20 @@ class Table(JointEffect):
         """(K,) bool: the knots the poses at angles ``theta_rad`` support: the hat holds at
         least :data:`MIN_KNOT_SHARE` of the median knot's weight and :data:`MIN_KNOT_POSES`
         poses (poses beyond an end knot count for it: it is their value)."""
-        i, f = self._hat(np.asarray(theta_rad, float))
+        theta = np.asarray(theta_rad, float)
+        key = theta.tobytes() if theta.size <= _MEMO_MAX_ANGLES else None
+        memo = self.__dict__.setdefault("_support_memo", {})
+        if key is not None and key in memo:
+            return memo[key].copy()
+        ok = self._knot_support(theta)
+        if key is not None:
+            if len(memo) >= _MEMO_ENTRIES:
+                memo.clear()
+            memo[key] = ok.copy()
+        return ok
+
+    def _knot_support(self, theta: np.ndarray) -> np.ndarray:
+        i, f = self._hat(theta)
         # the columns of basis() summed without forming it: each pose's two weights in
         # pose order (a column's sum adds them in that order: the same sums)
         at = np.stack([i, i + 1], axis=1).ravel()

@@ -191,3 +191,13 @@ def test_knot_support_sums_the_basis_columns_exactly():
         w, count = B.sum(axis=0), (B > 1e-12).sum(axis=0)
         ref = (w >= MIN_KNOT_SHARE * np.median(w[w > 0])) & (count >= MIN_KNOT_POSES)
         np.testing.assert_array_equal(t.knot_support(theta), ref)
+
+
+def test_knot_support_remembers_its_answers_without_sharing_them():
+    t = Table(UR10E, 2, 5, knots_deg=np.arange(-60, 61, 5))
+    theta = np.random.default_rng(6).uniform(np.radians(-50), np.radians(50), 300)
+    first = t.knot_support(theta)
+    first[:] = False  # the caller's copy
+    again = t.knot_support(theta)
+    np.testing.assert_array_equal(again, t._knot_support(theta))
+    assert again.any()
