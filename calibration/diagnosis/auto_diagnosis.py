@@ -336,7 +336,9 @@ def _retune_tables(fit: Fit, ho: Heldout, data: Dataset, folds: int,
         linear = (lp.X.reshape(-1, lp.m), lp.r, lp.XtX)
     if not gcv_smoothing(fit, tables, linear=linear):
         return fit, ho
-    refit, ho2 = _refit(fit.error_model, data, fit.solver, fit.values, folds, seed)
+    # the same model on the same data: its structural analysis is the candidate's
+    refit, ho2 = _refit(fit.error_model, data, fit.solver, fit.values, folds, seed,
+                        fit.structure)
     ho2.linear = None
     if ho2.sq.mean() <= ho.sq.mean():
         return refit, ho2
@@ -345,13 +347,14 @@ def _retune_tables(fit: Fit, ho: Heldout, data: Dataset, folds: int,
     return fit, ho
 
 
-def _refit(em: Any, data: Dataset, solver: str, x0: np.ndarray, folds: int, seed: int
-           ) -> tuple[Fit, Heldout]:
+def _refit(em: Any, data: Dataset, solver: str, x0: np.ndarray, folds: int, seed: int,
+           structure: Any = None) -> tuple[Fit, Heldout]:
     """:func:`identify` warm-started at ``x0`` and its :func:`heldout_errors`, which
     linearise the fit at the solver's last Jacobian (the same numbers, no new evaluation;
     the fit drops it then, the held-out errors keep the free columns for the tables'
-    GCV: ``Heldout.linear``, dropped by whoever is done with it)."""
-    fit = identify(em, data, solver, x0=x0, keep_jacobian=True)
+    GCV: ``Heldout.linear``, dropped by whoever is done with it). ``structure``: that of a
+    fit of ``em`` to ``data`` (:attr:`Fit.structure`)."""
+    fit = identify(em, data, solver, x0=x0, keep_jacobian=True, structure=structure)
     ho = heldout_errors(fit, folds, seed, keep_linear=True)
     fit.jacobian = fit.normal = None
     return fit, ho

@@ -4,6 +4,7 @@ calibration and validation rows, identifiability and the solver's history."""
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -96,6 +97,11 @@ class Fit:
     #: (XᵀX, XᵀX + PᵀP) over the free parameters at ``values`` (X the Jacobian's free
     #: columns, P the penalty's rows), kept with ``jacobian`` when asked
     normal: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+    #: the structural identifiability of the model on every calibration row (the start
+    #: at the nominal geometry and its analysis, :func:`structural_identifiability`),
+    #: kept with ``jacobian`` when asked: a refit of the same model to the same data
+    #: (``identify(structure=...)``) need not make it again
+    structure: tuple[np.ndarray, Identifiability] | None = field(default=None, repr=False)
     orientation_residuals: np.ndarray | None = field(default=None, repr=False)
     valid_orientation_residuals: np.ndarray | None = field(default=None, repr=False)
     orientation_fitted: bool | None = None
@@ -313,6 +319,7 @@ def identify(
     solver_options: dict[str, Any] | None = None,
     outliers: str = "exclude",
     keep_jacobian: bool = False,
+    structure: tuple[np.ndarray, Identifiability] | None = None,
 ) -> Fit:
     """Identify the parameters of ``error_model`` from ``data``.
 
@@ -335,7 +342,11 @@ def identify(
         every point is fitted, the blunders only named; ``keep``: no test (see
         :mod:`calibration.fit.outliers`). The result's ``outliers`` says what was found.
     keep_jacobian : keep the solver's last Jacobian as the result's ``jacobian`` (for a
-        caller that linearises the fit next, e.g. its held-out folds; it then drops it)
+        caller that linearises the fit next, e.g. its held-out folds; it then drops it),
+        with the normal matrix and the structural analysis (``normal``, ``structure``)
+    structure : the ``structure`` of a fit of this model to these data: the structural
+        identifiability is not analysed again (it depends on neither the start nor a
+        table's smoothing)
 
     Non-convergence is reported in the result (``converged``, ``reason``), not raised.
     """
@@ -346,18 +357,19 @@ def identify(
     keep_freed_memory()
     with blas_threads(3 * data.n * error_model.n_params):
         fit = _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
-                        outliers, keep_jacobian)
+                        outliers, keep_jacobian, structure)
     if not keep_jacobian and outliers != "keep":  # kept for the blunder test's refits
         fit.jacobian = None
     if not keep_jacobian:
-        fit.normal = None
+        fit.normal = fit.structure = None
     return fit
 
 
 def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Dataset | None,
               x0: np.ndarray | None, rtol: float, fixed: list[str] | None,
               solver_options: dict[str, Any] | None, outliers: str,
-              keep_jacobian: bool = False) -> Fit:
+              keep_jacobian: bool = False,
+              structure: tuple[np.ndarray, Identifiability] | None = None) -> Fit:
     """:func:`identify` (its arguments, positionally)."""
     t0 = time.perf_counter()
     data = error_model.prepare(data)
@@ -376,7 +388,14 @@ def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Datase
         held = valid if held is None else held.concat(valid)
     if calib.n == 0:
         raise ValueError(f"{data.source}: no calibration rows")
-    bound, x_nominal, ident, at_nominal = _structural(error_model, calib, rtol)
+    at_nominal = None
+    if structure is not None:  # the same model's on the same rows (see identify)
+        bound = error_model.bind(calib)
+        x_nominal, ident = structure[0].copy(), copy.deepcopy(structure[1])
+    else:
+        bound, x_nominal, ident, at_nominal = _structural(error_model, calib, rtol)
+    if keep_jacobian:
+        structure = (x_nominal.copy(), copy.deepcopy(ident))
     x_start = x_nominal if x0 is None else np.asarray(x0, float).copy()
     for name in fixed or []:
         k = error_model.index(name)
@@ -385,7 +404,8 @@ def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Datase
             ident.fixed[name] = "fixed by the user"
     problem = Problem(error_model, bound, x_start, ident.free.copy(),
                       pose=full_pose.orientation_rows(error_model, calib, solver))
-    problem.remember(x_nominal, *at_nominal)
+    if at_nominal is not None:
+        problem.remember(x_nominal, *at_nominal)
     result = full_pose.solve(problem, SOLVERS[solver], solver_options or {})
     x = problem.full(result.xf)
     P, J = problem.evaluate(x)  # the solver's last evaluation: no new pass
@@ -435,6 +455,8 @@ def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Datase
                             keep_jacobian=keep_jacobian)
 
         fit = screen_fit(fit, outliers, refit)
+    if keep_jacobian:
+        fit.structure = structure
     fit.solve_s = time.perf_counter() - t0
     return fit
 

@@ -172,3 +172,24 @@ def test_a_kept_normal_matrix_is_the_folds_and_gives_the_same_covariance():
     assert np.array_equal(lp.XtX, XtX) and np.array_equal(lp.A, A)
     np.testing.assert_allclose(kept.covariance, plain.covariance, rtol=1e-8,
                                atol=1e-12 * np.abs(plain.covariance).max())
+
+
+def test_a_refit_given_the_structure_is_the_refit_that_analyses_it():
+    # identify(structure=...) skips the structural analysis of a model it was given for
+    # these data (the auto loop's refit after re-tuning the tables): the same fit
+    from calibration.fit.simulate import realistic_truth as truth
+
+    m = load_model("ur10e")
+    em = ErrorModel(m, "geometric,base,tool,table:2")
+    rng = np.random.default_rng(8)
+    data = simulate(em, truth(em, rng), random_joints(m, 300, rng, max_abs_deg=150), SIGMA,
+                    rng)
+    first = identify(em, data, keep_jacobian=True)
+    assert first.structure is not None and identify(em, data).structure is None
+    em.effects[-1].smoothing *= 10.0
+    again = identify(em, data, x0=first.values)
+    reused = identify(em, data, x0=first.values, structure=first.structure)
+    assert np.array_equal(reused.values, again.values)
+    assert np.array_equal(reused.identifiability.free, again.identifiability.free)
+    assert reused.identifiability.fixed == again.identifiability.fixed
+    assert reused.notes == again.notes
