@@ -355,9 +355,16 @@ def _refit(em: Any, data: Dataset, solver: str, x0: np.ndarray, folds: int, seed
     GCV: ``Heldout.linear``, dropped by whoever is done with it). ``structure``: that of a
     fit of ``em`` to ``data`` (:attr:`Fit.structure`)."""
     fit = identify(em, data, solver, x0=x0, keep_jacobian=True, structure=structure)
-    ho = heldout_errors(fit, folds, seed, keep_linear=True)
+    # a step holds its candidates' linearisations until it chooses: only small ones
+    small = 24 * fit.data.n * int(fit.free.sum()) <= KEEP_LINEAR_BYTES
+    ho = heldout_errors(fit, folds, seed, keep_linear=small)
     fit.jacobian = fit.normal = None
     return fit, ho
+
+
+#: a candidate's linearisation (its Jacobian's free columns, 24 bytes a pose and
+#: parameter) is kept for the step's table GCV only up to this size (else evaluated again)
+KEEP_LINEAR_BYTES = 64 << 20
 
 
 def _without_blunders(calib: Dataset, fit: Fit) -> Dataset:
