@@ -51,6 +51,7 @@ from .diagnosis import ALPHA, MIN_HELDOUT, candidate_names
 from .screening import (
     Linearised,
     Screened,
+    _LinearProblem,
     blocked_errors,
     kfold_with,
     linear_problem,
@@ -71,6 +72,8 @@ class Heldout:
     #: the range-blocked folds' squared errors (mm²) and their labels (pose and fold), or
     #: None when not computed
     blocked: Heldout | None = None
+    #: the fit linearised for the folds (its Jacobian's free columns: dropped once used)
+    linear: _LinearProblem | None = field(default=None, repr=False)
 
     @property
     def rms_mm(self) -> float:
@@ -230,12 +233,13 @@ def explain_effect(effect: Effect | str, model: RobotModel | None = None) -> str
 
 
 # ---- held-out error ---------------------------------------------------------------------
-def heldout_errors(fit: Fit, folds: int = 10, seed: int = 0, blocked: bool = True
-                   ) -> Heldout:
+def heldout_errors(fit: Fit, folds: int = 10, seed: int = 0, blocked: bool = True,
+                   keep_linear: bool = False) -> Heldout:
     """Per pose squared error on held-out poses: the validation rows when there are at
     least :data:`MIN_HELDOUT`, else ``folds``-fold cross-validation of the linearised fit;
     with ``blocked`` also the range-blocked folds'
-    (:func:`~calibration.diagnosis.screening.blocked_errors`)."""
+    (:func:`~calibration.diagnosis.screening.blocked_errors`). ``keep_linear``: the
+    result keeps the linearised fit (``linear``) for a next use at the same fit."""
     lp = None
     if (fit.valid is not None and fit.valid["n"] >= MIN_HELDOUT
             and fit.valid_residuals is not None and fit.valid_data is not None):
@@ -244,7 +248,8 @@ def heldout_errors(fit: Fit, folds: int = 10, seed: int = 0, blocked: bool = Tru
     else:
         lp = linear_problem(fit)
         ho = Heldout(kfold_with(lp, folds, seed), f"{folds}-fold cross-validation",
-                     np.asarray(fit.data.pose_id, dtype=object))
+                     np.asarray(fit.data.pose_id, dtype=object),
+                     linear=lp if keep_linear else None)
     if blocked:
         sq, labels = blocked_errors(fit, lp=lp)
         if sq.size:
@@ -325,15 +330,41 @@ def _retune_tables(fit: Fit, ho: Heldout, data: Dataset, folds: int,
     does not grow."""
     tables: list[Any] = [e for e in fit.error_model.effects if hasattr(e, "penalty_matrix")]
     before = [e.smoothing for e in tables]
-    if not gcv_smoothing(fit, tables):
+    lp, ho.linear = ho.linear, None
+    linear = None
+    if lp is not None and lp.XtX is not None and lp.fit is fit:
+        linear = (lp.X.reshape(-1, lp.m), lp.r, lp.XtX)
+    if not gcv_smoothing(fit, tables, linear=linear):
         return fit, ho
-    refit = identify(fit.error_model, data, fit.solver, x0=fit.values)
-    ho2 = heldout_errors(refit, folds, seed)
+    # the same model on the same data: its structural analysis is the candidate's
+    refit, ho2 = _refit(fit.error_model, data, fit.solver, fit.values, folds, seed,
+                        fit.structure)
+    ho2.linear = None
     if ho2.sq.mean() <= ho.sq.mean():
         return refit, ho2
     for e, s in zip(tables, before, strict=True):
         e.smoothing = s
     return fit, ho
+
+
+def _refit(em: Any, data: Dataset, solver: str, x0: np.ndarray, folds: int, seed: int,
+           structure: Any = None) -> tuple[Fit, Heldout]:
+    """:func:`identify` warm-started at ``x0`` and its :func:`heldout_errors`, which
+    linearise the fit at the solver's last Jacobian (the same numbers, no new evaluation;
+    the fit drops it then, the held-out errors keep the free columns for the tables'
+    GCV: ``Heldout.linear``, dropped by whoever is done with it). ``structure``: that of a
+    fit of ``em`` to ``data`` (:attr:`Fit.structure`)."""
+    fit = identify(em, data, solver, x0=x0, keep_jacobian=True, structure=structure)
+    # a step holds its candidates' linearisations until it chooses: only small ones
+    small = 24 * fit.data.n * int(fit.free.sum()) <= KEEP_LINEAR_BYTES
+    ho = heldout_errors(fit, folds, seed, keep_linear=small)
+    fit.jacobian = fit.normal = None
+    return fit, ho
+
+
+#: a candidate's linearisation (its Jacobian's free columns, 24 bytes a pose and
+#: parameter) is kept for the step's table GCV only up to this size (else evaluated again)
+KEEP_LINEAR_BYTES = 64 << 20
 
 
 def _without_blunders(calib: Dataset, fit: Fit) -> Dataset:
@@ -460,8 +491,7 @@ def _auto(fit: Fit, data: Dataset | None, max_steps: int, budget_s: float | None
             tr = time.perf_counter()
             ext = cur.error_model.with_effects([s.effect])
             x0 = np.concatenate([cur.values, np.zeros(s.effect.n_params)])
-            refit = identify(ext, data, cur.solver, x0=x0)
-            ho = heldout_errors(refit, folds, seed)
+            refit, ho = _refit(ext, data, cur.solver, x0, folds, seed)
             tried.append(Tried(s, refit, ho, *paired_gain(cur_ho, ho),
                                *blocked_gain(cur_ho, ho)))
             refit_s.append(time.perf_counter() - tr)
@@ -475,6 +505,9 @@ def _auto(fit: Fit, data: Dataset | None, max_steps: int, budget_s: float | None
                     f"(range-blocked folds {cur_ho.blocked_rms_mm:.4f} -> "
                     f"{t.heldout.blocked_rms_mm:.4f} mm): not added")
         best = _parsimonious(ok) if ok else None
+        for t in tried:  # only the step's own fit is linearised again (its tables' GCV)
+            if t is not best:
+                t.heldout.linear = None
         if best is None:
             rejected = [(t.effect, t.heldout.rms_mm) for t in tried]
             reason = ("no candidate lowers the held-out error by more than its standard "

@@ -129,12 +129,18 @@ def linearise(fit: Fit, calib: Dataset, valid: Dataset | None = None) -> Lineari
     return lin
 
 
-def cholesky_nudged(A: np.ndarray) -> np.ndarray:
-    """Lower Cholesky factor of a symmetric positive (semi-)definite matrix, nudged."""
+def cholesky_nudged(A: np.ndarray, overwrite: bool = False) -> np.ndarray:
+    """Lower Cholesky factor of a symmetric positive (semi-)definite matrix, nudged
+    (``A + ε I``, ε from 1e-12 up by a hundred until it factors); ``overwrite``: A may be
+    used as the work array (its diagonal then holds the nudge)."""
     eps = 1e-12
+    B = A if overwrite else A.copy()
+    diag = np.diagonal(A).copy()
+    step = B.shape[0] + 1
     while True:
+        B.flat[::step] = diag + eps  # A + eps I: the diagonal alone changes
         try:
-            return np.linalg.cholesky(A + eps * np.eye(A.shape[0]))
+            return np.linalg.cholesky(B)
         except np.linalg.LinAlgError:
             eps *= 100
 

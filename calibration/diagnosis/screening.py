@@ -211,12 +211,23 @@ class _LinearProblem:
         em, x, free = fit.error_model, fit.values, fit.free
         calib = fit.data
         self.fit, self.n, self.m = fit, calib.n, int(free.sum())
-        P, J = em.evaluate(x, em.bind(calib), jacobian=True)
-        self.X = J[:, :, free].reshape(self.n, 3, self.m)
-        self.r = calib.tracker_p_smr - P
+        J = fit.jacobian  # the solver's last one, when the fit kept it: the same numbers
+        kept = J is not None and J.shape == (calib.n, 3, em.n_params)
+        if J is not None and kept:
+            self.r = fit.residuals
+        else:
+            P, J = em.evaluate(x, em.bind(calib), jacobian=True)
+            self.r = calib.tracker_p_smr - P
+        # in C order: each fold gathers its poses' rows (J[:, :, free] is not: its rows
+        # strided, a gather thirty times slower)
+        self.X = J.take(np.flatnonzero(free), axis=2)
+        #: XᵀX without the penalty (BLAS only), for the tables' GCV at the same fit
+        self.XtX: np.ndarray | None = None
+        # the fit's normal matrices (identify's normal_matrix: these products, once)
+        normal = fit.normal if kept and blas else None
         if blas:
             X2 = self.X.reshape(-1, self.m)
-            self.A = X2.T @ X2
+            self.A = self.XtX = X2.T @ X2 if normal is None else normal[0]
             self.b = X2.T @ self.r.ravel()
         else:
             self.A = np.einsum("nim,nik->mk", self.X, self.X)
@@ -227,7 +238,7 @@ class _LinearProblem:
         self.pen, self.pen_rows = None, {}
         if pen is not None:
             Pf = pen[1][:, free]
-            self.A = self.A + Pf.T @ Pf
+            self.A = self.A + Pf.T @ Pf if normal is None else normal[1]
             self.b = self.b - Pf.T @ pen[0]
             self.pen = (pen[0], Pf)
             k = 0
@@ -243,8 +254,11 @@ class _LinearProblem:
         import scipy.linalg  # here: scipy's import is half of `cellcal calibrate`'s start-up
 
         m = self.m
-        Xt, rt = self.X[te].reshape(-1, m), self.r[te].ravel()
-        Af, bf = self.A - Xt.T @ Xt, self.b - Xt.T @ rt
+        idx = np.flatnonzero(te)
+        Xt, rt = self.X.take(idx, axis=0).reshape(-1, m), self.r.take(idx, axis=0).ravel()
+        Af = Xt.T @ Xt
+        np.subtract(self.A, Af, out=Af)
+        bf = self.b - Xt.T @ rt
         ties = self._ties(~te) if tie else None
         if ties is not None:
             own, tied, c, drop = ties
@@ -258,7 +272,9 @@ class _LinearProblem:
             Af = _fold(_fold(Af, own, tied).T, own, tied)
             Af = 0.5 * (Af + Af.T)
         d = np.sqrt(np.maximum(np.diag(Af), 1e-300))
-        L = cholesky_nudged(Af / np.outer(d, d))
+        scaled = np.outer(d, d)
+        np.divide(Af, scaled, out=scaled)
+        L = cholesky_nudged(scaled, overwrite=True)
         delta = scipy.linalg.cho_solve((L, True), bf / d, check_finite=False) / d
         if ties is not None:
             full = c.copy()
@@ -325,7 +341,7 @@ class _LinearProblem:
 def _fold(M: np.ndarray, own: np.ndarray, tied: list[tuple[int, int]]) -> np.ndarray:
     """Tᵀ M for the 0/1 matrix T of a fold's ties (:meth:`_LinearProblem._ties`): the rows
     ``own`` in order, each tied row added to the row of the column it follows."""
-    out = M[own].copy()
+    out = M[own]  # a copy (fancy indexing)
     for k, col in tied:
         out[col] += M[k]
     return out

@@ -46,6 +46,9 @@ _PENALTY_ARM_MM = 1000.0
 DEFAULT_SPACING_DEG = 10
 #: smoothing weights GCV chooses among, and the weight of the first fit
 SMOOTHING_GRID = np.logspace(-6, 6, 25)
+#: :meth:`Table.knot_support` remembers its answers for at most this many sets of angles,
+#: each of at most this many angles
+_MEMO_ENTRIES, _MEMO_MAX_ANGLES = 64, 20_000
 START_SMOOTHING = 1.0
 #: an end knot is kept only when its hat holds at least this share of the median knot's
 #: data weight (the sum of its hat function over the poses): half, so the data must fill
@@ -120,6 +123,9 @@ class Table(JointEffect):
         self._D2 = D
         #: (smoothing, GCV estimate of the held-out RMS, mm) of the last GCV choice
         self.cv_curve: list[tuple[float, float]] = []
+        #: knot_support's answers by the angles asked about (the auto loop's range-blocked
+        #: folds ask the same few sets at every step)
+        self._support_memo: dict[bytes, np.ndarray] = {}
 
     @property
     def label(self) -> str:
@@ -149,11 +155,29 @@ class Table(JointEffect):
         """(K,) bool: the knots the poses at angles ``theta_rad`` support: the hat holds at
         least :data:`MIN_KNOT_SHARE` of the median knot's weight and :data:`MIN_KNOT_POSES`
         poses (poses beyond an end knot count for it: it is their value)."""
-        B = self.basis(np.asarray(theta_rad, float))
-        w = B.sum(axis=0)
+        theta = np.asarray(theta_rad, float)
+        key = theta.tobytes() if theta.size <= _MEMO_MAX_ANGLES else None
+        memo = self.__dict__.setdefault("_support_memo", {})
+        if key is not None and key in memo:
+            return memo[key].copy()
+        ok = self._knot_support(theta)
+        if key is not None:
+            if len(memo) >= _MEMO_ENTRIES:
+                memo.clear()
+            memo[key] = ok.copy()
+        return ok
+
+    def _knot_support(self, theta: np.ndarray) -> np.ndarray:
+        i, f = self._hat(theta)
+        # the columns of basis() summed without forming it: each pose's two weights in
+        # pose order (a column's sum adds them in that order: the same sums)
+        at = np.stack([i, i + 1], axis=1).ravel()
+        value = np.stack([1.0 - f, f], axis=1).ravel()
+        K = len(self.knots)
+        w = np.bincount(at, value, minlength=K)
         if not (w > 0).any():
-            return np.zeros(len(self.knots), bool)
-        count = (B > 1e-12).sum(axis=0)
+            return np.zeros(K, bool)
+        count = np.bincount(at, value > 1e-12, minlength=K)
         return (w >= MIN_KNOT_SHARE * np.median(w[w > 0])) & (count >= MIN_KNOT_POSES)
 
     def supported_knots(self, theta_rad: np.ndarray) -> Table:
@@ -192,12 +216,17 @@ class Table(JointEffect):
                      knots_deg=sorted(knots), explicit_range=self.explicit_range)
 
     # ---- the correction --------------------------------------------------------
-    def basis(self, theta: np.ndarray) -> np.ndarray:
-        """Hat-function values at angles ``theta`` (rad), shape (n, n_knots)."""
+    def _hat(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(i, f): at angles ``theta`` (rad) the hat functions of knots i and i + 1 hold
+        1 - f and f (every other knot 0)."""
         h = self.knots[1] - self.knots[0]
         u = (np.clip(theta, self.knots[0], self.knots[-1]) - self.knots[0]) / h
         i = np.minimum(np.floor(u).astype(int), len(self.knots) - 2)
-        f = u - i
+        return i, u - i
+
+    def basis(self, theta: np.ndarray) -> np.ndarray:
+        """Hat-function values at angles ``theta`` (rad), shape (n, n_knots)."""
+        i, f = self._hat(theta)
         B = np.zeros((theta.size, len(self.knots)))
         rows = np.arange(theta.size)
         B[rows, i] = 1.0 - f
@@ -227,6 +256,11 @@ class Table(JointEffect):
     def penalty_matrix(self) -> np.ndarray:
         """Ω with penalty = smoothing · pᵀ Ω p (mm²), (K, K)."""
         return _PENALTY_ARM_MM**2 * (self._D2.T @ self._D2)
+
+    def penalty_factor(self) -> np.ndarray:
+        """F (K - 2, K) with ``FᵀF`` = :meth:`penalty_matrix` (to rounding): the penalty's
+        rows, of rank K - 2 (:func:`gcv_smoothing` works in that low rank)."""
+        return _PENALTY_ARM_MM * self._D2
 
     def null_space(self) -> np.ndarray:
         """The directions the penalty leaves free: constant and linear in θ, (K, 2)."""
@@ -287,6 +321,54 @@ def penalised_path(N0: np.ndarray, b: np.ndarray, h: np.ndarray, Q: np.ndarray, 
             "solve": solve}
 
 
+def _low_rank_path(N0: np.ndarray, b: np.ndarray, Q: np.ndarray, r2: float,
+                   omega: np.ndarray, F: np.ndarray, others: list[tuple[float, np.ndarray]],
+                   grid: np.ndarray, n_obs: int) -> dict[str, Any] | None:
+    """:func:`penalised_path` with ``h = b`` for a penalty of low rank, ``omega = FᵀF``
+    (F (r, k), r much below k: one table's rows among every parameter), when
+    ``N0 = Q + Σ s_o F_oᵀF_o`` (``others``: the other tables' (s_o, F_o)); without its
+    k x k eigen-decomposition and products (the same figures to rounding).
+
+    In the scaled variables of :func:`penalised_path`, with N = N0s + ε I = L Lᵀ and
+    Z = L⁻¹ Fᵀ V, V the eigenvectors (eigenvalues μ) of the r x r ``(L⁻¹Fᵀ)ᵀ L⁻¹Fᵀ``:
+    ``(N + s FᵀF)⁻¹ = N⁻¹ + H diag(-s / (1 + s μ)) Hᵀ`` with H = L⁻ᵀ Z, so every figure
+    of the path is O(k r) per weight after O(k² r) once; ``tr(N⁻¹ Q)`` comes from
+    ``Q = N - ε I - Σ s_o F_oᵀF_o``. None when N is not positive definite (the caller
+    takes :func:`penalised_path`)."""
+    import scipy.linalg  # here: scipy's import is half of `cellcal calibrate`'s start-up
+
+    k = N0.shape[0]
+    d = np.sqrt(np.maximum(np.diag(N0) + np.diag(omega), 1e-300))
+    N0s, Qs = N0 / np.outer(d, d), Q / np.outer(d, d)
+    bs = b / d
+    eps = 1e-10 * max(float(np.trace(N0s)) / max(k, 1), 1e-300)
+    try:
+        L = np.linalg.cholesky(N0s + eps * np.eye(k))
+    except np.linalg.LinAlgError:
+        return None
+    Li = scipy.linalg.solve_triangular(L, np.eye(k), lower=True, check_finite=False)
+    W = Li @ (F / d).T  # (k, r)
+    mu, V = np.linalg.eigh(W.T @ W)
+    mu = np.maximum(mu, 0.0)
+    H = Li.T @ (W @ V)  # (k, r)
+    c0 = Li.T @ (Li @ bs)
+    QH, Qc0 = Qs @ H, Qs @ c0
+    HQH = H.T @ QH
+    beta = H.T @ bs
+    w = -grid[:, None] / (1.0 + grid[:, None] * mu[None, :])  # (g, r)
+    g = w * beta  # c(s) = c0 + H g(s)
+    rss = (r2 - 2.0 * (bs @ c0 + g @ beta) + c0 @ Qc0 + 2.0 * g @ (H.T @ Qc0)
+           + np.einsum("gi,ij,gj->g", g, HQH, g))
+    trace_q = k - eps * float(np.sum(Li * Li))
+    for s_o, F_o in others:
+        Wo = Li @ (F_o / d).T
+        trace_q -= s_o * float(np.sum(Wo * Wo))
+    edf = trace_q + w @ np.diag(HQH)
+    n = max(n_obs, 1)
+    gcv = n * np.maximum(rss, 0.0) / np.maximum(n - edf, 1e-9) ** 2
+    return {"grid": grid, "rss": rss, "edf": edf, "gcv": gcv, "best": int(np.argmin(gcv))}
+
+
 def choose_smoothing(error_model: Any, data: Dataset, fit_fn: Callable[[Any, Dataset], Any],
                      grid: np.ndarray = SMOOTHING_GRID) -> None:
     """Set the ``smoothing`` of every table (any effect with ``penalty_matrix``) whose
@@ -306,31 +388,52 @@ def choose_smoothing(error_model: Any, data: Dataset, fit_fn: Callable[[Any, Dat
 
 
 def gcv_smoothing(fit: Any, tables: list[Any] | None = None,
-                  grid: np.ndarray = SMOOTHING_GRID) -> bool:
+                  grid: np.ndarray = SMOOTHING_GRID,
+                  linear: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> bool:
     """Re-choose the smoothing of ``tables`` (default: every table of the fit's model) by
     GCV on the problem linearised at ``fit``, one table after the other, twice round.
     Records ``cv_curve`` on each as (smoothing, GCV RMS mm). Returns True when any
-    smoothing changed (the fit is then out of date)."""
+    smoothing changed (the fit is then out of date). ``linear``: the fit linearised
+    already, (X (3n, m) the Jacobian's free columns, r (n, 3) the residuals, XᵀX)."""
     em, free, x = fit.error_model, fit.free, fit.values
     if tables is None:
         tables = [e for e in em.effects if hasattr(e, "penalty_matrix")]
     if not tables or not free.any():
         return False
     before = [e.smoothing for e in tables]
-    P, J = em.evaluate(x, em.bind(fit.data), jacobian=True)
-    X = J[:, :, free].reshape(-1, int(free.sum()))
-    y = (fit.data.tracker_p_smr - P).ravel() + X @ x[free]
-    XtX, b, y2 = X.T @ X, X.T @ y, float(y @ y)
+    if linear is None:
+        P, J = em.evaluate(x, em.bind(fit.data), jacobian=True)
+        X = J[:, :, free].reshape(-1, int(free.sum()))
+        r = fit.data.tracker_p_smr - P
+        XtX = X.T @ X
+    else:
+        X, r, XtX = linear
+    y = r.ravel() + X @ x[free]
+    b, y2 = X.T @ y, float(y @ y)
     omegas: dict[int, tuple[Any, np.ndarray]] = {}
+    factors: dict[int, np.ndarray] = {}  # the penalties' rows over the free parameters
     for e, sl in zip(em.effects, em.slices, strict=True):
         if hasattr(e, "penalty_matrix"):
             O = np.zeros((em.n_params, em.n_params))
             O[sl, sl] = e.penalty_matrix()
             omegas[id(e)] = (e, O[np.ix_(free, free)])
+            if hasattr(e, "penalty_factor"):
+                Fe = e.penalty_factor()
+                F = np.zeros((Fe.shape[0], em.n_params))
+                F[:, sl] = Fe
+                factors[id(e)] = F[:, free]
+    grid = np.asarray(grid, float)
     for _ in range(2):
         for e in tables:
             A0 = XtX + sum(o.smoothing * O for key, (o, O) in omegas.items() if key != id(e))
-            path = penalised_path(A0, b, b, XtX, y2, omegas[id(e)][1], grid, X.shape[0])
+            path = None
+            if len(factors) == len(omegas):  # every penalty of low rank: no k x k eigh
+                others = [(o.smoothing, factors[key]) for key, (o, _) in omegas.items()
+                          if key != id(e)]
+                path = _low_rank_path(A0, b, XtX, y2, omegas[id(e)][1], factors[id(e)],
+                                      others, grid, X.shape[0])
+            if path is None:
+                path = penalised_path(A0, b, b, XtX, y2, omegas[id(e)][1], grid, X.shape[0])
             e.smoothing = float(grid[path["best"]])
             e.cv_curve = [(float(s), float(np.sqrt(3 * g))) for s, g in zip(grid, path["gcv"],
                                                                              strict=True)]

@@ -4,6 +4,7 @@ calibration and validation rows, identifiability and the solver's history."""
 
 from __future__ import annotations
 
+import copy
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -62,7 +63,7 @@ class Fit:
         parameters (from the covariance's factorisation): a point's hat-matrix block is
         ``Q_i Q_iᵀ`` with ``Q_i = J_i M`` (the blunder test's leverage)
     jacobian : (n, 3, p) the Jacobian at ``values`` on the calibration rows, kept for the
-        blunder test while :func:`identify` runs (None after it)
+        blunder test while :func:`identify` runs (None after it, unless asked to keep it)
     orientation_residuals, valid_orientation_residuals : (n, 3) rad, the rotation vectors
         of measured times predicted-transposed orientations on calibration and validation
         rows, when the data have orientations (else None); ``orientation_fitted`` says
@@ -93,6 +94,14 @@ class Fit:
     outliers: BlunderScreen | None = None
     hat_factor: np.ndarray | None = field(default=None, repr=False)
     jacobian: np.ndarray | None = field(default=None, repr=False)
+    #: (XᵀX, XᵀX + PᵀP) over the free parameters at ``values`` (X the Jacobian's free
+    #: columns, P the penalty's rows), kept with ``jacobian`` when asked
+    normal: tuple[np.ndarray, np.ndarray] | None = field(default=None, repr=False)
+    #: the structural identifiability of the model on every calibration row (the start
+    #: at the nominal geometry and its analysis, :func:`structural_identifiability`),
+    #: kept with ``jacobian`` when asked: a refit of the same model to the same data
+    #: (``identify(structure=...)``) need not make it again
+    structure: tuple[np.ndarray, Identifiability] | None = field(default=None, repr=False)
     orientation_residuals: np.ndarray | None = field(default=None, repr=False)
     valid_orientation_residuals: np.ndarray | None = field(default=None, repr=False)
     orientation_fitted: bool | None = None
@@ -192,26 +201,49 @@ def covariance(J: np.ndarray, r: np.ndarray, free: np.ndarray, sigma: float | No
     return cov, s
 
 
+def normal_matrix(J: np.ndarray, free: np.ndarray,
+                  penalty: tuple[np.ndarray, np.ndarray] | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """(XᵀX, XᵀX + PᵀP) over the free parameters: X the free columns of the Jacobian
+    J (n, 3, p) as rows (3 n, m), P the penalty rows' (the held-out folds' normal
+    equations, :class:`calibration.diagnosis.screening._LinearProblem`, the same numbers)."""
+    n, m = J.shape[0], int(free.sum())
+    X = J[:, :, free].reshape(n, 3, m).reshape(-1, m)
+    XtX = X.T @ X
+    if penalty is None:
+        return XtX, XtX
+    Pf = penalty[1][:, free]
+    return XtX, XtX + Pf.T @ Pf
+
+
 def covariance_and_factor(J: np.ndarray, r: np.ndarray, free: np.ndarray,
                           sigma: float | None = None,
-                          penalty: tuple[np.ndarray, np.ndarray] | None = None
+                          penalty: tuple[np.ndarray, np.ndarray] | None = None,
+                          normal: np.ndarray | None = None
                           ) -> tuple[np.ndarray, float, np.ndarray]:
     """:func:`covariance`, and M (m, m) with ``M Mᵀ`` the free block of the covariance over
-    sigma², from the same factorisation (see :attr:`Fit.hat_factor`)."""
+    sigma², from the same factorisation (see :attr:`Fit.hat_factor`). ``normal``: the
+    normal matrix over the free parameters, penalty included (:func:`normal_matrix`),
+    when the caller has it (the same covariance to rounding)."""
     p = J.shape[-1]
-    Jf = J[:, :, free].reshape(-1, int(free.sum()))
-    m = Jf.shape[1]
-    dof = max(Jf.shape[0] - m, 1)
+    m = int(free.sum())
+    dof = max(J.shape[0] * J.shape[1] - m, 1)
     s2 = sigma**2 if sigma is not None else float(np.sum(r**2)) / dof
-    if penalty is not None:
-        Jf = np.vstack([Jf, penalty[1][:, free]])
     cov = np.zeros((p, p))
     M = np.zeros((m, m))
-    if m:
+    if m and normal is not None:
+        d = np.sqrt(np.diag(normal))
+        d[d == 0] = 1.0
+        A = normal / np.outer(d, d)
+    elif m:
+        Jf = J[:, :, free].reshape(-1, m)
+        if penalty is not None:
+            Jf = np.vstack([Jf, penalty[1][:, free]])
         d = np.linalg.norm(Jf, axis=0)
         d[d == 0] = 1.0
         Jd = Jf / d
         A = Jd.T @ Jd  # one operand twice: a symmetric rank-k update
+    if m:
         try:
             U = cholesky_upper(A)
             # A = Uᵀ U, so A⁻¹ = U⁻¹ U⁻ᵀ: one triangular inverse for both
@@ -246,7 +278,8 @@ def _structural(error_model: ErrorModel, calib: Dataset, rtol: float) -> tuple[
     bound: Bound = error_model.bind(calib)
     x_nominal = error_model.initial(bound)
     P0, J0 = error_model.evaluate(x_nominal, bound, jacobian=True)
-    families = [error_model.effect_of(k).family for k in range(error_model.n_params)]
+    families = [e.family for e, sl in zip(error_model.effects, error_model.slices, strict=True)
+                for _ in range(sl.start, sl.stop)]
     J2 = J0.reshape(-1, error_model.n_params)
     rows = full_pose.structural_rows(error_model, bound, x_nominal)
     if rows is not None:  # a full-pose problem: what orientations determine too
@@ -285,6 +318,8 @@ def identify(
     fixed: list[str] | None = None,
     solver_options: dict[str, Any] | None = None,
     outliers: str = "exclude",
+    keep_jacobian: bool = False,
+    structure: tuple[np.ndarray, Identifiability] | None = None,
 ) -> Fit:
     """Identify the parameters of ``error_model`` from ``data``.
 
@@ -306,6 +341,12 @@ def identify(
         (blunders) are left out and the model refitted until the set settles; ``flag``:
         every point is fitted, the blunders only named; ``keep``: no test (see
         :mod:`calibration.fit.outliers`). The result's ``outliers`` says what was found.
+    keep_jacobian : keep the solver's last Jacobian as the result's ``jacobian`` (for a
+        caller that linearises the fit next, e.g. its held-out folds; it then drops it),
+        with the normal matrix and the structural analysis (``normal``, ``structure``)
+    structure : the ``structure`` of a fit of this model to these data: the structural
+        identifiability is not analysed again (it depends on neither the start nor a
+        table's smoothing)
 
     Non-convergence is reported in the result (``converged``, ``reason``), not raised.
     """
@@ -315,13 +356,20 @@ def identify(
         raise ValueError(f"outliers must be one of {', '.join(OUTLIER_MODES)}, not {outliers!r}")
     keep_freed_memory()
     with blas_threads(3 * data.n * error_model.n_params):
-        return _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
-                         outliers)
+        fit = _identify(error_model, data, solver, valid, x0, rtol, fixed, solver_options,
+                        outliers, keep_jacobian, structure)
+    if not keep_jacobian and outliers != "keep":  # kept for the blunder test's refits
+        fit.jacobian = None
+    if not keep_jacobian:
+        fit.normal = fit.structure = None
+    return fit
 
 
 def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Dataset | None,
               x0: np.ndarray | None, rtol: float, fixed: list[str] | None,
-              solver_options: dict[str, Any] | None, outliers: str) -> Fit:
+              solver_options: dict[str, Any] | None, outliers: str,
+              keep_jacobian: bool = False,
+              structure: tuple[np.ndarray, Identifiability] | None = None) -> Fit:
     """:func:`identify` (its arguments, positionally)."""
     t0 = time.perf_counter()
     data = error_model.prepare(data)
@@ -340,7 +388,14 @@ def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Datase
         held = valid if held is None else held.concat(valid)
     if calib.n == 0:
         raise ValueError(f"{data.source}: no calibration rows")
-    bound, x_nominal, ident, at_nominal = _structural(error_model, calib, rtol)
+    at_nominal = None
+    if structure is not None:  # the same model's on the same rows (see identify)
+        bound = error_model.bind(calib)
+        x_nominal, ident = structure[0].copy(), copy.deepcopy(structure[1])
+    else:
+        bound, x_nominal, ident, at_nominal = _structural(error_model, calib, rtol)
+    if keep_jacobian:
+        structure = (x_nominal.copy(), copy.deepcopy(ident))
     x_start = x_nominal if x0 is None else np.asarray(x0, float).copy()
     for name in fixed or []:
         k = error_model.index(name)
@@ -349,7 +404,8 @@ def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Datase
             ident.fixed[name] = "fixed by the user"
     problem = Problem(error_model, bound, x_start, ident.free.copy(),
                       pose=full_pose.orientation_rows(error_model, calib, solver))
-    problem.remember(x_nominal, *at_nominal)
+    if at_nominal is not None:
+        problem.remember(x_nominal, *at_nominal)
     result = full_pose.solve(problem, SOLVERS[solver], solver_options or {})
     x = problem.full(result.xf)
     P, J = problem.evaluate(x)  # the solver's last evaluation: no new pass
@@ -358,7 +414,13 @@ def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Datase
     r_w = resid if weights is None else resid * np.sqrt(weights)[:, None]
     J_w = J if weights is None else J * np.sqrt(weights)[:, None, None]
     r_w, J_w = full_pose.with_orientation_rows(problem, x, r_w, J_w)
-    cov, sigma, hat = covariance_and_factor(J_w, r_w, ident.free, penalty=error_model.penalty(x))
+    penalty = error_model.penalty(x)
+    normal = None
+    if keep_jacobian and J_w is J and ident.free.any():
+        # the normal matrix the caller's linearisation forms (its folds), once for both
+        normal = normal_matrix(J, ident.free, penalty)
+    cov, sigma, hat = covariance_and_factor(J_w, r_w, ident.free, penalty=penalty,
+                                            normal=None if normal is None else normal[1])
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     fit = Fit(
         error_model=error_model,
@@ -378,6 +440,7 @@ def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Datase
         info=result.info,
         hat_factor=hat,
         jacobian=J,
+        normal=normal,
     )
     for e, st in zip(error_model.effects, bound.states, strict=True):
         fit.notes.extend(e.describe(st))
@@ -388,10 +451,12 @@ def _identify(error_model: ErrorModel, data: Dataset, solver: str, valid: Datase
     if outliers != "keep":
         def refit(rows: Dataset, x: np.ndarray) -> Fit:
             return identify(error_model, rows, solver, valid=held, x0=x, rtol=rtol,
-                            fixed=fixed, solver_options=solver_options, outliers="keep")
+                            fixed=fixed, solver_options=solver_options, outliers="keep",
+                            keep_jacobian=keep_jacobian)
 
         fit = screen_fit(fit, outliers, refit)
-        fit.jacobian = None
+    if keep_jacobian:
+        fit.structure = structure
     fit.solve_s = time.perf_counter() - t0
     return fit
 

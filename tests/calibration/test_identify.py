@@ -150,3 +150,46 @@ def test_the_solver_reuses_the_nominal_evaluation_and_identify_its_last(monkeypa
     fit = identify(em, data, outliers="keep")
     # the nominal point (identifiability and the solver's start), then one per iteration
     assert sum(calls) == 1 + fit.iterations
+
+
+def test_a_kept_normal_matrix_is_the_folds_and_gives_the_same_covariance():
+    # identify(keep_jacobian=True) forms the normal matrix once for the covariance and the
+    # held-out folds that follow: the folds' own numbers, the covariance to rounding
+    from calibration.diagnosis.screening import linear_problem
+    from calibration.fit.simulate import realistic_truth as truth
+
+    m = load_model("ur10e")
+    em = ErrorModel(m, "geometric,base,tool,table:2")
+    rng = np.random.default_rng(4)
+    data = simulate(em, truth(em, rng), random_joints(m, 300, rng, max_abs_deg=150), SIGMA,
+                    rng)
+    plain = identify(em, data)
+    kept = identify(em, data, keep_jacobian=True)
+    assert plain.normal is None and kept.normal is not None and kept.jacobian is not None
+    XtX, A = kept.normal
+    kept.normal = None  # the folds' own products, formed anew
+    lp = linear_problem(kept)
+    assert np.array_equal(lp.XtX, XtX) and np.array_equal(lp.A, A)
+    np.testing.assert_allclose(kept.covariance, plain.covariance, rtol=1e-8,
+                               atol=1e-12 * np.abs(plain.covariance).max())
+
+
+def test_a_refit_given_the_structure_is_the_refit_that_analyses_it():
+    # identify(structure=...) skips the structural analysis of a model it was given for
+    # these data (the auto loop's refit after re-tuning the tables): the same fit
+    from calibration.fit.simulate import realistic_truth as truth
+
+    m = load_model("ur10e")
+    em = ErrorModel(m, "geometric,base,tool,table:2")
+    rng = np.random.default_rng(8)
+    data = simulate(em, truth(em, rng), random_joints(m, 300, rng, max_abs_deg=150), SIGMA,
+                    rng)
+    first = identify(em, data, keep_jacobian=True)
+    assert first.structure is not None and identify(em, data).structure is None
+    em.effects[-1].smoothing *= 10.0
+    again = identify(em, data, x0=first.values)
+    reused = identify(em, data, x0=first.values, structure=first.structure)
+    assert np.array_equal(reused.values, again.values)
+    assert np.array_equal(reused.identifiability.free, again.identifiability.free)
+    assert reused.identifiability.fixed == again.identifiability.fixed
+    assert reused.notes == again.notes

@@ -72,3 +72,14 @@ def test_chi3_quantile_and_tail_match_scipy():
     for bad in (0.0, 1.0, -1.0, float("nan")):
         with pytest.raises(ValueError):
             chi3_isf(bad)
+
+
+@pytest.mark.parametrize("n", [97, 150, 401])
+def test_large_triangular_matrices_invert_in_halves(n):
+    rng = np.random.default_rng(n)
+    B = rng.standard_normal((n + 20, n))
+    U = cholesky_upper(B.T @ B)
+    for T in (U, U.T):
+        np.testing.assert_allclose(triangular_inverse(T) @ T, np.eye(n), atol=1e-9)
+        Ti = triangular_inverse(T)
+        assert not (np.tril(Ti, -1) if T is U else np.triu(Ti, 1)).any()

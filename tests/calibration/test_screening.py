@@ -8,7 +8,14 @@ import pytest
 from calibration import ErrorModel, identify, load_model
 from calibration.diagnosis.screening import _loo, data_gap_deg, kfold_errors, linearise, screen
 from calibration.effects import parse_effect
-from calibration.effects.table import Table, gcv_smoothing, penalised_path
+from calibration.effects.table import (
+    MIN_KNOT_POSES,
+    MIN_KNOT_SHARE,
+    Table,
+    _low_rank_path,
+    gcv_smoothing,
+    penalised_path,
+)
 from calibration.exports.params_io import fit_to_dict, params_from_dict
 from calibration.fit.identify import fit_at
 from calibration.fit.simulate import random_joints, realistic_truth, simulate
@@ -153,3 +160,44 @@ def test_gcv_smoothing_reports_a_change_and_a_curve():
     assert table.smoothing < 1e4 and len(table.cv_curve) == 25
     refit = identify(em, data, x0=fit.values)
     assert refit.valid["rms_mm"] < fit.valid["rms_mm"]
+
+
+def test_low_rank_path_matches_the_general_one():
+    # gcv_smoothing's path for one table among others (penalties of low rank) against
+    # penalised_path on the same problem: rss, edf and GCV to rounding, the same choice
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(300, 40))
+    y = X @ rng.normal(size=40) + rng.normal(size=300)
+    Q, b = X.T @ X, X.T @ y
+    F1, F2 = np.zeros((8, 40)), np.zeros((6, 40))
+    F1[:, 10:20] = 3.0 * Table(UR10E, 2, 10)._D2[:8, :10]
+    F2[:, 25:33] = 2.0 * Table(UR10E, 3, 10)._D2[:6, :8]
+    N0 = Q + 0.7 * (F2.T @ F2)
+    grid = np.logspace(-6, 6, 25)
+    ref = penalised_path(N0, b, b, Q, float(y @ y), F1.T @ F1, grid, 300)
+    low = _low_rank_path(N0, b, Q, float(y @ y), F1.T @ F1, F1, [(0.7, F2)], grid, 300)
+    assert low is not None and low["best"] == ref["best"]
+    for key in ("rss", "edf", "gcv"):
+        np.testing.assert_allclose(low[key], ref[key], rtol=1e-9)
+
+
+def test_knot_support_sums_the_basis_columns_exactly():
+    # knot_support sums each pose's two hat weights without forming basis(): the same sums
+    rng = np.random.default_rng(5)
+    for spacing, n in ((2, 40), (3, 500), (10, 5000)):
+        t = Table(UR10E, 2, spacing, knots_deg=np.arange(-60, 61, spacing))
+        theta = rng.uniform(np.radians(-70), np.radians(70), n)
+        B = t.basis(theta)
+        w, count = B.sum(axis=0), (B > 1e-12).sum(axis=0)
+        ref = (w >= MIN_KNOT_SHARE * np.median(w[w > 0])) & (count >= MIN_KNOT_POSES)
+        np.testing.assert_array_equal(t.knot_support(theta), ref)
+
+
+def test_knot_support_remembers_its_answers_without_sharing_them():
+    t = Table(UR10E, 2, 5, knots_deg=np.arange(-60, 61, 5))
+    theta = np.random.default_rng(6).uniform(np.radians(-50), np.radians(50), 300)
+    first = t.knot_support(theta)
+    first[:] = False  # the caller's copy
+    again = t.knot_support(theta)
+    np.testing.assert_array_equal(again, t._knot_support(theta))
+    assert again.any()
