@@ -47,6 +47,25 @@ def _drivers_error():
     return drivers.errors.ProtectiveStop("robot sim://", "moveJ", "protective stop")
 
 
+def _models_raising(error, monkeypatch) -> int:
+    """``cellcal models`` whose command raises ``error``: its exit code."""
+    import cellcal.cli
+
+    def fail(args):
+        raise error
+
+    parser = cellcal.cli.build_parser
+
+    def with_fail():
+        p = parser()
+        for action in p._subparsers._group_actions:
+            action.choices["models"].set_defaults(func=fail)
+        return p
+
+    monkeypatch.setattr(cellcal.cli, "build_parser", with_fail)
+    return cellcal.cli.main(["models"])
+
+
 @pytest.mark.parametrize("error, rc, said", [
     (UsageError("--floor-z-mm: not a number"), 2, "error"),
     (calibration.errors.DataError("a.csv:3: column q1: not a number"), 2, "error"),
@@ -64,21 +83,7 @@ def _drivers_error():
 ])
 def test_the_command_line_maps_each_family_by_its_exit_code(error, rc, said, monkeypatch,
                                                            capsys):
-    import cellcal.cli
-
-    def fail(args):
-        raise error
-
-    parser = cellcal.cli.build_parser
-
-    def with_fail():
-        p = parser()
-        for action in p._subparsers._group_actions:
-            action.choices["models"].set_defaults(func=fail)
-        return p
-
-    monkeypatch.setattr(cellcal.cli, "build_parser", with_fail)
-    assert cellcal.cli.main(["models"]) == rc
+    assert _models_raising(error, monkeypatch) == rc
     err = capsys.readouterr().err
     expected = ("cellcal models: interrupted\n" if said is None
                 else f"cellcal models: {said}: {' '.join(str(error).split())}\n")
@@ -86,21 +91,7 @@ def test_the_command_line_maps_each_family_by_its_exit_code(error, rc, said, mon
 
 
 def test_running_out_of_memory_is_exit_3_and_says_so(monkeypatch, capsys):
-    import cellcal.cli
-
-    def fail(args):
-        raise MemoryError("Unable to allocate 168. GiB")
-
-    parser = cellcal.cli.build_parser
-
-    def with_fail():
-        p = parser()
-        for action in p._subparsers._group_actions:
-            action.choices["models"].set_defaults(func=fail)
-        return p
-
-    monkeypatch.setattr(cellcal.cli, "build_parser", with_fail)
-    assert cellcal.cli.main(["models"]) == 3
+    assert _models_raising(MemoryError("Unable to allocate 168. GiB"), monkeypatch) == 3
     err = capsys.readouterr().err
     assert err.startswith("cellcal models: error: out of memory (Unable to allocate 168. GiB)")
     assert "internal error" not in err and err.count("\n") == 1
