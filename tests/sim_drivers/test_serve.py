@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -17,15 +19,24 @@ from tests.daq.capture_helpers import read_lines
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def test_cellcal_sim_serve_subprocess():
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "cellcal", "sim", "serve", "--model", "toy", "--seed", "3",
-         "--faults", "beam=0", "--port-base", "0", "--no-rtde"],  # 30004 may be free or not
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-    )
+@contextlib.contextmanager
+def _serving(*args: str) -> Iterator[subprocess.Popen]:
+    """``cellcal sim serve ARGS`` as a subprocess, killed if a test leaves it running."""
+    proc = subprocess.Popen([sys.executable, "-m", "cellcal", "sim", "serve", *args], cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        proc.stdout.close()
+        proc.stderr.close()
+
+
+def test_cellcal_sim_serve_subprocess():
+    with _serving("--model", "toy", "--seed", "3", "--faults", "beam=0", "--port-base", "0",
+                  "--no-rtde") as proc:  # 30004 may be free or not
         urls = read_lines(proc, 6, timeout=20.0)
         assert urls[5] == f"export R='{urls[0]}' T='{urls[2]}'"  # ready to paste
         assert urls[0].startswith("modbus+tcp://127.0.0.1:")
@@ -50,12 +61,6 @@ def test_cellcal_sim_serve_subprocess():
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=10) == 0
         assert b"stopped" in proc.stderr.read()
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-        proc.stdout.close()
-        proc.stderr.close()
 
 
 def test_bad_fault_spec_is_a_usage_error():
@@ -102,12 +107,7 @@ def test_stack_rejects_bad_faults():
 def test_sim_serve_ur10e_with_rtde_read_by_the_real_ur_client():
     """The default truth (a UR10e with hidden errors) is also served over RTDE: the real
     ur-rtde receive client sees the joints the Modbus robot was moved to."""
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "cellcal", "sim", "serve", "--seed", "1", "--no-pty", "--port-base",
-         "0"],
-        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-    )
-    try:
+    with _serving("--seed", "1", "--no-pty", "--port-base", "0") as proc:
         urls = read_lines(proc, 4, timeout=20.0)
         while not urls[-1].startswith("export "):  # the RTDE line, if port 30004 was free
             urls += read_lines(proc, 1, timeout=5.0)
@@ -124,12 +124,6 @@ def test_sim_serve_ur10e_with_rtde_read_by_the_real_ur_client():
             assert np.allclose(urrob.read_joints(timeout=2.0).q, target, atol=1e-3)
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=15) == 0
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-        proc.stdout.close()
-        proc.stderr.close()
 
 
 def test_sim_serve_port_in_use_is_an_error_with_a_hint():
@@ -151,11 +145,8 @@ def test_port_base_gives_four_consecutive_ports():
 def test_sim_serve_abb_serves_the_robot_over_rws_too():
     """``--abb``: the same robot as an ABB IRC5, its URL after the emScon tracker's (port
     base + 4); moved over RWS, seen by the Modbus driver."""
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "cellcal", "sim", "serve", "--model", "toy", "--abb",
-         "--no-pty", "--no-rtde", "--port-base", "0"],
-        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    try:
+    with _serving("--model", "toy", "--abb", "--no-pty", "--no-rtde", "--port-base",
+                  "0") as proc:
         urls = read_lines(proc, 6, timeout=20.0)
         assert urls[3].startswith("emscon://") and urls[4].startswith("abb://127.0.0.1:")
         assert urls[4].endswith("?joints=3")
@@ -169,9 +160,3 @@ def test_sim_serve_abb_serves_the_robot_over_rws_too():
             assert np.allclose(rob.read_joints().q, target, atol=1e-4)
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=10) == 0
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-        proc.stdout.close()
-        proc.stderr.close()
